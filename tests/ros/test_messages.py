@@ -1,0 +1,137 @@
+"""messages.py: numpy <-> ROS message round trips and strict rejections (no graph, fast)."""
+import array
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState, PointCloud2
+
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.messages import MessageError
+
+MOTOR = contracts.contract("/body/motor_command").columns
+POV = contracts.contract("/agent/points_of_view").columns
+EVENT = contracts.contract("/environment/event").columns
+
+
+def _wire(msg):
+    """What a subscriber receives: the message after CDR serialisation."""
+    return deserialize_message(serialize_message(msg), type(msg))
+
+
+def test_matrix_round_trip_is_bit_exact_through_cdr():
+    rng = np.random.default_rng(0)
+    motor = rng.normal(size=(257, 4)) * 1e3
+    header = messages.make_header("cmd/7", 123_456_789_012)
+    msg = _wire(messages.matrix_to_cloud(motor, MOTOR, header))
+    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 257, 32, 257 * 32)
+    assert not msg.is_bigendian and msg.is_dense
+    assert [f.name for f in msg.fields] == ["m0", "m1", "m2", "m3"]
+    assert [f.offset for f in msg.fields] == [0, 8, 16, 24]
+    back = messages.cloud_to_matrix(msg, MOTOR)
+    assert back.dtype == np.float64 and np.array_equal(back, motor)
+    assert msg.header.frame_id == "cmd/7" and messages.stamp_ns(msg.header) == 123_456_789_012
+
+
+def test_mixed_type_table_round_trip_packed_layout():
+    table = {"index": np.array([0, 1, 4_000_000_000], dtype=np.uint64),
+             "kind": np.array([0, 1, 0]), "center_x": np.array([-6.0, 0.5, 6.0]),
+             "center_y": np.array([1.0, 2.0, 3.0]), "grid_index": np.array([-1, 0, 3843])}
+    msg = _wire(messages.table_to_cloud(table, EVENT, messages.make_header("change/1")))
+    # uint32 + uint8 + 2 float64 + int32, packed without padding.
+    assert [f.offset for f in msg.fields] == [0, 4, 5, 13, 21] and msg.point_step == 25
+    assert [f.datatype for f in msg.fields] == [6, 2, 8, 8, 5]
+    back = messages.cloud_to_table(msg, EVENT)
+    for name, column in table.items():
+        assert np.array_equal(back[name], column), name
+
+
+def test_empty_table_round_trip():
+    msg = _wire(messages.matrix_to_cloud(np.empty((0, 4)), MOTOR, messages.make_header("cmd/0")))
+    assert messages.cloud_to_matrix(msg, MOTOR).shape == (0, 4)
+
+
+def _valid_pov_cloud():
+    rows = {"pov": np.repeat([0, 1], 3), "sample": np.tile([0, 1, 2], 2),
+            "m0": np.zeros(6), "m1": np.ones(6), "m2": np.arange(6.0), "m3": -np.ones(6)}
+    return messages.table_to_cloud(rows, POV, messages.make_header("change/3"))
+
+
+def _tamper(**changes):
+    msg = _valid_pov_cloud()
+    for key, value in changes.items():
+        if key == "fields":
+            msg.fields = value(msg.fields)
+        else:
+            setattr(msg, key, value)
+    return msg
+
+
+def _renamed(fields):
+    fields[2].name = "x"
+    return fields
+
+
+def _retyped(fields):
+    fields[0].datatype = 5      # INT32 where UINT32 is expected
+    return fields
+
+
+def _shifted(fields):
+    fields[3].offset += 1
+    return fields
+
+
+@pytest.mark.parametrize("bad", [
+    _tamper(fields=_renamed),
+    _tamper(fields=_retyped),
+    _tamper(fields=_shifted),
+    _tamper(fields=lambda f: f[:-1]),
+    _tamper(point_step=48),
+    _tamper(row_step=7),
+    _tamper(width=7),
+    _tamper(height=2),
+    _tamper(is_bigendian=True),
+    _tamper(data=array.array("B", bytes(40 * 6 - 1))),
+], ids=["name", "type", "offset", "missing", "point_step", "row_step", "width", "height",
+        "bigendian", "short_data"])
+def test_layout_mismatch_rejected(bad):
+    assert isinstance(bad, PointCloud2)
+    with pytest.raises(MessageError):
+        messages.cloud_to_table(_wire(bad), POV)
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_non_finite_floats_rejected(value):
+    motor = np.zeros((3, 4))
+    motor[1, 2] = value
+    with pytest.raises(MessageError, match="m2"):
+        messages.cloud_to_matrix(_wire(messages.matrix_to_cloud(
+            motor, MOTOR, messages.make_header("cmd/1"))), MOTOR)
+
+
+def test_message_error_is_a_value_error():
+    assert issubclass(MessageError, ValueError)
+
+
+def test_joint_state_round_trip_and_rejections():
+    motor = np.array([0.1, -1.5, 2.2, -3.0])
+    msg = _wire(messages.motor_to_joint_state(motor, messages.make_header("cmd/2")))
+    assert list(msg.name) == ["joint1", "joint2", "joint3", "joint4"]
+    assert np.array_equal(messages.joint_state_to_motor(msg), motor)
+    bad_names = JointState(name=["joint1", "joint2", "joint3", "elbow"], position=list(motor))
+    short = JointState(name=list(messages.JOINT_NAMES), position=[0.0, 1.0, 2.0])
+    nan = JointState(name=list(messages.JOINT_NAMES), position=[0.0, np.nan, 2.0, 3.0])
+    bad_velocity = JointState(name=list(messages.JOINT_NAMES), position=list(motor), velocity=[1.0])
+    for bad in (bad_names, short, nan, bad_velocity):
+        with pytest.raises(MessageError):
+            messages.joint_state_to_motor(_wire(bad))
+
+
+def test_encode_refuses_wrong_shapes():
+    with pytest.raises(ValueError, match="shape"):
+        messages.matrix_to_cloud(np.zeros((3, 5)), MOTOR, messages.make_header("cmd/0"))
+    with pytest.raises(ValueError, match="lengths"):
+        messages.table_to_cloud({"set": [1, 2], "pov_from": [1], "pov_to": [2, 3]},
+                                contracts.contract("/agent/compensations").columns,
+                                messages.make_header("x"))
