@@ -1,0 +1,196 @@
+"""recorder: every topic of the contract, raw CDR, into a rosbag2 MCAP bag.
+
+Subscriptions are raw (exact bytes as sent, see bags.py) with each topic's
+contract QoS (RELIABLE + KEEP_ALL on data topics, so nothing is dropped).
+Messages are stamped with their receive time, as ``ros2 bag record`` does.
+
+The run's configuration is stored as the bag's first message on
+/session/config: the recorder is started with the same ``--params-file`` as
+every node and declares every parameter it is given, so the bag holds the
+whole configuration (seed included) without help from the launcher.
+
+SIGTERM / Ctrl-C: stop, drain what is already queued, close the bag (summary
++ metadata.yaml). kill -9 loses at most the open chunk (<= chunk_interval_s);
+``sensorispace bag recover`` restores the rest.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from sensorispace_ros import bags, contracts
+
+# the recorder's own and rclpy's built-in parameters; everything else it is given
+# is the run's config
+OWN_PARAMETERS = ("bag_path", "chunk_interval_s", "stats_period_s", "topics", "use_sim_time",
+                  "start_type_description_service")
+
+
+def qos_spec(profile) -> dict:
+    """topics.yaml-style dict of an rclpy QoSProfile (for metadata.yaml)."""
+    return {
+        "history": "keep_all" if profile.history == HistoryPolicy.KEEP_ALL else "keep_last",
+        "depth": int(profile.depth),
+        "reliability": "reliable" if profile.reliability == ReliabilityPolicy.RELIABLE
+        else "best_effort",
+        "durability": "transient_local" if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        else "volatile",
+    }
+
+
+def default_bag_path() -> str:
+    return str(Path("bags") / datetime.now(timezone.utc).strftime("run_%Y%m%d_%H%M%S"))
+
+
+def config_yaml(parameters: dict) -> str:
+    """ROS params-file text (``/**: ros__parameters:``) of dotted parameter values."""
+    from sensorispace_ros import config
+
+    return config.to_parameter_file(config.unflatten(parameters))
+
+
+class Recorder(Node):
+    def __init__(self, **kwargs):
+        super().__init__("recorder", automatically_declare_parameters_from_overrides=True,
+                         **kwargs)
+        bag_path = self._own("bag_path", "") or default_bag_path()
+        chunk_interval_s = float(self._own("chunk_interval_s", bags.DEFAULT_CHUNK_INTERVAL_S))
+        self.stats_period_s = float(self._own("stats_period_s", 5.0))
+        wanted = list(self._own("topics", []) or [])
+        if chunk_interval_s <= 0:
+            raise ValueError(f"chunk_interval_s must be > 0, got {chunk_interval_s}")
+        if self.stats_period_s <= 0:
+            raise ValueError(f"stats_period_s must be > 0, got {self.stats_period_s}")
+
+        available = contracts.load_contracts()
+        unknown = sorted(set(wanted) - set(available))
+        if unknown:
+            raise ValueError(f"topics: {', '.join(unknown)} not in the topic contract")
+        self.contracts = {name: c for name, c in available.items() if not wanted or name in wanted}
+
+        run_config = {
+            name: (list(p.value) if isinstance(p.value, (list, tuple)) or hasattr(p.value, "tolist")
+                   else p.value)
+            for name, p in self._parameters.items() if name not in OWN_PARAMETERS
+        }
+        topics = {name: c.type_name for name, c in self.contracts.items()}
+        qos = {name: qos_spec(c.qos) for name, c in self.contracts.items()}
+        if run_config:
+            topics[bags.SESSION_CONFIG_TOPIC] = bags.SESSION_CONFIG_TYPE
+        self.writer = bags.BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s)
+        if run_config:
+            self.writer.write(bags.SESSION_CONFIG_TOPIC, time.time_ns(),
+                              bags.session_config_cdr(config_yaml(run_config)))
+            self.writer.flush_chunk()
+        else:
+            self.get_logger().warning(
+                "started without a params file: the bag will hold no /session/config, "
+                "so `sensorispace analyze` cannot rebuild this run")
+
+        self.received = 0
+        self._window_start, self._window_count = time.monotonic(), 0
+        self.first_message_at: float | None = None
+        self.last_message_at: float | None = None
+        for name, contract in self.contracts.items():
+            self.create_subscription(contract.msg_type, name, self._writer_for(name),
+                                     contract.qos, raw=True)
+        # an idle graph still gets its last chunk onto disk within chunk_interval_s
+        self.create_timer(min(0.25, chunk_interval_s), self.writer.flush_if_due)
+        self.create_timer(self.stats_period_s, self._log_rate)
+        self.get_logger().info(f"recording {len(self.contracts)} topics into {bag_path}")
+
+    def _own(self, name, default):
+        if self.has_parameter(name):
+            return self.get_parameter(name).value
+        return self.declare_parameter(name, default).value
+
+    def _writer_for(self, topic: str):
+        def record(cdr: bytes, info=None) -> None:
+            received = (info or {}).get("received_timestamp") or time.time_ns()
+            self.writer.write(topic, received, cdr)
+            self.received += 1
+            self._window_count += 1
+            now = time.monotonic()
+            self.last_message_at = now
+            if self.first_message_at is None:
+                self.first_message_at = now
+        return record
+
+    def _log_rate(self) -> None:
+        now = time.monotonic()
+        rate = self._window_count / (now - self._window_start)
+        self._window_start, self._window_count = now, 0
+        if rate:
+            self.get_logger().info(f"{rate:.0f} msgs/s, {self.received} recorded")
+
+    def sustained_rate(self) -> float:
+        """Messages per second between the first and the last received message."""
+        if self.first_message_at is None or self.last_message_at == self.first_message_at:
+            return 0.0
+        return self.received / (self.last_message_at - self.first_message_at)
+
+    def close(self) -> None:
+        if self.writer.closed:
+            return
+        self.writer.close()
+        counts = ", ".join(f"{t} {n}" for t, n in sorted(self.writer.counts.items()))
+        self.get_logger().info(
+            f"bag {self.writer.path} closed: {self.received} messages "
+            f"({self.sustained_rate():.0f} msgs/s sustained); {counts}")
+
+
+def drain(executor, recorder: Recorder, quiet_s: float = 0.3, limit_s: float = 5.0) -> None:
+    """Take what the middleware already queued before closing (no drops at shutdown)."""
+    deadline = time.monotonic() + limit_s
+    quiet_since = time.monotonic()
+    while time.monotonic() < deadline:
+        before = recorder.received
+        executor.spin_once(timeout_sec=0.05)
+        if recorder.received != before:
+            quiet_since = time.monotonic()
+        elif time.monotonic() - quiet_since > quiet_s:
+            return
+
+
+def main(args=None) -> int:
+    stop = []
+
+    def request_stop(signum, frame):
+        stop.append(signum)
+
+    # Own handlers instead of rclpy's: rclpy's would shut the context down at once,
+    # discarding messages still queued; we drain them first.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, request_stop)
+    signal.signal(signal.SIGINT, request_stop)
+    recorder = None
+    try:
+        try:
+            recorder = Recorder()
+        except (ValueError, bags.BagError) as exc:
+            print(f"recorder: {exc}", file=sys.stderr)
+            return 2
+        executor = SingleThreadedExecutor()
+        executor.add_node(recorder)
+        while not stop:
+            executor.spin_once(timeout_sec=0.1)
+        drain(executor, recorder)
+        return 0
+    finally:
+        if recorder is not None:
+            recorder.close()
+            recorder.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
