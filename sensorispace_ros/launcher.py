@@ -1,0 +1,398 @@
+"""``sensorispace launch``: the whole graph, one process per node.
+
+No ros2 launch here (no launch/launch_ros wheels exist, ROS_NOTES.md):
+children are ``python -m sensorispace_ros.nodes.<name> --ros-args
+--params-file CONFIG``, started in their own session so a terminal Ctrl-C
+reaches only the launcher, which then stops them by PID (SIGTERM, SIGKILL
+after a grace period). Discovery is localhost-only and the domain id is
+private unless the user says otherwise. A monitor node in this process
+follows ``/agent/settled`` to show progress. At the end the run is
+evaluated (ground truth joined here, as the evaluator, never in the agent
+or the representation): from the bag if one was recorded, otherwise from
+the representation node's arrays.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+GRAPH_NODES = ("environment", "body", "agent", "representation")
+RECORDER = "recorder"
+GRACE_S = 5.0
+# Fast DDS binds the unicast metatraffic port 7410 + 250 * domain for the first
+# participant of a domain (RTPS port mapping): a bound port = domain in use.
+_RTPS_PORT_BASE, _RTPS_DOMAIN_GAIN = 7410, 250
+
+
+def default_config() -> Path:
+    here = Path(__file__).resolve().parent
+    for candidate in (here.parent / "config" / "paper.yaml",
+                      Path(sys.prefix) / "share" / "sensorispace_ros" / "config" / "paper.yaml"):
+        if candidate.is_file():
+            return candidate
+    return Path("config/paper.yaml")
+
+
+def free_domain_id(start: int | None = None) -> int:
+    """A ROS_DOMAIN_ID in 1..100 no participant on this host uses yet."""
+    start = (os.getpid() % 100) + 1 if start is None else start
+    for offset in range(100):
+        domain = (start - 1 + offset) % 100 + 1
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", _RTPS_PORT_BASE + _RTPS_DOMAIN_GAIN * domain))
+            except OSError:
+                continue
+        return domain
+    raise RuntimeError("no free ROS_DOMAIN_ID in 1..100")
+
+
+def graph_environment(domain_id: int, base: dict | None = None) -> dict:
+    env = dict(os.environ if base is None else base)
+    # Localhost-only discovery unless the user chose a range explicitly.
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    package_root = str(Path(__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+def node_command(name: str, config_path: Path, parameters: dict) -> list[str]:
+    command = [sys.executable, "-m", f"sensorispace_ros.nodes.{name}", "--ros-args",
+               "--params-file", str(config_path)]
+    for key, value in parameters.items():
+        if isinstance(value, (list, tuple)):
+            value = "[" + ",".join(str(v) for v in value) + "]"
+        elif isinstance(value, bool):
+            value = str(value).lower()
+        command += ["-p", f"{key}:={value}"]
+    return command
+
+
+@dataclass
+class LaunchResult:
+    exit_code: int
+    run: str
+    results_dir: Path
+    domain_id: int
+    failed_node: str | None = None
+    wall_s: float = 0.0
+    metrics: dict | None = None
+    message: str = ""
+    pids: dict = field(default_factory=dict)
+
+
+class Graph:
+    """The child processes of one run, stopped by PID."""
+
+    def __init__(self, env: dict, log_dir: Path):
+        self.env = env
+        self.log_dir = log_dir
+        self.children: dict[str, subprocess.Popen] = {}
+        self._logs = []
+
+    def start(self, name: str, command: list[str]) -> None:
+        log = open(self.log_dir / f"{name}.log", "wb")
+        self._logs.append(log)
+        self.children[name] = subprocess.Popen(command, env=self.env, stdout=log,
+                                               stderr=subprocess.STDOUT, start_new_session=True)
+
+    def exited(self) -> dict[str, int]:
+        return {name: p.returncode for name, p in self.children.items() if p.poll() is not None}
+
+    def stop(self, grace_s: float = GRACE_S) -> None:
+        for proc in self.children.values():
+            if proc.poll() is None:
+                os.kill(proc.pid, signal.SIGTERM)
+        deadline = time.monotonic() + grace_s
+        for proc in self.children.values():
+            try:
+                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                os.kill(proc.pid, signal.SIGKILL)
+                proc.wait()
+        for log in self._logs:
+            log.close()
+
+
+class Monitor:
+    """Follows /agent/settled in this process to show the run's progress."""
+
+    def __init__(self, domain_id: int, total_changes: int, stream):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        from . import contracts
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("launch_monitor", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        contracts.create_subscription(self.node, "/agent/settled", self.on_settled)
+        self.total = total_changes
+        self.settled = -1
+        self.stream = stream
+        self.started = time.monotonic()
+        self._last_print = 0.0
+
+    def on_settled(self, msg) -> None:
+        self.settled = int(msg.data)
+        now = time.monotonic()
+        if now - self._last_print >= 2.0 or self.settled > self.total:
+            self._last_print = now
+            done = min(self.settled, self.total)
+            elapsed = now - self.started
+            print(f"[launch] change {done}/{self.total} ({100.0 * done / max(self.total, 1):.0f} %)"
+                  f" after {elapsed:.1f} s", file=self.stream, flush=True)
+
+    def spin_once(self, timeout_s: float) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+def launch_graph(config_path: str | Path | None = None, run: str | None = None,
+                 domain_id: int | None = None, record: bool = True,
+                 results_root: str | Path = "results", bags_root: str | Path = "bags",
+                 timeout_s: float | None = None, stream=None, on_started=None) -> LaunchResult:
+    """Start every node as a process, follow the run, stop the children, evaluate.
+
+    ``on_started(graph)`` is called once every child runs (tests use it to
+    kill one). Returns a LaunchResult; ``exit_code`` is non-zero and
+    ``failed_node`` names the node if one dies.
+    """
+    from . import config
+    from .nodes import build_world
+    stream = sys.stderr if stream is None else stream
+    config_path = Path(config_path) if config_path else default_config()
+    cfg = config.load_config(config_path)
+    run = run or time.strftime(f"graph-seed{cfg['seed']}-%Y%m%d-%H%M%S")
+    results_dir = Path(results_root) / run
+    log_dir = results_dir / "logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    domain_id = free_domain_id() if domain_id is None else int(domain_id)
+    env = graph_environment(domain_id)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+    total = len(build_world(cfg).events) + 1
+    has_recorder = record and importlib.util.find_spec(
+        f"sensorispace_ros.nodes.{RECORDER}") is not None
+    bag_dir = Path(bags_root) / run
+    print(f"[launch] run {run}: ROS_DOMAIN_ID={domain_id}, discovery "
+          f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']}, config {config_path}, logs {log_dir}"
+          + (f", bag {bag_dir}" if has_recorder else ", not recording"), file=stream, flush=True)
+
+    nodes = list(GRAPH_NODES) + ([RECORDER] if has_recorder else [])
+    graph = Graph(env, log_dir)
+    monitor = Monitor(domain_id, total, stream)
+    result = LaunchResult(1, run, results_dir, domain_id)
+    stop_requested = []
+    previous = {sig: signal.signal(sig, lambda signum, _: stop_requested.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    started = time.monotonic()
+    try:
+        for name in nodes:
+            parameters = {"graph.results_dir": str(results_dir)}
+            if name == "environment":
+                parameters["graph.wait_for_nodes"] = [n for n in nodes if n != "environment"]
+            if name == "representation":
+                parameters["graph.exit_when_done"] = True
+            if name == RECORDER:
+                parameters = {"graph.bag_dir": str(bag_dir)}
+            graph.start(name, node_command(name, config_path, parameters))
+        result.pids = {name: p.pid for name, p in graph.children.items()}
+        if on_started is not None:
+            on_started(graph)
+        while True:
+            monitor.spin_once(0.1)
+            if stop_requested:
+                result.exit_code, result.message = 130, "interrupted; children stopped"
+                break
+            exited = graph.exited()
+            if exited.get("representation") == 0 and len(exited) == 1:
+                result.exit_code = 0
+                break
+            dead = {n: c for n, c in exited.items() if not (n == "representation" and c == 0)}
+            if dead:
+                name, code = next(iter(dead.items()))
+                result.failed_node = name
+                result.exit_code = 1
+                result.message = (f"node '{name}' died (exit code {code}); "
+                                  f"see {log_dir / (name + '.log')}")
+                break
+            if timeout_s is not None and time.monotonic() - started > timeout_s:
+                result.message = f"timed out after {timeout_s:.0f} s"
+                break
+    finally:
+        graph.stop()
+        monitor.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    result.wall_s = time.monotonic() - started
+    print(f"[launch] graph {'finished' if result.exit_code == 0 else 'stopped'} after "
+          f"{result.wall_s:.1f} s" + (f": {result.message}" if result.message else ""),
+          file=stream, flush=True)
+    if result.exit_code == 0:
+        result.metrics = evaluate_run(cfg, results_dir, bag_dir if has_recorder else None, stream)
+    return result
+
+
+def evaluate_run(cfg: dict, results_dir: Path, bag_dir: Path | None, stream) -> dict:
+    """metrics.json + figures of a finished run, ground truth joined here."""
+    if bag_dir is not None and (bag_dir / "metadata.yaml").is_file():
+        from . import analyze
+        metrics = analyze.analyze_bag(bag_dir, results_dir, cfg)
+    else:
+        from . import pipeline
+        from .nodes.representation import RESULT_FILE
+        arrays = dict(__import__("numpy").load(results_dir / RESULT_FILE))
+        metrics = pipeline.evaluate_graph_run(arrays, cfg, results_dir)
+    (results_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
+    print_summary(metrics, results_dir, stream)
+    return metrics
+
+
+def print_summary(metrics: dict, results_dir: Path, stream) -> None:
+    def get(path):
+        node = metrics
+        for part in path.split("."):
+            if not isinstance(node, dict) or part not in node:
+                return None
+            node = node[part]
+        return node
+    print(f"[launch] results in {results_dir}", file=stream)
+    for key in ("exploration.compensated", "pov.count", "naive.coverage", "naive.wrong_poses",
+                "quality.2d.after.affine_residual", "quality.2d.after.trustworthiness",
+                "reaching.2d.after.straightness_median", "timings_s.total"):
+        value = get(key)
+        if value is not None:
+            print(f"  {key:40s} {value}", file=stream)
+    stream.flush()
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "launch", help="run the naive agent as a ROS 2 node graph (one process per node)",
+        description="Start environment, body, agent, representation (and the recorder) as "
+                    "separate processes with localhost-only discovery and a private domain id, "
+                    "follow the run, then write results/<run>/metrics.json and figures.")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="ROS parameter file (default: config/paper.yaml)")
+    parser.add_argument("--run", default=None, help="run name (default: graph-seed<S>-<time>)")
+    parser.add_argument("--domain-id", type=int, default=None,
+                        help="ROS_DOMAIN_ID (default: a free one in 1..100, printed)")
+    parser.add_argument("--no-record", action="store_true", help="do not start the recorder")
+    parser.add_argument("--results", type=Path, default=Path("results"),
+                        help="results root (default: results)")
+    parser.add_argument("--timeout", type=float, default=None, help="give up after this many s")
+    parser.set_defaults(func=run)
+    return parser
+
+
+def run(args) -> int:
+    from .config import ConfigError
+    try:
+        result = launch_graph(args.config, args.run, args.domain_id, record=not args.no_record,
+                              results_root=args.results, timeout_s=args.timeout)
+    except ConfigError as exc:
+        print(f"sensorispace launch: invalid configuration: {exc}", file=sys.stderr)
+        return 2
+    if result.exit_code:
+        print(f"sensorispace launch: {result.message}", file=sys.stderr)
+    return result.exit_code
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="sensorispace")
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+def parameter_overrides(config_path: str | Path, graph: dict | None = None) -> list:
+    """The parameter file (and ``graph.*`` values) as rclpy Parameters, for in-process nodes."""
+    from rclpy.parameter import Parameter
+
+    from . import config
+    flat = config.flatten(config.read_parameter_file(config_path))
+    flat.update(graph or {})
+    return [Parameter(name, value=value) for name, value in flat.items()]
+
+
+def run_graph_in_process(config_path: str | Path, domain_id: int, results_dir: str | Path,
+                         extra_nodes=(), timeout_s: float = 600.0, on_spin=None) -> dict:
+    """All four nodes in this process on one SingleThreadedExecutor and a private Context.
+
+    ``extra_nodes``: callables ``context -> Node`` added to the same executor
+    (tests add observers or hostile publishers). ``on_spin(nodes)`` is called
+    after every spin. Returns ``{"nodes": {...}, "wall_s": ...}`` once the
+    representation is written; raises TimeoutError otherwise.
+    """
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from .nodes.agent import AgentNode
+    from .nodes.body import BodyNode
+    from .nodes.environment import EnvironmentNode
+    from .nodes.representation import RepresentationNode
+
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    context = Context()
+    rclpy.init(context=context, domain_id=int(domain_id),
+               signal_handler_options=SignalHandlerOptions.NO)
+    overrides = parameter_overrides(config_path, {"graph.results_dir": str(results_dir),
+                                                  "graph.resend_period_s": 0.5})
+    nodes: dict = {}
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        for name, make in (("representation", RepresentationNode), ("body", BodyNode),
+                           ("agent", AgentNode), ("environment", EnvironmentNode)):
+            nodes[name] = make(context=context, parameter_overrides=overrides)
+            executor.add_node(nodes[name])
+        for k, make in enumerate(extra_nodes):
+            nodes[f"extra{k}"] = make(context)
+            executor.add_node(nodes[f"extra{k}"])
+        for node in nodes.values():
+            node.spin_once = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)
+        started = time.monotonic()
+        while nodes["representation"].result is None:
+            if nodes["agent"].finished or nodes["representation"].finished:
+                raise RuntimeError("a node failed; see its log")
+            if time.monotonic() - started > timeout_s:
+                raise TimeoutError(f"graph did not finish within {timeout_s} s")
+            executor.spin_once(timeout_sec=0.1)
+            for node in nodes.values():
+                step = getattr(node, "step", None)
+                if step is not None:
+                    step()
+            if on_spin is not None:
+                on_spin(nodes)
+        return {"nodes": nodes, "wall_s": time.monotonic() - started}
+    finally:
+        if "agent" in nodes:
+            nodes["agent"].abort()      # unblocks the agent's worker if it still waits
+        executor.shutdown()
+        for node in nodes.values():
+            node.destroy_node()
+        context.try_shutdown()

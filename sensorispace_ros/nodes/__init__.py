@@ -1,0 +1,144 @@
+"""The executables of the graph: one thin rclpy node per module.
+
+What they share lives here: reading the run configuration from ROS
+parameters (``--ros-args --params-file config/paper.yaml``), the protocol
+frame ids of msg_schemas/topics.yaml, logging-and-dropping of malformed
+messages, and a ``main`` that exits cleanly on SIGTERM / Ctrl-C and stops
+with the parameter's name (no traceback) on an invalid configuration.
+"""
+from __future__ import annotations
+
+import array
+import sys
+from typing import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from .. import config
+
+# Parameters of the graph itself (not of the science): results directory,
+# start-up handshake. Kept apart from the validated run configuration.
+GRAPH_PREFIX = "graph."
+GRAPH_DEFAULTS = {
+    "graph.results_dir": "results/graph",
+    "graph.resend_period_s": 1.0,
+    "graph.wait_for_nodes": ["body", "agent"],
+    "graph.exit_when_done": False,
+}
+# Parameters every rclpy node has; not part of the run configuration.
+_ROS_OWN = {"use_sim_time", "start_type_description_service"}
+
+
+def frame(kind: str, number: int) -> str:
+    """Protocol frame id: ``change/<k>``, ``end/<k>``, ``cmd/<n>`` (topics.yaml)."""
+    return f"{kind}/{int(number)}"
+
+
+def parse_frame(frame_id: str) -> tuple[str, int] | None:
+    kind, _, number = frame_id.partition("/")
+    if kind not in ("change", "end", "cmd") or not number.isdigit():
+        return None
+    return kind, int(number)
+
+
+class GraphNode(Node):
+    """A node whose parameters are the run configuration (plus ``graph.*``).
+
+    Parameters are declared from the parameter file
+    (``automatically_declare_parameters_from_overrides``) so that the open
+    ``naive.*`` section and every typo reach ``config.validate_config``,
+    which names the bad parameter.
+    """
+
+    def __init__(self, name: str, *, context=None, parameter_overrides=None):
+        super().__init__(name, context=context, parameter_overrides=parameter_overrides,
+                         allow_undeclared_parameters=False,
+                         automatically_declare_parameters_from_overrides=True,
+                         start_parameter_services=False)
+        flat, graph = {}, dict(GRAPH_DEFAULTS)
+        for pname, param in self.get_parameters_by_prefix("").items():
+            if pname in _ROS_OWN or pname.startswith("qos_overrides."):
+                continue
+            value = param.value
+            if isinstance(value, array.array):
+                value = value.tolist()
+            elif isinstance(value, (list, tuple)):
+                value = list(value)
+            if pname.startswith(GRAPH_PREFIX):
+                if pname not in GRAPH_DEFAULTS:
+                    raise config.ConfigError(f"{pname}: unknown parameter (known here: "
+                                             + ", ".join(sorted(GRAPH_DEFAULTS)) + ")")
+                graph[pname] = value
+            else:
+                flat[pname] = value
+        self.cfg = config.load_config(None, overrides=flat)
+        self.graph = {key[len(GRAPH_PREFIX):]: value for key, value in graph.items()}
+        self.dropped: dict[str, int] = {}
+        # Set by whoever spins the node (run_node, tests): lets a node that
+        # waits for an answer keep the executor turning (see nodes.agent).
+        self.spin_once: Callable[[float], None] | None = None
+
+    def step(self) -> None:
+        """Work to do between callbacks (never inside one); called after every spin."""
+
+    def drop(self, topic: str, reason: str) -> None:
+        """Log (throttled) and count a message that breaks its contract."""
+        self.dropped[topic] = self.dropped.get(topic, 0) + 1
+        self.get_logger().warning(f"dropped a message on {topic}: {reason} "
+                                  f"({self.dropped[topic]} dropped so far)",
+                                  throttle_duration_sec=5.0)
+
+
+def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
+    """``main`` of every executable: init, spin until shutdown or done, clean exit.
+
+    rclpy's own signal handlers turn SIGINT/SIGTERM into a context shutdown;
+    spinning then ends with ExternalShutdownException / KeyboardInterrupt,
+    which is a normal stop here.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = make_node()
+        except config.ConfigError as exc:
+            print(f"{name}: invalid parameter {exc}", file=sys.stderr)
+            return 2
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        node.spin_once = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)
+        while rclpy.ok() and not getattr(node, "finished", False):
+            executor.spin_once(timeout_sec=0.2)
+            node.step()
+        return int(getattr(node, "exit_code", 0))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+def build_world(cfg: dict):
+    """The run's world (ground truth) from the validated configuration."""
+    from ..core import exploration
+    world_cfg = cfg["world"]
+    return exploration.build_world(cfg["seed"], {
+        "m0": tuple(cfg["arm"]["initial_motor_state"]),
+        "grid_half_width": world_cfg["grid_half_width"],
+        "grid_count": world_cfg["grid_count"],
+        "n_lights": world_cfg["lights"]["count"],
+        "light_radius_min": world_cfg["lights"]["radius_min"],
+        "light_radius_max": world_cfg["lights"]["radius_max"],
+        "min_lights_in_view": world_cfg["lights"]["min_in_view"],
+        "n_receptors": world_cfg["retina"]["receptors"],
+        "retina_half_width": world_cfg["retina"]["half_width"],
+        "redistribution_probability": world_cfg["redistribution_probability"],
+        "order": world_cfg["schedule"],
+    })

@@ -1,0 +1,84 @@
+"""Body node: the simulated arm + retina (core.body.SimulatedBody).
+
+Answers each ``/body/motor_command`` batch with one ``/body/sensation``
+carrying the same header (the request id), and after each lights message a
+one-row passive sensation of the resting arm (frame ``change/<k>`` or
+``end/<k>``). Ground truth for the evaluator goes to ``/body/sensor_pose``
+and ``/body/joint_states``; the agent never subscribes to those.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import contracts, messages
+from ..core.body import SimulatedBody
+from . import GraphNode, build_world, parse_frame, run_node
+
+
+class BodyNode(GraphNode):
+
+    def __init__(self, **kwargs):
+        super().__init__("body", **kwargs)
+        world = build_world(self.cfg)
+        self.body = SimulatedBody(world.receptors, None, world.m0.copy())
+        self.columns = {topic: contracts.contract(topic).columns for topic in (
+            "/environment/lights", "/body/motor_command", "/body/sensation", "/body/sensor_pose")}
+        self.sensation_pub = contracts.create_publisher(self, "/body/sensation")
+        self.pose_pub = contracts.create_publisher(self, "/body/sensor_pose")
+        self.joint_pub = contracts.create_publisher(self, "/body/joint_states")
+        contracts.create_subscription(self, "/environment/lights", self.on_lights)
+        contracts.create_subscription(self, "/body/motor_command", self.on_command)
+
+    def on_lights(self, msg) -> None:
+        parsed = parse_frame(msg.header.frame_id)
+        if parsed is None or parsed[0] == "cmd":
+            self.drop("/environment/lights", f"frame id {msg.header.frame_id!r}")
+            return
+        try:
+            lights = messages.cloud_to_matrix(msg, self.columns["/environment/lights"])
+        except messages.MessageError as exc:
+            self.drop("/environment/lights", str(exc))
+            return
+        if parsed[0] == "change":
+            if len(lights) == 0:
+                self.drop("/environment/lights", "no lights")
+                return
+            self.body.set_lights(lights)
+        elif self.body.lights_world is None:
+            self.drop("/environment/lights", "end of run before any lights")
+            return
+        self.answer(self.body.motor_state[None, :], msg.header)
+
+    def on_command(self, msg) -> None:
+        parsed = parse_frame(msg.header.frame_id)
+        if parsed is None or parsed[0] != "cmd":
+            self.drop("/body/motor_command", f"frame id {msg.header.frame_id!r}")
+            return
+        try:
+            motor = messages.cloud_to_matrix(msg, self.columns["/body/motor_command"])
+        except messages.MessageError as exc:
+            self.drop("/body/motor_command", str(exc))
+            return
+        if self.body.lights_world is None:
+            self.drop("/body/motor_command", "no lights received yet")
+            return
+        if len(motor) == 0:
+            self.drop("/body/motor_command", "empty batch")
+            return
+        self.answer(motor, msg.header)
+
+    def answer(self, motor: np.ndarray, header) -> None:
+        sensations = self.body.sense(motor)
+        self.sensation_pub.publish(messages.matrix_to_cloud(
+            sensations, self.columns["/body/sensation"], header))
+        self.pose_pub.publish(messages.matrix_to_cloud(
+            self.body.sensor_pose(motor).reshape(-1, 3), self.columns["/body/sensor_pose"], header))
+        self.joint_pub.publish(messages.motor_to_joint_state(self.body.motor_state, header))
+
+
+def main(args=None) -> int:
+    return run_node(BodyNode, "body", args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

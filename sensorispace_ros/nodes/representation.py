@@ -1,0 +1,156 @@
+"""Representation node: points of view + equality sets -> embeddings.
+
+Subscribes only to ``/agent/*``. Collects the points of view and the
+equality rows (keyed by the frame id of the message that carried them, so a
+re-sent message is not counted twice); once ``/agent/done`` has arrived and
+the totals match, runs ``pipeline.build_representation`` in a worker
+thread, publishes ``/representation/embedding`` for every dimension and
+regularisation iteration, and writes its arrays to
+``<graph.results_dir>/representation.npz``. Ground truth is joined later,
+by the evaluator, never here.
+"""
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from .. import contracts, messages
+from . import GraphNode, parse_frame, run_node
+
+RESULT_FILE = "representation.npz"
+
+
+def assemble_points_of_view(tables: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """POV ids (sorted) and motor samples ``(n_povs, n_samples, 4)`` from row tables."""
+    if not tables:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 0, 4))
+    rows = np.concatenate(tables)
+    ids = np.unique(rows["pov"]).astype(np.int64)
+    n_samples = int(rows["sample"].max()) + 1
+    motor = np.full((len(ids), n_samples, 4), np.nan)
+    where = np.searchsorted(ids, rows["pov"])
+    for j in range(4):
+        motor[where, rows["sample"], j] = rows[f"m{j}"]
+    if np.isnan(motor).any():
+        raise ValueError("some point of view misses samples")
+    return ids, motor
+
+
+class RepresentationNode(GraphNode):
+
+    def __init__(self, **kwargs):
+        super().__init__("representation", **kwargs)
+        self.columns = {topic: contracts.contract(topic).columns for topic in (
+            "/agent/points_of_view", "/agent/compensations", "/agent/done",
+            "/representation/embedding")}
+        self.embedding_pub = contracts.create_publisher(self, "/representation/embedding")
+        contracts.create_subscription(self, "/agent/points_of_view", self.on_points_of_view)
+        contracts.create_subscription(self, "/agent/compensations", self.on_compensations)
+        contracts.create_subscription(self, "/agent/done", self.on_done)
+        self.pov_tables: dict[str, np.ndarray] = {}
+        self.row_tables: dict[str, np.ndarray] = {}
+        self.totals: dict | None = None
+        self.worker: threading.Thread | None = None
+        self.result: dict | None = None
+        self.finished = False
+        self.exit_code = 0
+        self.results_dir = Path(self.graph["results_dir"])
+
+    def _decode(self, topic: str, msg, kinds=("change",)):
+        parsed = parse_frame(msg.header.frame_id)
+        if parsed is None or parsed[0] not in kinds:
+            self.drop(topic, f"frame id {msg.header.frame_id!r}")
+            return None
+        try:
+            return messages.cloud_to_table(msg, self.columns[topic]).copy()
+        except messages.MessageError as exc:
+            self.drop(topic, str(exc))
+            return None
+
+    def on_points_of_view(self, msg) -> None:
+        table = self._decode("/agent/points_of_view", msg)
+        if table is not None and len(table):
+            self.pov_tables[msg.header.frame_id] = table
+            self.maybe_start()
+
+    def on_compensations(self, msg) -> None:
+        table = self._decode("/agent/compensations", msg)
+        if table is not None and len(table):
+            self.row_tables[msg.header.frame_id] = table
+            self.maybe_start()
+
+    def on_done(self, msg) -> None:
+        table = self._decode("/agent/done", msg, kinds=("end",))
+        if table is None:
+            return
+        if len(table) != 1:
+            self.drop("/agent/done", f"{len(table)} rows")
+            return
+        self.totals = {name: int(table[name][0]) for name in table.dtype.names}
+        self.maybe_start()
+
+    def maybe_start(self) -> None:
+        if self.totals is None or self.worker is not None:
+            return
+        n_povs = len(np.unique(np.concatenate([t["pov"] for t in self.pov_tables.values()]))) \
+            if self.pov_tables else 0
+        n_rows = sum(len(t) for t in self.row_tables.values())
+        if (n_povs, n_rows) != (self.totals["points_of_view"], self.totals["compensation_rows"]):
+            return                          # still in flight on another topic
+        self.worker = threading.Thread(target=self.build, name="representation", daemon=True)
+        self.worker.start()
+
+    def build(self) -> None:
+        from .. import pipeline
+        try:
+            ids, povs = assemble_points_of_view(list(self.pov_tables.values()))
+            rows = (np.concatenate(list(self.row_tables.values())) if self.row_tables
+                    else np.zeros(0, dtype=messages.record_dtype(self.columns["/agent/compensations"])))
+            # Equality rows name POVs by id; the pipeline indexes them by position.
+            pairs = np.stack([np.searchsorted(ids, rows["pov_from"]),
+                              np.searchsorted(ids, rows["pov_to"])], axis=-1).astype(np.int64)
+            set_ids = rows["set"].astype(np.int64)
+            self.get_logger().info(f"building the representation of {len(ids)} points of view, "
+                                   f"{len(rows)} equality rows")
+            embeddings = pipeline.build_representation(povs, pairs, set_ids, self.cfg,
+                                                       self.cfg["seed"], progress=None)
+            arrays = {"pov_ids": ids, "points_of_view": povs, "pairs": pairs, "set_ids": set_ids}
+            for dim, per_iteration in sorted(embedding_stages(embeddings).items()):
+                for k, embedding in enumerate(per_iteration):
+                    self.publish_embedding(ids, embedding, f"{dim}/iteration/{k}")
+                arrays[f"embedding_{dim}"] = np.asarray(per_iteration)
+            self.results_dir.mkdir(parents=True, exist_ok=True)
+            np.savez(self.results_dir / RESULT_FILE, **arrays)
+            self.result = arrays
+            self.get_logger().info(f"representation written to {self.results_dir / RESULT_FILE}")
+        except Exception as exc:
+            self.get_logger().error(f"representation failed: {type(exc).__name__}: {exc}")
+            self.exit_code = 1
+            self.finished = True
+            raise
+        self.finished = bool(self.graph["exit_when_done"])
+
+    def publish_embedding(self, ids: np.ndarray, embedding: np.ndarray, frame_id: str) -> None:
+        embedding = np.asarray(embedding, dtype=float)
+        xyz = np.zeros((len(ids), 3))
+        xyz[:, :embedding.shape[1]] = embedding
+        self.embedding_pub.publish(messages.table_to_cloud(
+            {"pov": ids, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]},
+            self.columns["/representation/embedding"],
+            messages.make_header(frame_id, self.get_clock().now().nanoseconds)))
+
+
+def embedding_stages(embeddings) -> dict[str, list[np.ndarray]]:
+    """``{"2d": [iteration 0 (before), 1, ...], "3d": [...]}`` from the pipeline's result."""
+    return {str(dim): [np.asarray(e, dtype=float) for e in per_iteration]
+            for dim, per_iteration in dict(embeddings).items()}
+
+
+def main(args=None) -> int:
+    return run_node(RepresentationNode, "representation", args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
