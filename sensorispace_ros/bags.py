@@ -283,11 +283,10 @@ def read_bag_messages(
 ) -> Iterator[tuple[str, str, int, object]]:
     """Like read_bag but yields rclpy message objects (imports rclpy lazily)."""
     from rclpy.serialization import deserialize_message
-    from rosidl_runtime_py.utilities import get_message
 
     classes: dict[str, type] = {}
     for topic, msgtype, timestamp, cdr in read_bag(bag_dir, topics):
-        cls = classes.get(msgtype) or classes.setdefault(msgtype, get_message(msgtype))
+        cls = classes.get(msgtype) or classes.setdefault(msgtype, message_class(msgtype))
         try:
             message = deserialize_message(cdr, cls)
         except Exception as exc:
@@ -296,6 +295,17 @@ def read_bag_messages(
                 f"{_one_line(exc)}"
             ) from None
         yield topic, msgtype, timestamp, message
+
+
+def message_class(type_name: str) -> type:
+    """The generated Python class of "pkg/msg/Name" (imports the ROS package lazily)."""
+    import importlib
+
+    package, _, name = type_name.split("/")
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)
+    except (ImportError, AttributeError):
+        raise BagError(f"message type {type_name} is not installed") from None
 
 
 def read_session_config(bag_dir: str | os.PathLike) -> str:

@@ -1,0 +1,135 @@
+"""replay: republish a recorded bag, raw CDR, with its original timing or as fast as possible.
+
+Publishers take the topic contract's QoS (RELIABLE + KEEP_ALL on data
+topics), replay starts only once subscribers have matched, and ends only when
+every reliable message is acknowledged, so a fast replay loses nothing.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from sensorispace_ros import bags, contracts
+
+# /session/config is not in the contract: a late subscriber should still get it
+SESSION_CONFIG_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                                reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _message_class(type_name: str):
+    return bags.message_class(type_name)
+
+
+class Replay(Node):
+    """Publishers for the bag's topics; ``run`` does the replay."""
+
+    def __init__(self, bag_path: str | None = None, rate: float | None = None,
+                 topics: list[str] | None = None, **kwargs):
+        super().__init__("replay", **kwargs)
+        bag_path = self.declare_parameter("bag_path", bag_path or "").value
+        # rate <= 0 means as fast as possible
+        self.rate = float(self.declare_parameter("rate", 1.0 if rate is None else rate).value)
+        wanted = list(self.declare_parameter("topics", topics or [""]).value)
+        self.match_timeout_s = float(self.declare_parameter("match_timeout_s", 10.0).value)
+        wanted = [t for t in wanted if t]
+        if not bag_path:
+            raise ValueError("bag_path: required (the bag directory to replay)")
+        self.bag_path = bag_path
+        available = contracts.load_contracts()
+        info = bags.check_contract(bag_path, {n: c.type_name for n, c in available.items()})
+        unknown = sorted(set(wanted) - set(info.topics))
+        if unknown:
+            raise ValueError(f"topics: {', '.join(unknown)} not in bag {bag_path}")
+        self.topics = wanted or sorted(info.topics)
+        self.expected = {t: info.counts.get(t, 0) for t in self.topics}
+        self.publishers_ = {}
+        for name in self.topics:
+            qos = available[name].qos if name in available else SESSION_CONFIG_QOS
+            self.publishers_[name] = self.create_publisher(
+                _message_class(info.topics[name]), name, qos)
+        self.published = {t: 0 for t in self.topics}
+
+    def wait_for_subscribers(self) -> list[str]:
+        """Wait until every replayed topic with messages has a subscriber, or the
+        timeout; returns the topics nobody subscribes to."""
+        deadline = time.monotonic() + self.match_timeout_s
+        first_match = None
+        while True:
+            lonely = [t for t, p in self.publishers_.items()
+                      if self.expected[t] and p.get_subscription_count() == 0]
+            now = time.monotonic()
+            if not lonely or now > deadline:
+                return lonely
+            if first_match is None and len(lonely) < sum(1 for n in self.expected.values() if n):
+                # a node's subscriptions are discovered together: once one topic
+                # matched, give the rest 2 s rather than the whole timeout
+                first_match = now
+                deadline = min(deadline, now + 2.0)
+            time.sleep(0.05)
+
+    def run(self) -> dict[str, int]:
+        lonely = self.wait_for_subscribers()
+        if lonely:
+            self.get_logger().warning(f"no subscriber for {', '.join(lonely)}; publishing anyway")
+        mode = "as fast as possible" if self.rate <= 0 else f"at {self.rate:g}x"
+        self.get_logger().info(f"replaying {self.bag_path} {mode}")
+        start_wall = time.monotonic()
+        first_stamp = None
+        for topic, _, stamp_ns, cdr in bags.read_bag(self.bag_path, self.topics):
+            if self.rate > 0:
+                if first_stamp is None:
+                    first_stamp = stamp_ns
+                delay = start_wall + (stamp_ns - first_stamp) / 1e9 / self.rate - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+            self.publishers_[topic].publish(cdr)
+            self.published[topic] += 1
+        for publisher in self.publishers_.values():
+            publisher.wait_for_all_acked(Duration(seconds=10))
+        total = sum(self.published.values())
+        self.get_logger().info(
+            f"replayed {total} messages in {time.monotonic() - start_wall:.2f} s")
+        return dict(self.published)
+
+
+def replay_bag(bag_path: str, rate: float = 1.0, topics: list[str] | None = None) -> dict[str, int]:
+    """Replay in this process (``sensorispace replay``); localhost-only discovery by default."""
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    rclpy.init()
+    node = None
+    try:
+        node = Replay(bag_path=bag_path, rate=rate, topics=topics)
+        return node.run()
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = Replay()
+        node.run()
+        return 0
+    except (ValueError, bags.BagError) as exc:
+        print(f"replay: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
