@@ -370,9 +370,21 @@ def unflatten(flat: dict[str, Any]) -> dict:
 
 
 def to_parameter_file(cfg: dict) -> str:
-    """``cfg`` as a ROS 2 parameter file (``None`` values left out: ROS has no null)."""
-    def strip_none(node):
-        return {k: strip_none(v) if isinstance(v, dict) else v
-                for k, v in node.items() if v is not None}
-    return yaml.safe_dump({"/**": {ROS_WRAPPER: strip_none(cfg)}}, sort_keys=False,
+    """``cfg`` as a ROS 2 parameter file.
+
+    ``None`` values are left out (ROS has no null) and so are empty sections
+    (rcl's parser rejects ``key: {}`` followed by more keys).
+    """
+    def ros_values(node):
+        out = {}
+        for key, value in node.items():
+            if isinstance(value, dict):
+                value = ros_values(value)
+                if not value:
+                    continue
+            elif value is None:
+                continue
+            out[key] = value
+        return out
+    return yaml.safe_dump({"/**": {ROS_WRAPPER: ros_values(cfg)}}, sort_keys=False,
                           default_flow_style=None)

@@ -1,0 +1,298 @@
+"""Configuration: paper defaults, strict validation, the ROS parameter-file format."""
+from __future__ import annotations
+
+import math
+import sys
+import types
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import yaml
+
+from sensorispace_ros import config
+from sensorispace_ros.config import ConfigError, flatten, load_config, unflatten, validate_config
+
+REPO = Path(__file__).resolve().parents[1]
+PAPER = REPO / "config" / "paper.yaml"
+SMOKE = REPO / "config" / "smoke.yaml"
+
+
+def write(tmp_path: Path, params: dict, wrapped: bool = True) -> Path:
+    path = tmp_path / "params.yaml"
+    document = {"/**": {"ros__parameters": params}} if wrapped else params
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+# ---------------------------------------------------------------------------
+# Defaults are the paper's values
+
+
+def test_defaults_are_the_papers_values():
+    cfg = load_config()
+    # Values read from the paper (Sec. 3-5) and issue #2, not from the code.
+    assert cfg["world"]["grid_half_width"] == 6.0
+    assert cfg["world"]["grid_count"] == 62
+    assert cfg["world"]["redistribution_probability"] == 0.1
+    assert cfg["world"]["schedule"] == "random"
+    assert cfg["world"]["lights"]["count"] == 10
+    assert cfg["world"]["retina"]["receptors"] == 6
+    assert cfg["arm"]["initial_motor_state"] == [0.1, -1.5, 2.2, -3.0]
+    assert cfg["pov"] == {"n_samples": 100, "step": 1e-3, "min_steps": 50, "close_tol": 1e-2}
+    assert cfg["compensation"]["threshold"] == 1e-3
+    assert cfg["representation"]["regularization"]["iterations"] == 10
+    assert cfg["representation"]["reaching"]["max_degree"] == 50
+
+
+def test_paper_file_equals_defaults_and_smoke_file_is_smaller():
+    assert load_config(PAPER) == load_config()
+    smoke = load_config(SMOKE)
+    assert smoke["world"]["grid_count"] < 62
+    assert smoke["representation"]["cca"]["n_epochs"] < load_config()["representation"]["cca"]["n_epochs"]
+
+
+def test_defaults_are_a_fresh_copy():
+    first = load_config()
+    first["arm"]["initial_motor_state"][0] = 99.0
+    first["world"]["grid_count"] = 3
+    assert load_config()["arm"]["initial_motor_state"][0] == 0.1
+    assert load_config()["world"]["grid_count"] == 62
+
+
+# ---------------------------------------------------------------------------
+# Every kind of bad value names the parameter
+
+
+BAD_VALUES = [
+    ("world.grid_count", 1, "must be an integer >= 2, got 1"),
+    ("world.grid_count", 16.0, "must be an integer"),
+    ("world.grid_count", "62", "must be an integer"),
+    ("world.grid_count", True, "must be an integer"),
+    ("seed", -1, "must be an integer >= 0"),
+    ("world.grid_half_width", 0.0, "must be a finite number > 0"),
+    ("world.grid_half_width", float("nan"), "finite"),
+    ("world.grid_half_width", float("inf"), "finite"),
+    ("world.grid_half_width", "six", "finite number"),
+    ("world.grid_half_width", None, "finite number"),
+    ("world.redistribution_probability", 1.5, "<= 1.0"),
+    ("world.redistribution_probability", -0.1, ">= 0.0"),
+    ("world.schedule", "spiral", "one of random, tracking"),
+    ("world.lights.count", 0, ">= 1"),
+    ("world.retina.half_width", -1.0, "> 0"),
+    ("arm.initial_motor_state", [0.1, -1.5, 2.2], "a list of 4 finite numbers"),
+    ("arm.initial_motor_state", [0.1, -1.5, 2.2, "x"], "a list of 4 finite numbers"),
+    ("arm.initial_motor_state", 0.1, "a list of 4 finite numbers"),
+    ("pov.n_samples", 2, ">= 3"),
+    ("pov.step", 0, "> 0"),
+    ("compensation.threshold", -1e-3, "> 0"),
+    ("representation.cca.lambda0", -2.0, "> 0"),
+    ("representation.cca.n_epochs", 0, ">= 1"),
+    ("representation.reaching.radius", 0.0, "> 0"),
+    ("representation.regularization.iterations", 2.5, "an integer"),
+    ("output.figures", "yes", "true or false"),
+    ("output.figures", 1, "true or false"),
+    ("world.lights", 5, "must be a mapping"),
+    ("naive", [1, 2], "must be a mapping"),
+]
+
+
+@pytest.mark.parametrize("name, value, reason", BAD_VALUES,
+                         ids=[f"{n}={v!r}" for n, v, _ in BAD_VALUES])
+def test_bad_value_names_the_parameter_and_the_reason(name, value, reason):
+    with pytest.raises(ConfigError) as caught:
+        load_config(overrides={name: value})
+    message = str(caught.value)
+    assert message.startswith(f"{name}: "), message
+    assert reason in message
+    assert "\n" not in message
+
+
+def test_error_message_format_is_the_documented_one():
+    with pytest.raises(ConfigError, match=r"^world\.grid_count: must be an integer >= 2, got 1$"):
+        load_config(overrides={"world": {"grid_count": 1}})
+
+
+def test_config_error_is_a_value_error():
+    with pytest.raises(ValueError):
+        load_config(overrides={"seed": "zero"})
+
+
+def test_cross_field_constraints():
+    with pytest.raises(ConfigError, match=r"^world\.lights\.radius_max: must be > "):
+        load_config(overrides={"world.lights.radius_max": 3.0})
+    with pytest.raises(ConfigError, match=r"^world\.lights\.min_in_view: must be <= "):
+        load_config(overrides={"world.lights.count": 2, "world.lights.min_in_view": 3})
+
+
+def test_optional_parameters_accept_null_and_a_positive_value():
+    cfg = load_config(overrides={"representation.cca.lambda0": None,
+                                 "representation.reaching.radius": 0.72})
+    assert cfg["representation"]["cca"]["lambda0"] is None
+    assert cfg["representation"]["reaching"]["radius"] == 0.72
+
+
+def test_integers_are_accepted_for_reals_and_normalised():
+    cfg = load_config(overrides={"world.grid_half_width": 6, "arm.initial_motor_state": [0, 1, 2, 3]})
+    assert isinstance(cfg["world"]["grid_half_width"], float)
+    assert all(isinstance(v, float) for v in cfg["arm"]["initial_motor_state"])
+
+
+# ---------------------------------------------------------------------------
+# Unknown keys are errors at every level
+
+
+@pytest.mark.parametrize("name", ["grid_count", "world.gridcount", "world.lights.colour",
+                                  "representation.cca.epochs", "output.figure"])
+def test_unknown_keys_are_rejected(name):
+    with pytest.raises(ConfigError) as caught:
+        load_config(overrides={name: 3})
+    assert str(caught.value).startswith(f"{name}: unknown parameter")
+
+
+def test_unknown_key_in_a_file_is_rejected(tmp_path):
+    path = write(tmp_path, {"world": {"grid_count": 16, "grid_cout": 3}})
+    with pytest.raises(ConfigError, match=r"^world\.grid_cout: unknown parameter"):
+        load_config(path)
+
+
+def test_missing_key_in_an_incomplete_dict_is_reported():
+    cfg = load_config()
+    del cfg["pov"]["step"]
+    with pytest.raises(ConfigError, match=r"^pov\.step: missing$"):
+        validate_config(cfg)
+
+
+@pytest.fixture
+def naive_params_module(monkeypatch):
+    """A stand-in naive strategy with two parameters, one of them checked."""
+
+    @dataclass
+    class NaiveParams:
+        batch: int = 64
+        rank_tol: float = 1e-6
+
+        def __post_init__(self):
+            if self.batch < 1:
+                raise ValueError(f"naive.batch: must be >= 1, got {self.batch}")
+
+    module = types.ModuleType("sensorispace_ros.core.naive_agent")
+    module.NaiveParams = NaiveParams
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    return NaiveParams
+
+
+def test_naive_section_is_checked_against_the_naive_parameters(naive_params_module):
+    cfg = load_config(overrides={"naive": {"batch": 8}})
+    assert cfg["naive"] == {"batch": 8}
+    with pytest.raises(ConfigError, match=r"^naive\.batchsize: unknown parameter"):
+        load_config(overrides={"naive.batchsize": 8})
+    with pytest.raises(ConfigError, match=r"^naive\.batch: must be >= 1"):
+        load_config(overrides={"naive.batch": 0})
+
+
+# ---------------------------------------------------------------------------
+# Files and overrides
+
+
+def test_file_then_overrides_are_merged_over_defaults(tmp_path):
+    path = write(tmp_path, {"seed": 3, "world": {"grid_count": 20}})
+    cfg = load_config(path, overrides={"world.grid_count": 24, "pov": {"n_samples": 60}})
+    assert cfg["seed"] == 3
+    assert cfg["world"]["grid_count"] == 24
+    assert cfg["pov"]["n_samples"] == 60
+    assert cfg["world"]["grid_half_width"] == 6.0          # untouched default
+
+
+def test_plain_mapping_without_ros_wrapper_is_accepted(tmp_path):
+    path = write(tmp_path, {"world": {"grid_count": 20}}, wrapped=False)
+    assert load_config(path)["world"]["grid_count"] == 20
+
+
+def test_missing_file_is_a_config_error_naming_the_path(tmp_path):
+    missing = tmp_path / "nope.yaml"
+    with pytest.raises(ConfigError, match="nope.yaml: no such configuration file"):
+        load_config(missing)
+
+
+def test_invalid_yaml_is_a_one_line_config_error_with_the_line(tmp_path):
+    path = tmp_path / "broken.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    seed: [1, 2\n    world: {}\n")
+    with pytest.raises(ConfigError) as caught:
+        load_config(path)
+    assert "broken.yaml" in str(caught.value) and "line" in str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
+def test_stray_top_level_key_next_to_a_node_section_is_rejected(tmp_path):
+    path = tmp_path / "stray.yaml"
+    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"seed": 1}}, "seed": 2}))
+    with pytest.raises(ConfigError, match="is not a node section"):
+        load_config(path)
+
+
+# ---------------------------------------------------------------------------
+# Dotted names (ROS side)
+
+
+def test_flatten_gives_dotted_ros_names_and_unflatten_inverts_it():
+    cfg = load_config()
+    flat = flatten(cfg)
+    assert flat["world.grid_count"] == 62
+    assert flat["world.lights.radius_max"] == 7.0
+    assert flat["arm.initial_motor_state"] == [0.1, -1.5, 2.2, -3.0]
+    assert all(not isinstance(v, dict) for v in flat.values())
+    rebuilt = unflatten(flat)
+    rebuilt.setdefault("naive", {})            # an empty section has no ROS parameter
+    assert rebuilt == cfg
+
+
+def test_unflatten_rejects_a_value_used_as_a_section():
+    with pytest.raises(ConfigError):
+        unflatten({"seed": 1, "seed.x": 2})
+
+
+def test_to_parameter_file_round_trips_and_omits_nulls(tmp_path):
+    cfg = load_config(overrides={"world.grid_count": 30, "representation.reaching.radius": 0.5})
+    text = config.to_parameter_file(cfg)
+    assert "null" not in text
+    path = tmp_path / "out.yaml"
+    path.write_text(text)
+    assert load_config(path) == cfg
+
+
+GENERATED = "generated"
+
+
+@pytest.mark.parametrize("path", [PAPER, SMOKE, GENERATED], ids=["paper", "smoke", GENERATED])
+def test_config_files_are_valid_ros_parameter_files(path, monkeypatch, tmp_path):
+    """rcl's own parser reads the file and a node sees the same values."""
+    if path == GENERATED:
+        path = tmp_path / "generated.yaml"
+        path.write_text(config.to_parameter_file(load_config(SMOKE)))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    context = Context()
+    rclpy.init(args=["--ros-args", "--params-file", str(path)], context=context,
+               domain_id=97)
+    try:
+        node = Node("config_check", context=context,
+                    automatically_declare_parameters_from_overrides=True)
+        seen = {name: parameter.value for name, parameter in node._parameters.items()
+                if name not in ("use_sim_time", "start_type_description_service")}
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+    in_file = flatten(config.read_parameter_file(path))
+    expected = flatten(load_config(path))
+    assert set(seen) == set(in_file)
+    for name, value in seen.items():
+        if isinstance(expected[name], list):
+            assert list(value) == expected[name], name
+        else:
+            assert value == expected[name], name
+            assert type(value) is type(expected[name]), name
+    assert not any(isinstance(v, float) and math.isnan(v) for v in seen.values())
