@@ -1,0 +1,264 @@
+"""Simulation 1 with the paper's analytic strategy: the object visits every
+grid position, the agent compensates each change it can (paper Sec. 4.2,
+"Estimating spatially related points of view").
+
+Two steps, kept apart so the POVs of all compensating states are sampled in
+one batch (``points_of_view.sample_points_of_view`` walks them together):
+
+    world = build_world(seed, params)
+    result = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
+                           initial_center=world.initial_center)
+    povs = sample_points_of_view(result.motor_states)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import arm, retina, world as world_mod
+from .compensation import compensate_pose
+from .seeding import rng_for
+
+# Paper values (Sec. 4); receptor and light layouts are ours (issue #2: the
+# paper leaves them open), see retina.draw_receptor_positions and
+# world.draw_light_offsets.
+PAPER_PARAMS = {
+    "m0": (0.1, -1.5, 2.2, -3.0),
+    "grid_half_width": 6.0,
+    "grid_count": 62,
+    "initial_center": (0.0, 0.0),
+    "n_lights": 10,
+    "light_radius_min": 3.5,
+    "light_radius_max": 7.0,
+    "n_receptors": 6,
+    "retina_half_width": 1.0,
+    "min_lights_in_view": 3,
+    "max_light_draws": 10_000,
+    "redistribution_probability": 0.1,
+    "order": "random",
+}
+
+# Reasons an environmental change is not compensated.
+NOT_CONVERGED = "not_converged"          # Nelder-Mead error above threshold
+SPLIT_POINT_OF_VIEW = "split_point_of_view"  # |tip| < 1: the POV walk cannot sample it
+STATE_CHANGE = "state_change"            # the light set did not move rigidly
+
+
+@dataclass(frozen=True)
+class World:
+    """Everything random about one run, drawn from ``seed`` (ground truth)."""
+
+    seed: int
+    params: dict
+    m0: np.ndarray
+    receptors: np.ndarray
+    initial_center: np.ndarray
+    initial_offsets: np.ndarray
+    grid: np.ndarray
+    spacing: float
+    events: list
+
+    @property
+    def initial_lights(self) -> np.ndarray:
+        return self.initial_center + self.initial_offsets
+
+
+def build_world(seed: int, params: dict | None = None) -> World:
+    """Receptors, initial light offsets, object grid and event schedule.
+
+    Streams: ``"retina"`` draws the receptors, ``"lights"`` the initial
+    offsets (redrawn until the initial pose sees at least
+    ``min_lights_in_view`` lights, otherwise the sensation does not pin the
+    pose), ``"schedule"`` the visiting order and the redistributions.
+    ``params`` overrides ``PAPER_PARAMS``; unknown keys are an error.
+    """
+    merged = dict(PAPER_PARAMS)
+    unknown = set(params or {}) - set(PAPER_PARAMS)
+    if unknown:
+        raise ValueError(f"unknown world parameters {sorted(unknown)}; "
+                         f"known: {sorted(PAPER_PARAMS)}")
+    merged.update(params or {})
+    m0 = np.asarray(merged["m0"], dtype=float)
+    if m0.shape != (arm.N_JOINTS,):
+        raise ValueError(f"m0 must have {arm.N_JOINTS} joint angles, got {merged['m0']}")
+    center = np.asarray(merged["initial_center"], dtype=float)
+    if center.shape != (2,):
+        raise ValueError(f"initial_center must be (x, y), got {merged['initial_center']}")
+
+    receptors = retina.draw_receptor_positions(rng_for(seed, "retina"),
+                                               int(merged["n_receptors"]),
+                                               half_width=float(merged["retina_half_width"]))
+    light_kwargs = {"count": int(merged["n_lights"]),
+                    "radius_min": float(merged["light_radius_min"]),
+                    "radius_max": float(merged["light_radius_max"])}
+    pose0 = arm.forward(m0)
+    light_rng = rng_for(seed, "lights")
+    for _ in range(int(merged["max_light_draws"])):
+        offsets = world_mod.draw_light_offsets(light_rng, **light_kwargs)
+        if retina.lights_in_view(pose0, center + offsets, receptors) >= merged["min_lights_in_view"]:
+            break
+    else:
+        raise ValueError(f"no light layout out of {merged['max_light_draws']} draws puts "
+                         f"min_lights_in_view={merged['min_lights_in_view']} lights in view")
+    grid = world_mod.position_grid(float(merged["grid_half_width"]), int(merged["grid_count"]))
+    events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
+                                redistribution_probability=float(merged["redistribution_probability"]),
+                                order=merged["order"], light_kwargs=light_kwargs)
+    return World(seed=int(seed), params=merged, m0=m0, receptors=receptors,
+                 initial_center=center, initial_offsets=offsets, grid=grid,
+                 spacing=world_mod.grid_spacing(float(merged["grid_half_width"]),
+                                                int(merged["grid_count"])),
+                 events=events)
+
+
+@dataclass
+class ExplorationResult:
+    """Compensating motor states of one exploration (simulation 1).
+
+    ``motor_states[0]`` is ``m0`` (the initial POV, ``events_index`` -1);
+    the others are the successful compensations in event order.
+    ``true_poses``/``grid_index`` are ground truth, for evaluation only
+    (``grid_index`` is -1 for the initial state).
+    """
+
+    motor_states: np.ndarray
+    events_index: np.ndarray
+    true_poses: np.ndarray
+    grid_index: np.ndarray
+    events: int
+    state_changes: int
+    compensated: int
+    state_changes_compensated: int
+    failures_by_reason: dict
+    missed_in_ring: np.ndarray       # ground truth: grid indices with 1 <= |target tip| <= 3 not compensated
+    timings_s: dict = field(default_factory=dict)
+
+
+def rigid_translation_fit(lights_before: np.ndarray, lights_after: np.ndarray):
+    """Best translation between two light sets (light l -> light l) and the
+    RMS residual of that fit."""
+    before = np.asarray(lights_before, dtype=float)
+    after = np.asarray(lights_after, dtype=float)
+    if before.shape != after.shape or before.ndim != 2 or before.shape[1] != 2:
+        raise ValueError(f"light sets must both be (L, 2), got {before.shape} and {after.shape}")
+    delta = np.mean(after - before, axis=0)
+    residual = after - before - delta
+    return delta, float(np.sqrt(np.mean(np.sum(residual * residual, axis=1))))
+
+
+def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: float = 1e-3,
+                  rigid_tol: float = 1e-9, compensation_options: dict | None = None,
+                  skip_certain_failures: bool = True, progress=None) -> ExplorationResult:
+    """Walk the event list and compensate every change the analytic shortcut can.
+
+    Translation: the target pose is the pose at the *last successful*
+    compensation plus the object's displacement since then (issue #2: the
+    only reading that reproduces the paper's 648 and Fig. 7a; "current pose
+    + this event's displacement" re-anchors after every failure). Nelder-Mead
+    starts from the arm's current state (the last compensating one: after a
+    failure "the arm resumes its previous configuration").
+
+    Redistribution: the analytic shortcut only knows rigid translations of
+    the light set (paper Eq. displacementobject). Its stand-in for "no motor
+    change can restore the sensation" is the residual of the best
+    translation between the light sets before and after: above ``rigid_tol``
+    the change is declared non-compensable. (The paper's formula, with a
+    null displacement, would "compensate" it trivially.)
+
+    Compensations whose POV is split (``|tip| < 1``, paper Fig. 5b) are
+    discarded and the arm stays put, as the paper ignores them.
+
+    ``skip_certain_failures``: a target farther than ``threshold`` beyond
+    the arm's reach (3) cannot be compensated by any motor state (the pose
+    error is at least ``|target_xy| - 3``), and one with ``|target_xy| < 1 -
+    threshold`` can only be reached with a split POV; both are decided
+    without running Nelder-Mead. The outcome is identical (tests compare it
+    with ``False``); ~80 % of the paper grid lies beyond reach, so this saves
+    most of the search time.
+    ``progress(done, total)`` is called every 100 events.
+    """
+    m0 = np.asarray(m0, dtype=float)
+    if m0.shape != (arm.N_JOINTS,):
+        raise ValueError(f"m0 must have {arm.N_JOINTS} joint angles, got {m0}")
+    grid = np.asarray(grid, dtype=float)
+    if grid.ndim != 2 or grid.shape[1] != 2:
+        raise ValueError(f"grid must have shape (G, 2), got {grid.shape}")
+    if not threshold > 0:
+        raise ValueError(f"threshold must be > 0, got {threshold}")
+    if not rigid_tol >= 0:
+        raise ValueError(f"rigid_tol must be >= 0, got {rigid_tol}")
+    options = dict(compensation_options or {})
+    started = time.perf_counter()
+
+    motor = m0.copy()
+    pose0 = arm.forward(m0)
+    anchor_pose = pose0.copy()
+    anchor_center = np.asarray(initial_center, dtype=float)
+    center = anchor_center.copy()
+    lights = anchor_center + events[0].offsets if events else None
+    states, event_ids, poses, grid_ids = [m0.copy()], [-1], [pose0], [-1]
+    failures = {NOT_CONVERGED: 0, SPLIT_POINT_OF_VIEW: 0, STATE_CHANGE: 0}
+    state_changes = state_changes_compensated = 0
+    missed_in_ring = []
+    compensation_time = 0.0
+    reach = float(sum(arm.SEGMENT_LENGTHS))
+    n_calls = 0
+
+    for k, event in enumerate(events):
+        new_lights = event.lights
+        _, residual = rigid_translation_fit(lights, new_lights)
+        lights = new_lights
+        is_redistribution = event.kind == world_mod.REDISTRIBUTION
+        state_changes += is_redistribution
+        if residual > rigid_tol:
+            failures[STATE_CHANGE] += 1
+            center = event.center
+            continue
+        state_changes_compensated += is_redistribution
+        center = event.center
+        target = anchor_pose + np.array([*(center - anchor_center), 0.0])
+        target_reach = np.hypot(target[0], target[1])
+        if skip_certain_failures and target_reach > reach + threshold:
+            failures[NOT_CONVERGED] += 1
+            continue
+        if skip_certain_failures and target_reach < 1.0 - threshold:
+            failures[SPLIT_POINT_OF_VIEW] += 1
+            continue
+        t0 = time.perf_counter()
+        candidate, _, success = compensate_pose(motor, target, threshold=threshold, **options)
+        compensation_time += time.perf_counter() - t0
+        n_calls += 1
+        pose = arm.forward(candidate)
+        if success and np.hypot(pose[0], pose[1]) < 1.0:
+            # The kernel walk traces only one of the two loops of such a POV
+            # (points_of_view flags it "split" from its winding; tests check
+            # both criteria agree), so the paper ignores these positions.
+            failures[SPLIT_POINT_OF_VIEW] += 1
+            success = False
+        elif not success:
+            failures[NOT_CONVERGED] += 1
+            if 1.0 <= target_reach <= 3.0:
+                missed_in_ring.append(event.grid_index)
+        if success:
+            motor = candidate
+            anchor_pose, anchor_center = pose, center.copy()
+            states.append(candidate)
+            event_ids.append(event.index)
+            poses.append(pose)
+            grid_ids.append(event.grid_index)
+        if progress is not None and (k + 1) % 100 == 0:
+            progress(k + 1, len(events))
+    if progress is not None:
+        progress(len(events), len(events))
+
+    total = time.perf_counter() - started
+    return ExplorationResult(
+        motor_states=np.asarray(states), events_index=np.asarray(event_ids),
+        true_poses=np.asarray(poses), grid_index=np.asarray(grid_ids),
+        events=len(events), state_changes=int(state_changes),
+        compensated=len(states) - 1, state_changes_compensated=int(state_changes_compensated),
+        failures_by_reason=failures, missed_in_ring=np.asarray(missed_in_ring, dtype=int),
+        timings_s={"compensation": compensation_time, "total": total,
+                   "compensation_ms_per_call": 1e3 * compensation_time / max(n_calls, 1)})
