@@ -25,6 +25,10 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .config import ConfigError
+
+# Exceptions the `sensorispace` command prints as a one-line user error.
+USER_ERRORS = (ConfigError,)
 GRAPH_NODES = ("environment", "body", "agent", "representation")
 RECORDER = "recorder"
 GRACE_S = 5.0
@@ -110,17 +114,22 @@ class Graph:
     def exited(self) -> dict[str, int]:
         return {name: p.returncode for name, p in self.children.items() if p.poll() is not None}
 
-    def stop(self, grace_s: float = GRACE_S) -> None:
-        for proc in self.children.values():
-            if proc.poll() is None:
-                os.kill(proc.pid, signal.SIGTERM)
-        deadline = time.monotonic() + grace_s
-        for proc in self.children.values():
-            try:
-                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                os.kill(proc.pid, signal.SIGKILL)
-                proc.wait()
+    def stop(self, grace_s: float = GRACE_S, last: tuple = (RECORDER,)) -> None:
+        """SIGTERM by PID, SIGKILL after ``grace_s``; ``last`` (the recorder) is stopped
+        after the others so it records everything they sent."""
+        first = [n for n in self.children if n not in last]
+        for group in (first, [n for n in self.children if n in last]):
+            procs = [self.children[n] for n in group]
+            for proc in procs:
+                if proc.poll() is None:
+                    os.kill(proc.pid, signal.SIGTERM)
+            deadline = time.monotonic() + grace_s
+            for proc in procs:
+                try:
+                    proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    os.kill(proc.pid, signal.SIGKILL)
+                    proc.wait()
         for log in self._logs:
             log.close()
 
@@ -213,8 +222,10 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
             if name == "representation":
                 parameters["graph.exit_when_done"] = True
             if name == RECORDER:
-                parameters = {"graph.bag_dir": str(bag_dir)}
+                parameters = {"bag_path": str(bag_dir)}
             graph.start(name, node_command(name, config_path, parameters))
+            print(f"[launch] started {name} (pid {graph.children[name].pid})", file=stream,
+                  flush=True)
         result.pids = {name: p.pid for name, p in graph.children.items()}
         if on_started is not None:
             on_started(graph)
@@ -254,16 +265,77 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
 
 def evaluate_run(cfg: dict, results_dir: Path, bag_dir: Path | None, stream) -> dict:
     """metrics.json + figures of a finished run, ground truth joined here."""
-    if bag_dir is not None and (bag_dir / "metadata.yaml").is_file():
+    if bag_dir is not None and (bag_dir / "metadata.yaml").is_file() \
+            and importlib.util.find_spec("sensorispace_ros.analyze") is not None:
         from . import analyze
         metrics = analyze.analyze_bag(bag_dir, results_dir, cfg)
     else:
-        from . import pipeline
-        from .nodes.representation import RESULT_FILE
-        arrays = dict(__import__("numpy").load(results_dir / RESULT_FILE))
-        metrics = pipeline.evaluate_graph_run(arrays, cfg, results_dir)
-    (results_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
+        metrics = evaluate_representation(results_dir, cfg, stream)
     print_summary(metrics, results_dir, stream)
+    return metrics
+
+
+def evaluate_representation(results_dir: Path, cfg: dict, stream=None) -> dict:
+    """Evaluate what the representation node wrote (no bag needed).
+
+    Ground truth is the body's: the sensor pose of every POV sample through
+    the arm's forward model, as /body/sensor_pose reports it. Joined here, in
+    the evaluator, never in the agent or the representation.
+    """
+    import numpy as np
+
+    from . import pipeline
+    from .core import arm
+    from .nodes import build_world
+    from .nodes.representation import RESULT_FILE
+
+    with np.load(Path(results_dir) / RESULT_FILE) as stored:
+        arrays = {key: stored[key] for key in stored.files}
+    povs = arrays["povs"]
+    poses = arm.forward(povs)
+    true_poses = poses[:, 0]
+    representation = pipeline.Representation(
+        distance=arrays["hausdorff"],
+        before={dim: arrays[f"embedding_{dim}_before"] for dim in pipeline.DIMENSIONS},
+        iterations={dim: arrays[f"embedding_{dim}_iterations"] for dim in pipeline.DIMENSIONS},
+        set_spread={dim: arrays[f"set_spread_{dim}"] for dim in pipeline.DIMENSIONS},
+        timings_s=json.loads(str(arrays.get("timings_s_json", "{}"))))
+    flat = {"pov.count": int(len(povs)),
+            "pov.max_pose_drift": float(np.max(arm.pose_error(poses, true_poses[:, None, :])))
+            if len(povs) else 0.0,
+            "equality_sets.count": int(len(np.unique(arrays["set_ids"]))),
+            "equality_sets.pairs": int(len(arrays["pairs"]))}
+    for key in ("exploration.compensated", "exploration.changes"):
+        name = "agent_" + key.split(".")[1]
+        if name in arrays:
+            flat[key] = int(arrays[name])
+    flat.update(pipeline.evaluate(representation, true_poses[:, :2], povs, cfg, cfg["seed"]))
+    timings = dict(representation.timings_s)
+    timings["reaching"] = flat.pop("timings_s.reaching")
+    flat.update({f"timings_s.{key}": value for key, value in timings.items()})
+    flat["strategy"] = "naive-graph"
+    flat["seed"] = cfg["seed"]
+    metrics = pipeline.nest(flat)
+    from . import config
+    metrics["config"] = config.flatten(cfg)
+    pipeline.write_metrics(metrics, Path(results_dir) / pipeline.METRICS_FILE)
+    if cfg["output"]["figures"]:
+        world = build_world(cfg)
+        arrays.update({"true_positions": true_poses[:, :2], "true_poses": true_poses,
+                       "motor_states": povs[:, 0], "grid": world.grid,
+                       "grid_spacing": np.float64(world.spacing),
+                       "grid_index": np.full(len(povs), -1),
+                       "initial_motor_state": world.m0, "receptors": world.receptors,
+                       "initial_lights": world.initial_lights,
+                       "config_json": np.asarray(json.dumps(cfg, sort_keys=True)),
+                       "seed": np.int64(cfg["seed"])})
+        try:
+            from . import figures
+            arrays.update(pipeline.figure_examples(cfg))
+            figures.draw_all(arrays, Path(results_dir) / pipeline.FIGURES_DIR, seed=cfg["seed"])
+        except Exception as exc:   # figures are a by-product: report, keep the metrics
+            print(f"[launch] figures not drawn: {type(exc).__name__}: {exc}",
+                  file=stream or sys.stderr)
     return metrics
 
 
@@ -300,7 +372,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--results", type=Path, default=Path("results"),
                         help="results root (default: results)")
     parser.add_argument("--timeout", type=float, default=None, help="give up after this many s")
-    parser.set_defaults(func=run)
+    parser.set_defaults(func=run, handler=run)
     return parser
 
 

@@ -22,7 +22,6 @@ from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
 from .. import contracts, messages
-from ..core import naive_agent
 from . import GraphNode, frame, parse_frame, run_node
 
 

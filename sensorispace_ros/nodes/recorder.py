@@ -29,10 +29,15 @@ from rclpy.signals import SignalHandlerOptions
 
 from sensorispace_ros import bags, contracts
 
-# the recorder's own and rclpy's built-in parameters; everything else it is given
-# is the run's config
-OWN_PARAMETERS = ("bag_path", "chunk_interval_s", "stats_period_s", "topics", "use_sim_time",
-                  "start_type_description_service")
+# Parameters that are not the run's configuration: the launcher's plumbing
+# (graph.*: graph.bag_dir is where to record), the recorder's own (recorder.*)
+# and rclpy's built-ins. Everything else the recorder is given is stored.
+NOT_RUN_CONFIG_PREFIXES = ("graph.", "recorder.")
+RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
+def is_run_config(name: str) -> bool:
+    return name not in RCLPY_PARAMETERS and not name.startswith(NOT_RUN_CONFIG_PREFIXES)
 
 
 def qos_spec(profile) -> dict:
@@ -62,25 +67,26 @@ class Recorder(Node):
     def __init__(self, **kwargs):
         super().__init__("recorder", automatically_declare_parameters_from_overrides=True,
                          **kwargs)
-        bag_path = self._own("bag_path", "") or default_bag_path()
-        chunk_interval_s = float(self._own("chunk_interval_s", bags.DEFAULT_CHUNK_INTERVAL_S))
-        self.stats_period_s = float(self._own("stats_period_s", 5.0))
-        wanted = list(self._own("topics", []) or [])
+        bag_path = self._own("graph.bag_dir", "") or default_bag_path()
+        chunk_interval_s = float(self._own("recorder.chunk_interval_s",
+                                           bags.DEFAULT_CHUNK_INTERVAL_S))
+        self.stats_period_s = float(self._own("recorder.stats_period_s", 5.0))
+        wanted = [t for t in self._own("recorder.topics", [""]) if t]
         if chunk_interval_s <= 0:
-            raise ValueError(f"chunk_interval_s must be > 0, got {chunk_interval_s}")
+            raise ValueError(f"recorder.chunk_interval_s must be > 0, got {chunk_interval_s}")
         if self.stats_period_s <= 0:
-            raise ValueError(f"stats_period_s must be > 0, got {self.stats_period_s}")
+            raise ValueError(f"recorder.stats_period_s must be > 0, got {self.stats_period_s}")
 
         available = contracts.load_contracts()
         unknown = sorted(set(wanted) - set(available))
         if unknown:
-            raise ValueError(f"topics: {', '.join(unknown)} not in the topic contract")
+            raise ValueError(f"recorder.topics: {', '.join(unknown)} not in the topic contract")
         self.contracts = {name: c for name, c in available.items() if not wanted or name in wanted}
 
         run_config = {
             name: (list(p.value) if isinstance(p.value, (list, tuple)) or hasattr(p.value, "tolist")
                    else p.value)
-            for name, p in self._parameters.items() if name not in OWN_PARAMETERS
+            for name, p in self._parameters.items() if is_run_config(name)
         }
         topics = {name: c.type_name for name, c in self.contracts.items()}
         qos = {name: qos_spec(c.qos) for name, c in self.contracts.items()}

@@ -11,6 +11,7 @@ by the evaluator, never here.
 """
 from __future__ import annotations
 
+import json
 import threading
 from pathlib import Path
 
@@ -114,13 +115,19 @@ class RepresentationNode(GraphNode):
             set_ids = rows["set"].astype(np.int64)
             self.get_logger().info(f"building the representation of {len(ids)} points of view, "
                                    f"{len(rows)} equality rows")
-            embeddings = pipeline.build_representation(povs, pairs, set_ids, self.cfg,
-                                                       self.cfg["seed"], progress=None)
-            arrays = {"pov_ids": ids, "points_of_view": povs, "pairs": pairs, "set_ids": set_ids}
-            for dim, per_iteration in sorted(embedding_stages(embeddings).items()):
-                for k, embedding in enumerate(per_iteration):
+            representation = pipeline.build_representation(povs, pairs, set_ids, self.cfg,
+                                                           self.cfg["seed"], progress=None)
+            # Same array names as pipeline.run_arrays, so evaluation code is shared.
+            arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
+                      "hausdorff": representation.distance}
+            for dim in sorted(representation.before):
+                stages = [representation.before[dim], *representation.iterations[dim]]
+                for k, embedding in enumerate(stages):
                     self.publish_embedding(ids, embedding, f"{dim}/iteration/{k}")
-                arrays[f"embedding_{dim}"] = np.asarray(per_iteration)
+                arrays[f"embedding_{dim}_before"] = representation.before[dim]
+                arrays[f"embedding_{dim}_iterations"] = representation.iterations[dim]
+                arrays[f"set_spread_{dim}"] = representation.set_spread[dim]
+            arrays["timings_s_json"] = np.asarray(json.dumps(representation.timings_s))
             self.results_dir.mkdir(parents=True, exist_ok=True)
             np.savez(self.results_dir / RESULT_FILE, **arrays)
             self.result = arrays
@@ -140,12 +147,6 @@ class RepresentationNode(GraphNode):
             {"pov": ids, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]},
             self.columns["/representation/embedding"],
             messages.make_header(frame_id, self.get_clock().now().nanoseconds)))
-
-
-def embedding_stages(embeddings) -> dict[str, list[np.ndarray]]:
-    """``{"2d": [iteration 0 (before), 1, ...], "3d": [...]}`` from the pipeline's result."""
-    return {str(dim): [np.asarray(e, dtype=float) for e in per_iteration]
-            for dim, per_iteration in dict(embeddings).items()}
 
 
 def main(args=None) -> int:

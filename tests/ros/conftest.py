@@ -1,0 +1,22 @@
+"""Every graph a test starts discovers on localhost only, in its own domain."""
+import os
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+REPO = Path(__file__).resolve().parents[2]
+SMOKE = REPO / "config" / "smoke.yaml"
+
+
+@pytest.fixture
+def domain_id():
+    from sensorispace_ros.launcher import free_domain_id
+    return free_domain_id()
+
+
+@pytest.fixture
+def node_env(domain_id):
+    from sensorispace_ros.launcher import graph_environment
+    return graph_environment(domain_id)

@@ -1,0 +1,180 @@
+"""The whole graph in one process (one SingleThreadedExecutor, a private Context).
+
+(a) the smoke run completes and equals the offline naive run on the same
+config and seed; (c) the live graph shows the agent subscribing only to
+/body/sensation and the representation only to /agent/*; (d) malformed
+messages on every subscribed topic are dropped and change nothing.
+"""
+import array
+
+import numpy as np
+import pytest
+from rclpy.node import Node
+from std_msgs.msg import UInt64
+
+from sensorispace_ros import config, contracts, launcher, messages, pipeline
+
+from .conftest import SMOKE
+
+SUBSCRIBED = {node: contracts.topics_subscribed_by(node)
+              for node in ("environment", "body", "agent", "representation")}
+
+
+@pytest.fixture(scope="module")
+def smoke_cfg():
+    return config.load_config(SMOKE)
+
+
+@pytest.fixture(scope="module")
+def offline(smoke_cfg):
+    produced = pipeline.run_naive_strategy(smoke_cfg, smoke_cfg["seed"])
+    representation = pipeline.build_representation(
+        produced.povs, produced.pairs, produced.set_ids, smoke_cfg, smoke_cfg["seed"])
+    return produced, representation
+
+
+class GraphObserver(Node):
+    """Reads the live graph once the run is under way."""
+
+    def __init__(self, context):
+        super().__init__("graph_observer", context=context)
+        self.subscriptions_by_node: dict | None = None
+
+    def look(self, nodes) -> None:
+        if self.subscriptions_by_node is None and nodes["agent"].last_passive >= 1:
+            self.subscriptions_by_node = {
+                name: sorted(topic for topic, _ in
+                             self.get_subscriber_names_and_types_by_node(name, "/"))
+                for name in SUBSCRIBED}
+
+
+def _run(tmp_path, domain_id, extra_nodes=()):
+    observers = []
+
+    def make_observer(context):
+        observers.append(GraphObserver(context))
+        return observers[-1]
+
+    result = launcher.run_graph_in_process(
+        SMOKE, domain_id, tmp_path, extra_nodes=(make_observer, *extra_nodes), timeout_s=600,
+        on_spin=lambda nodes: observers[0].look(nodes))
+    return result, observers[0]
+
+
+def _assert_same_as_offline(result, offline):
+    produced, representation = offline
+    arrays = result["nodes"]["representation"].result
+    agent = result["nodes"]["agent"].agent
+    assert len(arrays["povs"]) == len(produced.povs) == produced.metrics["pov.count"]
+    np.testing.assert_array_equal(arrays["povs"], produced.povs)
+    np.testing.assert_array_equal(arrays["pairs"], produced.pairs)
+    np.testing.assert_array_equal(arrays["set_ids"], produced.set_ids)
+    assert agent.compensated == produced.metrics["exploration.compensated"]
+    for dim in pipeline.DIMENSIONS:
+        np.testing.assert_allclose(arrays[f"embedding_{dim}_before"], representation.before[dim],
+                                   atol=1e-6, rtol=0)
+        np.testing.assert_allclose(arrays[f"embedding_{dim}_iterations"],
+                                   representation.iterations[dim], atol=1e-6, rtol=0)
+
+
+def test_graph_equals_offline_and_agent_is_naive(tmp_path, domain_id, offline):
+    result, observer = _run(tmp_path, domain_id)
+    _assert_same_as_offline(result, offline)
+    assert (tmp_path / "representation.npz").is_file()
+    assert all(not node.dropped for node in result["nodes"].values()
+               if hasattr(node, "dropped")), "an undisturbed run dropped messages"
+
+    seen = observer.subscriptions_by_node
+    assert seen is not None, "the observer never saw the running graph"
+    assert seen["agent"] == ["/body/sensation"]
+    assert seen["representation"] and all(t.startswith("/agent/") for t in seen["representation"])
+    ground_truth = {t for t, c in contracts.load_contracts().items() if c.ground_truth}
+    for name in ("agent", "representation"):
+        assert not ground_truth & set(seen[name])
+        assert not any(t.startswith("/environment/") for t in seen[name])
+    for name, topics in SUBSCRIBED.items():
+        assert seen[name] == sorted(topics), f"{name} does not subscribe as topics.yaml says"
+
+
+# ---------------------------------------------------------------- (d) bad input
+
+def _broken_clouds(topic: str, frame_id: str) -> list:
+    """Malformed PointCloud2 messages for ``topic``, each wrong in one way."""
+    columns = contracts.contract(topic).columns
+    rows = 2
+
+    def valid():
+        table = {name: np.ones(rows) for name in columns}
+        return messages.table_to_cloud(table, columns, messages.make_header(frame_id))
+
+    broken = []
+    msg = valid()                               # wrong size: data cut short
+    msg.data = array.array("B", bytes(msg.data)[:-3])
+    broken.append(msg)
+    msg = valid()                               # width says more rows than data holds
+    msg.width += 1
+    msg.row_step += msg.point_step
+    broken.append(msg)
+    msg = valid()                               # wrong field layout: renamed column
+    msg.fields[0].name = "bogus"
+    broken.append(msg)
+    msg = valid()                               # wrong field layout: shifted offset
+    msg.fields[-1].offset += 1
+    broken.append(msg)
+    msg = valid()                               # wrong type of a column
+    msg.fields[0].datatype = 7                  # FLOAT32
+    broken.append(msg)
+    float_columns = [n for n, kind in columns.items() if kind == "float64"]
+    for bad in (np.nan, np.inf, -np.inf):       # non-finite values
+        table = {name: np.ones(rows) for name in columns}
+        table[float_columns[0]][1] = bad
+        broken.append(messages.table_to_cloud(table, columns, messages.make_header(frame_id)))
+    broken.append(messages.table_to_cloud(     # unknown frame id, valid layout
+        {name: np.ones(rows) for name in columns}, columns, messages.make_header("bogus/1")))
+    return broken
+
+
+HOSTILE_FRAMES = {
+    "/environment/lights": "change/1",
+    "/body/motor_command": "cmd/1",
+    "/body/sensation": "cmd/1",
+    "/agent/points_of_view": "change/1",
+    "/agent/compensations": "change/1",
+    "/agent/done": "end/1",
+}
+
+
+class HostilePublisher(Node):
+    """Publishes malformed messages on every topic a graph node subscribes to."""
+
+    def __init__(self, context):
+        super().__init__("hostile", context=context)
+        self.publishers_ = {t: contracts.create_publisher(self, t) for t in HOSTILE_FRAMES}
+        self.settled_pub = contracts.create_publisher(self, "/agent/settled")
+        self.messages = {t: _broken_clouds(t, f) for t, f in HOSTILE_FRAMES.items()}
+        self.sent = 0
+        self.create_timer(0.05, self.fire)
+
+    def fire(self) -> None:
+        for topic, broken in self.messages.items():
+            self.publishers_[topic].publish(broken[self.sent % len(broken)])
+        # A settled number the environment is not waiting for.
+        self.settled_pub.publish(UInt64(data=10 ** 9 + self.sent))
+        self.sent += 1
+
+
+def test_malformed_input_is_dropped_and_changes_nothing(tmp_path, domain_id, offline):
+    hostile = []
+
+    def make_hostile(context):
+        hostile.append(HostilePublisher(context))
+        return hostile[-1]
+
+    result, _ = _run(tmp_path, domain_id, extra_nodes=(make_hostile,))
+    assert hostile[0].sent >= len(_broken_clouds("/body/sensation", "cmd/1")), \
+        "the run ended before every kind of malformed message was sent"
+    _assert_same_as_offline(result, offline)
+    nodes = result["nodes"]
+    for name, topics in SUBSCRIBED.items():
+        for topic in topics:
+            assert nodes[name].dropped.get(topic, 0) > 0, f"{name} dropped nothing on {topic}"

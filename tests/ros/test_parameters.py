@@ -1,0 +1,23 @@
+"""Invalid parameters stop a node at start-up: its name, the reason, non-zero, no traceback."""
+import subprocess
+import sys
+
+import pytest
+
+from .conftest import SMOKE
+
+
+@pytest.mark.parametrize("node, override, name", [
+    ("body", "world.grid_count:=1", "world.grid_count"),
+    ("environment", "world.redistribution_probability:=1.5", "world.redistribution_probability"),
+    ("agent", "pov.n_sampels:=3", "pov.n_sampels"),
+    ("representation", "graph.results_dirr:=x", "graph.results_dirr"),
+])
+def test_invalid_parameter_stops_node_with_its_name(node, override, name, node_env):
+    done = subprocess.run(
+        [sys.executable, "-m", f"sensorispace_ros.nodes.{node}", "--ros-args",
+         "--params-file", str(SMOKE), "-p", override],
+        env=node_env, capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0
+    assert name in done.stderr
+    assert "Traceback" not in done.stderr + done.stdout
