@@ -1,0 +1,633 @@
+"""The paper's result figures, drawn from a run's arrays (``arrays.npz``).
+
+Every function takes the mapping of arrays that ``pipeline.reproduce``
+writes, so a figure can be redrawn from ``arrays.npz`` without re-running
+anything. File names follow the paper's figure numbers (LaTeX source order):
+6 point of view, 7 exploration, 8 projections, 9 metric differences,
+11 equality sets, 12 regularised projections, 14/15 reaching, 16 metric
+comparisons.
+
+Colour code (as in the paper): a POV is coloured by the position of its
+sensor, hue = angle of the tip around the arm's base, saturation = distance
+from the base (pale near the hole of radius 1, vivid at the reach 3). The
+same POV has the same colour in every panel, so topology can be read by eye.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Callable, Mapping
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.colors import hsv_to_rgb, to_rgb  # noqa: E402
+from matplotlib.patches import Circle, Wedge  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
+
+from .core import arm  # noqa: E402
+from .core.seeding import rng_for  # noqa: E402
+
+TWO_PI = 2.0 * np.pi
+DPI = 110
+PAIR_COLOURS = ("#1f77b4", "#d62728", "#2ca02c")       # three examples: blue, red, green
+ARM_REACH = 3.0
+ARM_HOLE = 1.0                                          # |tip| < 1: POV splits in two loops
+
+
+# ---------------------------------------------------------------------------
+# Shared pieces
+
+
+def position_colours(positions: np.ndarray) -> np.ndarray:
+    """RGB ``(P, 3)``: hue = angle of the sensor around the base, saturation = radius."""
+    positions = np.asarray(positions, dtype=float)
+    angle = np.arctan2(positions[:, 1], positions[:, 0])
+    radius = np.hypot(positions[:, 0], positions[:, 1])
+    hue = (angle + np.pi) / TWO_PI
+    saturation = 0.25 + 0.75 * np.clip((radius - ARM_HOLE) / (ARM_REACH - ARM_HOLE), 0.0, 1.0)
+    value = np.full_like(hue, 0.9)
+    return hsv_to_rgb(np.stack([hue, saturation, value], axis=-1))
+
+
+def arm_points(motor: np.ndarray) -> np.ndarray:
+    """Base, elbow joints and tip of the arm, ``(..., 4, 2)``."""
+    theta = np.cumsum(np.asarray(motor, dtype=float)[..., :3], axis=-1)
+    steps = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    zero = np.zeros(steps.shape[:-2] + (1, 2))
+    return np.concatenate([zero, np.cumsum(steps, axis=-2)], axis=-2)
+
+
+def draw_arms(ax, motors: np.ndarray, colours, linewidth: float = 0.8, alpha: float = 1.0,
+              eye_length: float = 0.25) -> None:
+    """Arms as polylines with the eye's optical axis as a short tick at the tip."""
+    motors = np.atleast_2d(motors)
+    points = arm_points(motors)
+    colours = np.broadcast_to(np.asarray(to_rgb(colours) if isinstance(colours, str)
+                                         else colours, dtype=float), (len(motors), 3))
+    ax.add_collection(LineCollection(points, colors=colours, linewidths=linewidth, alpha=alpha))
+    pose = arm.forward(motors)
+    axis = np.stack([pose[:, :2], pose[:, :2] + eye_length * np.stack(
+        [np.cos(pose[:, 2]), np.sin(pose[:, 2])], axis=-1)], axis=1)
+    ax.add_collection(LineCollection(axis, colors=colours, linewidths=linewidth * 2.5,
+                                     alpha=alpha))
+    ax.plot([0], [0], marker="s", color="k", markersize=5)
+
+
+def centred_loop(samples: np.ndarray) -> np.ndarray:
+    """Shift each joint of a POV by a multiple of 2 pi so its mean lies in [-pi, pi).
+
+    A whole POV is a closed loop in unwrapped coordinates; shifting (not
+    wrapping) keeps it one unbroken curve while putting all POVs in one box.
+    """
+    samples = np.asarray(samples, dtype=float)
+    shift = TWO_PI * np.round(samples.mean(axis=-2, keepdims=True) / TWO_PI)
+    return samples - shift
+
+
+def closed(samples: np.ndarray) -> np.ndarray:
+    return np.concatenate([samples, samples[..., :1, :]], axis=-2)
+
+
+def wrapped_path(motor: np.ndarray) -> np.ndarray:
+    """Motor path wrapped to [-pi, pi) with NaN rows where a joint jumps by
+    2 pi, so a plot shows the jump as a gap instead of a line across the box."""
+    motor = np.asarray(motor, dtype=float)
+    wrapped = arm.wrap_angle(motor)
+    jump = np.any(np.abs(np.diff(wrapped, axis=0)) > np.pi, axis=1)
+    rows = []
+    for k, row in enumerate(wrapped):
+        if k and jump[k - 1]:
+            rows.append(np.full(motor.shape[1], np.nan))
+        rows.append(row)
+    return np.asarray(rows)
+
+
+def _scatter(ax, points: np.ndarray, colours, size: float = 8.0, **kwargs) -> None:
+    points = np.asarray(points)
+    if points.shape[1] == 3:
+        ax.scatter(points[:, 0], points[:, 1], points[:, 2], c=colours, s=size,
+                   depthshade=False, linewidths=0, **kwargs)
+    else:
+        ax.scatter(points[:, 0], points[:, 1], c=colours, s=size, linewidths=0, **kwargs)
+
+
+def _axes(fig, position, dim: int, title: str):
+    ax = fig.add_subplot(position, projection="3d" if dim == 3 else None)
+    ax.set_title(title, fontsize=10)
+    if dim == 2:
+        ax.set_aspect("equal", adjustable="datalim")
+    else:
+        ax.tick_params(labelsize=7)
+    return ax
+
+
+def _equal_3d(ax, points: np.ndarray) -> None:
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    centre, half = (lo + hi) / 2.0, (hi - lo).max() / 2.0 or 1.0
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+
+
+def _motor_axes(ax) -> None:
+    ax.set_xlabel("m1 (rad)", fontsize=8)
+    ax.set_ylabel("m2 (rad)", fontsize=8)
+    ax.set_zlabel("m3 (rad)", fontsize=8)
+    ax.tick_params(labelsize=7)
+
+
+def _segments(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    return np.stack([points[pairs[:, 0]], points[pairs[:, 1]]], axis=1)
+
+
+def _add_segments(ax, segments: np.ndarray, colour, linewidth: float = 0.8,
+                  alpha: float = 1.0) -> None:
+    if segments.shape[-1] == 3:
+        ax.add_collection3d(Line3DCollection(segments, colors=colour, linewidths=linewidth,
+                                             alpha=alpha))
+    else:
+        ax.add_collection(LineCollection(segments, colors=colour, linewidths=linewidth,
+                                         alpha=alpha))
+
+
+def _plot_path(ax, points: np.ndarray, colour, linewidth: float = 1.5, **kwargs) -> None:
+    if points.shape[1] == 3:
+        ax.plot(points[:, 0], points[:, 1], points[:, 2], color=colour, linewidth=linewidth,
+                **kwargs)
+    else:
+        ax.plot(points[:, 0], points[:, 1], color=colour, linewidth=linewidth, **kwargs)
+
+
+def _lighter(colour, amount: float = 0.6):
+    rgb = np.asarray(to_rgb(colour))
+    return tuple(rgb + (1.0 - rgb) * amount)
+
+
+def _config(arrays: Mapping) -> dict:
+    return json.loads(str(arrays["config_json"]))
+
+
+def grid_transitions(positions: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """POV index pairs one grid step apart: (horizontal ``(H, 2)``, vertical ``(V, 2)``)."""
+    positions = np.asarray(positions, dtype=float)
+    cell = np.rint(positions / spacing).astype(np.int64)
+    index = {tuple(c): i for i, c in enumerate(cell)}
+    horizontal, vertical = [], []
+    for i, (cx, cy) in enumerate(cell):
+        j = index.get((cx + 1, cy))
+        if j is not None:
+            horizontal.append((i, j))
+        j = index.get((cx, cy + 1))
+        if j is not None:
+            vertical.append((i, j))
+    return (np.asarray(horizontal, dtype=int).reshape(-1, 2),
+            np.asarray(vertical, dtype=int).reshape(-1, 2))
+
+
+# ---------------------------------------------------------------------------
+# Figures
+
+
+def fig06_point_of_view(arrays: Mapping) -> plt.Figure:
+    """Paper Fig. 6: (a) one POV, arm configurations and its motor-space loop;
+    (b) POVs of tips along the x axis; closer than 1 to the base the fibre
+    splits and the kernel walk traces only one of its two loops."""
+    fig = plt.figure(figsize=(12, 9.5))
+    example = np.asarray(arrays["pov_example"])
+    n = len(example)
+    order_colours = plt.get_cmap("viridis")(np.linspace(0.0, 1.0, n, endpoint=False))[:, :3]
+    shown = np.arange(0, n, max(n // 12, 1))
+
+    ax = fig.add_subplot(2, 2, 1)
+    draw_arms(ax, example[shown], order_colours[shown], linewidth=1.2, eye_length=0.35)
+    ax.set_aspect("equal")
+    ax.set_xlim(-3.2, 3.2)
+    ax.set_ylim(-3.2, 3.2)
+    tip = arm.forward(example[0])
+    ax.set_title(f"(a) one point of view: {len(shown)} of its {n} arm configurations\n"
+                 f"share the sensor pose ({tip[0]:.2f}, {tip[1]:.2f}, "
+                 f"{arm.wrap_angle(tip[2]):.2f} rad)", fontsize=10)
+
+    ax = fig.add_subplot(2, 2, 2, projection="3d")
+    loop = closed(centred_loop(example))
+    segments = np.stack([loop[:-1, :3], loop[1:, :3]], axis=1)
+    ax.add_collection3d(Line3DCollection(segments, colors=order_colours, linewidths=2.0))
+    ax.scatter(*example[shown, :3].T, c=order_colours[shown], s=25, depthshade=False)
+    _equal_3d(ax, loop[:, :3])
+    _motor_axes(ax)
+    ax.set_title("(a) the same POV in motor space: a closed 1-D loop\n"
+                 "(joints 1-3; colour = position along the loop)", fontsize=10)
+
+    povs = np.asarray(arrays["pov_examples_x"])
+    valid = np.asarray(arrays["pov_examples_x_valid"], dtype=bool)
+    tips = arm.forward(povs[:, 0])
+    cmap = plt.get_cmap("cool")
+    colours = [cmap(k / max(len(povs) - 1, 1))[:3] for k in range(len(povs))]
+    colours = [c if ok else to_rgb("#e66101") for c, ok in zip(colours, valid)]
+
+    ax = fig.add_subplot(2, 2, 3)
+    for k in range(len(povs)):
+        draw_arms(ax, povs[k, 0], colours[k], linewidth=1.4, eye_length=0.35)
+    ax.add_patch(Circle((0, 0), ARM_HOLE, fill=False, linestyle=":", color="0.4"))
+    ax.set_aspect("equal")
+    ax.set_xlim(-3.2, 3.2)
+    ax.set_ylim(-3.2, 3.2)
+    ax.set_title("(b) sensor moved along the x axis (one arm configuration each);\n"
+                 "dotted: |tip| = 1", fontsize=10)
+
+    ax = fig.add_subplot(2, 2, 4, projection="3d")
+    for k in range(len(povs)):
+        if valid[k]:
+            loop = closed(centred_loop(povs[k]))
+            label = f"|tip| = {np.hypot(*tips[k, :2]):.2f}"
+        else:
+            # A split fibre: the walk wraps around a joint circle, so the
+            # trace is not closed in unwrapped coordinates; draw it as traced.
+            loop = wrapped_path(povs[k])
+            label = f"|tip| = {np.hypot(*tips[k, :2]):.2f}: one of two loops"
+        ax.plot(*loop[:, :3].T, color=colours[k], linewidth=1.5, label=label)
+    _motor_axes(ax)
+    ax.legend(fontsize=7, loc="upper left")
+    ax.set_title("(b) their points of view in motor space", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def fig07_exploration(arrays: Mapping) -> plt.Figure:
+    """Paper Fig. 7: (a) object grid, working space, compensated positions;
+    (b) compensating arm configurations; (c) compensating motor states;
+    (d) their points of view."""
+    grid = np.asarray(arrays["grid"])
+    grid_index = np.asarray(arrays["grid_index"], dtype=int)
+    m0 = np.asarray(arrays["initial_motor_state"], dtype=float)
+    motor = np.asarray(arrays["motor_states"])
+    positions = np.asarray(arrays["true_positions"])
+    povs = np.asarray(arrays["povs"])
+    colours = position_colours(positions)
+    tip0 = arm.forward(m0)[:2]
+
+    fig = plt.figure(figsize=(13, 11.5))
+    ax = fig.add_subplot(2, 2, 1)
+    ax.add_patch(Wedge((0, 0), ARM_REACH, 0, 360, width=ARM_REACH - ARM_HOLE,
+                       color="#a6dba0", alpha=0.6, linewidth=0, label="arm working space"))
+    ax.scatter(*grid.T, s=2, color="0.75", linewidths=0, label="object positions (grid)")
+    compensated = grid[grid_index[grid_index >= 0]]
+    ax.scatter(*compensated.T, s=7, color="#2166ac", linewidths=0,
+               label=f"compensated ({len(compensated)})")
+    # Object displacement e needs the tip at tip0 + e: compensable positions
+    # form the working space shifted by -tip0.
+    reachable = np.hypot(*(grid + tip0).T)
+    expected = (reachable >= ARM_HOLE) & (reachable <= ARM_REACH)
+    missed = np.setdiff1d(np.flatnonzero(expected), grid_index)
+    for radius in (ARM_HOLE, ARM_REACH):
+        ax.add_patch(Circle(-tip0, radius, fill=False, linestyle="--", color="#2166ac",
+                            linewidth=0.8, label=None if radius == ARM_HOLE else
+                            "object positions the tip can follow"))
+    if len(missed):
+        ax.scatter(*grid[missed].T, s=30, facecolors="none", edgecolors="#d7191c",
+                   linewidths=1.0, label=f"in reach, not compensated ({len(missed)})")
+    draw_arms(ax, m0, "k", linewidth=2.0)
+    ax.set_aspect("equal")
+    half = np.abs(grid).max() + 0.3
+    ax.set_xlim(-half, half)
+    ax.set_ylim(-half, half)
+    ax.legend(fontsize=7, loc="upper right", framealpha=0.9)
+    ax.set_title("(a) object positions and the arm's initial configuration", fontsize=10)
+
+    ax = fig.add_subplot(2, 2, 2)
+    draw_arms(ax, motor, colours, linewidth=0.4, alpha=0.7, eye_length=0.12)
+    draw_arms(ax, m0, "k", linewidth=2.0)
+    ax.set_aspect("equal")
+    ax.set_xlim(-3.3, 3.3)
+    ax.set_ylim(-3.3, 3.3)
+    ax.set_title("(b) compensating arm configurations\n(colour = angle of the tip around "
+                 "the base; pale = near the base)", fontsize=10)
+
+    ax = fig.add_subplot(2, 2, 3, projection="3d")
+    shown = centred_loop(motor[:, None, :])[:, 0]
+    ax.scatter(*shown[:, :3].T, c=colours, s=8, depthshade=False, linewidths=0)
+    m0_shown = centred_loop(m0[None, None, :])[0, 0]
+    ax.scatter(*m0_shown[:3], color="k", s=80, marker="o", depthshade=False,
+               label="initial motor state")
+    _motor_axes(ax)
+    ax.legend(fontsize=7)
+    ax.set_title("(c) compensating motor states (joints 1-3)", fontsize=10)
+
+    ax = fig.add_subplot(2, 2, 4, projection="3d")
+    loops = closed(centred_loop(povs))[:, :, :3]
+    segments = np.concatenate([np.stack([l[:-1], l[1:]], axis=1) for l in loops])
+    seg_colours = np.repeat(colours, loops.shape[1] - 1, axis=0)
+    ax.add_collection3d(Line3DCollection(segments, colors=seg_colours,
+                                         linewidths=0.3 if len(povs) > 200 else 0.8,
+                                         alpha=0.6))
+    _equal_3d(ax, loops.reshape(-1, 3))
+    _motor_axes(ax)
+    ax.set_title(f"(d) their {len(povs)} points of view (loops in motor space)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _projection_panels(fig, arrays: Mapping, panels, suptitle: str) -> plt.Figure:
+    colours = position_colours(arrays["true_positions"])
+    for position, points, title in panels:
+        points = np.asarray(points)
+        ax = _axes(fig, position, points.shape[1], title)
+        _scatter(ax, points, colours, size=10)
+        if points.shape[1] == 3:
+            _equal_3d(ax, points)
+    fig.suptitle(suptitle, fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def fig08_projections_before(arrays: Mapping) -> plt.Figure:
+    """Paper Fig. 8: CCA projections of the POVs (Hausdorff metric) in 2-D and 3-D."""
+    fig = plt.figure(figsize=(12, 5.8))
+    return _projection_panels(fig, arrays, [
+        (121, arrays["embedding_2d_before"], "(a) 2-D projection"),
+        (122, arrays["embedding_3d_before"], "(b) 3-D projection"),
+    ], "Points of view projected by CCA from the Hausdorff metric (colour = sensor position)")
+
+
+def fig09_metric_differences(arrays: Mapping) -> plt.Figure:
+    """Paper Fig. 9: equal external grid steps (blue horizontal, red vertical)
+    and the internal 2-D / 3-D vectors that represent them."""
+    positions = np.asarray(arrays["true_positions"])
+    horizontal, vertical = grid_transitions(positions, float(arrays["grid_spacing"]))
+    fig = plt.figure(figsize=(16, 5.5))
+    spaces = [(positions, "(a) external sensor positions: every step has the same length"),
+              (np.asarray(arrays["embedding_2d_before"]), "(b) the same steps in 2-D"),
+              (np.asarray(arrays["embedding_3d_before"]), "(c) the same steps in 3-D")]
+    for k, (points, title) in enumerate(spaces):
+        ax = _axes(fig, 131 + k, points.shape[1], title)
+        _add_segments(ax, _segments(points, horizontal), "#2166ac", linewidth=0.7)
+        _add_segments(ax, _segments(points, vertical), "#d6604d", linewidth=0.7)
+        if points.shape[1] == 3:
+            _equal_3d(ax, points)
+        else:
+            ax.autoscale()
+    fig.tight_layout()
+    return fig
+
+
+def choose_equality_sets(arrays: Mapping, count: int = 3, seed: int = 0) -> list[int]:
+    """``count`` well-populated sets with short, differently directed displacements."""
+    pairs = np.asarray(arrays["pairs"], dtype=int)
+    set_ids = np.asarray(arrays["set_ids"], dtype=int)
+    positions = np.asarray(arrays["true_positions"])
+    spacing = float(arrays["grid_spacing"])
+    ids, sizes = np.unique(set_ids, return_counts=True)
+    if len(ids) == 0:
+        return []
+    first = np.array([np.flatnonzero(set_ids == i)[0] for i in ids])
+    displacement = positions[pairs[first, 1]] - positions[pairs[first, 0]]
+    length = np.hypot(*displacement.T)
+    # Readable arrows: a few grid steps long, in sets larger than most.
+    candidate = (length >= 2.5 * spacing) & (length <= 6.5 * spacing)
+    candidate &= sizes >= np.quantile(sizes, 0.5)
+    if candidate.sum() < count:
+        candidate = np.ones(len(ids), dtype=bool)
+    pool = np.flatnonzero(candidate)
+    rng = rng_for(seed, "figures.equality_sets")
+    chosen: list[int] = []
+    for k in rng.permutation(pool):
+        direction = np.arctan2(displacement[k, 1], displacement[k, 0])
+        if all(abs(arm.wrap_angle(direction - np.arctan2(displacement[c, 1], displacement[c, 0])))
+               > np.pi / 4 for c in chosen):
+            chosen.append(int(k))
+        if len(chosen) == count:
+            break
+    return [int(ids[k]) for k in chosen]
+
+
+def fig11_equality_sets(arrays: Mapping, seed: int = 0) -> plt.Figure:
+    """Paper Fig. 11: three sets of POV changes that compensate one object
+    displacement each: equal vectors outside, unequal inside (before
+    regularisation)."""
+    pairs = np.asarray(arrays["pairs"], dtype=int)
+    set_ids = np.asarray(arrays["set_ids"], dtype=int)
+    chosen = choose_equality_sets(arrays, seed=seed)
+    rng = rng_for(seed, "figures.equality_set_members")
+    members = []
+    for set_id in chosen:
+        rows = np.flatnonzero(set_ids == set_id)
+        members.append(pairs[np.sort(rng.permutation(rows)[:25])])
+    fig = plt.figure(figsize=(16, 5.5))
+    spaces = [(np.asarray(arrays["true_positions"]), "(a) external space: identical displacements"),
+              (np.asarray(arrays["embedding_2d_before"]), "(b) 2-D representation"),
+              (np.asarray(arrays["embedding_3d_before"]), "(c) 3-D representation")]
+    for k, (points, title) in enumerate(spaces):
+        ax = _axes(fig, 131 + k, points.shape[1], title)
+        _scatter(ax, points, "0.82", size=5)
+        for colour, rows in zip(PAIR_COLOURS, members):
+            segments = _segments(points, rows)
+            _add_segments(ax, segments, colour, linewidth=1.3)
+            _scatter(ax, segments[:, 1], colour, size=14)     # heads mark the direction
+        if points.shape[1] == 3:
+            _equal_3d(ax, points)
+    fig.suptitle("Three equality sets (up to 25 members each; dots mark where each change ends)",
+                 fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def fig12_projections_regularized(arrays: Mapping) -> plt.Figure:
+    """Paper Fig. 12: projections after the first and the last regularisation iteration."""
+    it2 = np.asarray(arrays["embedding_2d_iterations"])
+    it3 = np.asarray(arrays["embedding_3d_iterations"])
+    last = len(it2)
+    fig = plt.figure(figsize=(12, 11))
+    return _projection_panels(fig, arrays, [
+        (221, it2[0], "2-D after iteration 1"),
+        (222, it2[-1], f"2-D after iteration {last}"),
+        (223, it3[0], "3-D after iteration 1"),
+        (224, it3[-1], f"3-D after iteration {last}"),
+    ], "Projections during metric regularisation (colour = sensor position)")
+
+
+def fig16_metric_comparisons(arrays: Mapping, seed: int = 0,
+                             fraction: float = 0.05) -> plt.Figure:
+    """Paper Fig. 16: distances of a random 5 % of POV pairs in pairs of metrics."""
+    positions = np.asarray(arrays["true_positions"])
+    n = len(positions)
+    rows, cols = np.triu_indices(n, k=1)
+    rng = rng_for(seed, "figures.metric_comparisons")
+    keep = rng.random(len(rows)) < fraction
+    rows, cols = rows[keep], cols[keep]
+
+    def pair_distance(points):
+        points = np.asarray(points)
+        return np.linalg.norm(points[rows] - points[cols], axis=1)
+
+    external = pair_distance(positions)
+    hausdorff = np.asarray(arrays["hausdorff"])[rows, cols]
+    internal = {f"{d} {stage}": pair_distance(arrays[f"embedding_{d}_{stage}"])
+                for d in ("2d", "3d") for stage in ("before",)}
+    internal.update({f"{d} after": pair_distance(np.asarray(arrays[f"embedding_{d}_iterations"])[-1])
+                     for d in ("2d", "3d")})
+    panels = [
+        ("(a)", external, hausdorff, "external", "Hausdorff"),
+        ("(a)", hausdorff, internal["2d before"], "Hausdorff", "2-D before"),
+        ("(a)", hausdorff, internal["3d before"], "Hausdorff", "3-D before"),
+        ("(b)", external, internal["2d before"], "external", "2-D before"),
+        ("(b)", external, internal["3d before"], "external", "3-D before"),
+        ("(c)", external, internal["2d after"], "external", "2-D after"),
+        ("(c)", external, internal["3d after"], "external", "3-D after"),
+    ]
+    size = float(np.clip(4000.0 / max(len(rows), 1), 1.5, 12.0))
+    alpha = float(np.clip(2000.0 / max(len(rows), 1), 0.25, 0.8))
+    fig, axes = plt.subplots(3, 3, figsize=(12, 11.5))
+    slots = [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (2, 0), (2, 1)]
+    for (r, c), (label, x, y, xname, yname) in zip(slots, panels):
+        ax = axes[r, c]
+        ax.scatter(x, y, s=size, color="#2166ac", alpha=alpha, linewidths=0, rasterized=True)
+        ax.set_xlabel(f"{xname} distance", fontsize=8)
+        ax.set_ylabel(f"{yname} distance", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.set_title(f"{label} {yname} vs {xname}", fontsize=9)
+    for r, c in [(1, 2), (2, 2)]:
+        axes[r, c].axis("off")
+    axes[1, 2].text(0.0, 0.5,
+                    f"{len(rows)} of {n * (n - 1) // 2} POV pairs ({100 * fraction:.0f} %)\n\n"
+                    "(a) the agent's metric and its projections\n"
+                    "(b) before regularisation vs the external metric\n"
+                    "(c) after regularisation vs the external metric",
+                    fontsize=9, va="center", transform=axes[1, 2].transAxes)
+    fig.tight_layout()
+    return fig
+
+
+def reaching_examples(arrays: Mapping, dim: str, seed: int = 0, count: int = 3) -> dict:
+    """Paths of ``count`` random start/target pairs, before and after, through
+    the pruned graph of the ``dim`` representation (the figure's data)."""
+    from .core import reach
+
+    cfg = _config(arrays)["representation"]["reaching"]
+    positions = np.asarray(arrays["true_positions"])
+    povs = np.asarray(arrays["povs"])
+    rng = rng_for(seed, "figures.reaching")
+    embeddings = {"before": np.asarray(arrays[f"embedding_{dim}_before"]),
+                  "after": np.asarray(arrays[f"embedding_{dim}_iterations"])[-1]}
+    graphs = {stage: reach.pruned_graph(_euclidean(points), max_degree=cfg["max_degree"],
+                                        radius=cfg["radius"])
+              for stage, points in embeddings.items()}
+    out = {"starts": [], "targets": [], "paths": {"before": [], "after": []},
+           "motor": {"before": [], "after": []}, "embeddings": embeddings}
+    tries = 0
+    while len(out["starts"]) < count and tries < 100 * count:
+        tries += 1
+        start, target = rng.choice(len(positions), size=2, replace=False)
+        if np.hypot(*(positions[start] - positions[target])) < 2.0:
+            continue                      # short paths say little about straightness
+        paths = {stage: reach.shortest_path(graph, int(start), int(target))
+                 for stage, graph in graphs.items()}
+        if any(p is None or len(p) < 2 for p in paths.values()):
+            continue
+        start_sample = int(rng.integers(povs.shape[1]))
+        out["starts"].append(int(start))
+        out["targets"].append(int(target))
+        for stage, path in paths.items():
+            out["paths"][stage].append(np.asarray(path, dtype=int))
+            out["motor"][stage].append(reach.motor_trajectory(povs, path, start_sample))
+    return out
+
+
+def _euclidean(points: np.ndarray) -> np.ndarray:
+    diff = points[:, None, :] - points[None, :, :]
+    return np.sqrt(np.sum(diff * diff, axis=-1))
+
+
+def _reaching_figure(arrays: Mapping, dim: str, number: int, seed: int) -> plt.Figure:
+    examples = reaching_examples(arrays, dim, seed=seed)
+    positions = np.asarray(arrays["true_positions"])
+    povs = np.asarray(arrays["povs"])
+    n_dim = int(dim[0])
+    fig = plt.figure(figsize=(18, 5.2))
+    for k, stage in enumerate(("before", "after")):
+        points = examples["embeddings"][stage]
+        ax = _axes(fig, 141 + k, n_dim, f"(a) internal paths, {dim[0]}-D {stage} regularisation")
+        _scatter(ax, points, "0.82", size=4)
+        for colour, path in zip(PAIR_COLOURS, examples["paths"][stage]):
+            _plot_path(ax, points[path], colour, marker=".", markersize=4)
+            _scatter(ax, points[path[[0, -1]]], colour, size=40)
+        if n_dim == 3:
+            _equal_3d(ax, points)
+
+    ax = fig.add_subplot(143, projection="3d")
+    rng = rng_for(seed, "figures.reaching_background")
+    for loop in povs[rng.permutation(len(povs))[:max(len(povs) // 10, 1)]]:
+        ax.plot(*wrapped_path(closed(loop))[:, :3].T, color="0.8", linewidth=0.4)
+    for stage, light in (("before", 0.6), ("after", 0.0)):
+        for colour, motor in zip(PAIR_COLOURS, examples["motor"][stage]):
+            shown = wrapped_path(motor)
+            ax.plot(*shown[:, :3].T, color=_lighter(colour, light), linewidth=1.4,
+                    marker=".", markersize=3)
+    _motor_axes(ax)
+    ax.set_xlim(-np.pi, np.pi)
+    ax.set_ylim(-np.pi, np.pi)
+    ax.set_zlim(-np.pi, np.pi)
+    ax.set_title("(b) motor trajectories, angles wrapped to [-pi, pi)\n"
+                 "(light: before, dark: after; grey: 10 % of the points of view)", fontsize=10)
+
+    ax = fig.add_subplot(144)
+    ax.scatter(*positions.T, s=4, color="0.82", linewidths=0)
+    for stage, light in (("before", 0.6), ("after", 0.0)):
+        for colour, path in zip(PAIR_COLOURS, examples["paths"][stage]):
+            ax.plot(*positions[path].T, color=_lighter(colour, light), linewidth=2.0,
+                    marker=".", markersize=4,
+                    label=None if colour != PAIR_COLOURS[0] else f"{stage} regularisation")
+    for colour, s, t in zip(PAIR_COLOURS, examples["starts"], examples["targets"]):
+        ax.scatter(*positions[[s, t]].T, color=colour, s=40, zorder=3)
+    ax.set_aspect("equal")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title("(c) external sensor paths (light: before, dark: after)", fontsize=10)
+    fig.suptitle(f"Reaching through the {dim[0]}-D representation (Fig. {number})", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def fig14_reaching_2d(arrays: Mapping, seed: int = 0) -> plt.Figure:
+    """Paper Fig. 14: three reaching tasks solved in the 2-D representations."""
+    return _reaching_figure(arrays, "2d", 14, seed)
+
+
+def fig15_reaching_3d(arrays: Mapping, seed: int = 0) -> plt.Figure:
+    """Paper Fig. 15: the same tasks solved in the 3-D representations."""
+    return _reaching_figure(arrays, "3d", 15, seed)
+
+
+FIGURES: dict[str, Callable] = {
+    "fig06_point_of_view": fig06_point_of_view,
+    "fig07_exploration": fig07_exploration,
+    "fig08_projections_before": fig08_projections_before,
+    "fig09_metric_differences": fig09_metric_differences,
+    "fig11_equality_sets": fig11_equality_sets,
+    "fig12_projections_regularized": fig12_projections_regularized,
+    "fig14_reaching_2d": fig14_reaching_2d,
+    "fig15_reaching_3d": fig15_reaching_3d,
+    "fig16_metric_comparisons": fig16_metric_comparisons,
+}
+SEEDED = {"fig11_equality_sets", "fig14_reaching_2d", "fig15_reaching_3d",
+          "fig16_metric_comparisons"}
+
+
+def draw_all(arrays: Mapping, out_dir: str | Path, seed: int = 0,
+             progress: Callable | None = None) -> list[Path]:
+    """Write every figure as ``out_dir/<name>.png``; return the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for k, (name, draw) in enumerate(FIGURES.items()):
+        fig = draw(arrays, seed=seed) if name in SEEDED else draw(arrays)
+        path = out_dir / f"{name}.png"
+        fig.savefig(path, dpi=DPI)
+        plt.close(fig)
+        written.append(path)
+        if progress is not None:
+            progress(k + 1, len(FIGURES))
+    return written
