@@ -26,8 +26,8 @@ def start_recorder(children, ros_env, tmp_path, chunk_interval_s=0.2):
     params.write_text(PARAMS_FILE)
     bag = tmp_path / "bag"
     process = children(["-m", "sensorispace_ros.nodes.recorder", "--ros-args",
-                        "--params-file", str(params), "-p", f"bag_path:={bag}",
-                        "-p", f"chunk_interval_s:={chunk_interval_s}"], ros_env["env"])
+                        "--params-file", str(params), "-p", f"graph.bag_dir:={bag}",
+                        "-p", f"recorder.chunk_interval_s:={chunk_interval_s}"], ros_env["env"])
     return process, bag
 
 
