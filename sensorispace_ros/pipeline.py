@@ -419,9 +419,7 @@ def reproduce(cfg: dict, strategy: str = "paper", seed: int | None = None,
     timings = {**produced.timings_s, **representation.timings_s,
                "reaching": flat.pop("timings_s.reaching")}
     timings["total"] = time.perf_counter() - started
-    arrays = {**produced.arrays, **run_arrays(produced.povs, produced.true_positions,
-                                              produced.pairs, produced.set_ids,
-                                              representation, cfg)}
+    arrays = {**produced.arrays, **run_arrays(produced, representation, cfg, seed)}
     return write_run(out_dir, flat, arrays, cfg, strategy, timings, progress)
 
 
@@ -457,17 +455,17 @@ def write_run(out_dir: str | Path, flat_metrics: dict, arrays: dict, cfg: dict, 
     return metrics
 
 
-def run_arrays(povs: np.ndarray, true_positions: np.ndarray, pairs: np.ndarray,
-               set_ids: np.ndarray, representation: Representation, cfg: dict) -> dict:
+def run_arrays(produced: StrategyOutput, representation: Representation, cfg: dict,
+               seed: int) -> dict:
     """Everything needed to redraw the figures or re-evaluate, as arrays."""
     arrays = {
-        "povs": np.asarray(povs),
-        "true_positions": np.asarray(true_positions),
-        "pairs": np.asarray(pairs),
-        "set_ids": np.asarray(set_ids),
+        "povs": np.asarray(produced.povs),
+        "true_positions": np.asarray(produced.true_positions),
+        "pairs": np.asarray(produced.pairs),
+        "set_ids": np.asarray(produced.set_ids),
         "hausdorff": representation.distance,
         "config_json": np.asarray(json.dumps(cfg, sort_keys=True)),
-        "seed": np.int64(cfg["seed"]),
+        "seed": np.int64(seed),
     }
     for dim in DIMENSIONS:
         arrays[f"embedding_{dim}_before"] = representation.before[dim]
@@ -541,8 +539,10 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
                          progress)
     timings["reaching"] = evaluated.pop("timings_s.reaching")
     flat.update(evaluated)
-    arrays.update(run_arrays(povs, arrays["true_positions"], arrays["pairs"], arrays["set_ids"],
-                             representation, cfg))
+    produced = StrategyOutput(povs=povs, pairs=arrays["pairs"], set_ids=arrays["set_ids"],
+                              true_positions=arrays["true_positions"], metrics={}, arrays={},
+                              timings_s={})
+    arrays.update(run_arrays(produced, representation, cfg, cfg["seed"]))
     return write_run(results_dir, flat, arrays, cfg, strategy, timings, progress)
 
 
@@ -582,6 +582,8 @@ def nest(flat: dict) -> dict:
             node = node.setdefault(part, {})
             if not isinstance(node, dict):
                 raise ValueError(f"metric {key!r} collides with a value at {part!r}")
+        if isinstance(node.get(parts[-1]), dict):
+            raise ValueError(f"metric {key!r} collides with a group of metrics")
         node[parts[-1]] = value
     return out
 
