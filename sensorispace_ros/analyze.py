@@ -137,68 +137,41 @@ def events(bag_dir) -> dict[str, np.ndarray]:
 
 def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dict:
     """Rebuild and evaluate the run recorded in ``bag_dir``; write ``out_dir/metrics.json``,
-    ``arrays.npz`` and figures. ``cfg`` overrides the configuration stored in the bag."""
-    from . import contracts, pipeline
-    from .core.exploration import build_world
+    ``arrays.npz`` and figures (``pipeline.evaluate_graph_run``, as for a live graph run).
+    ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics."""
+    from . import config, contracts, pipeline
 
     started = time.perf_counter()
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)
     bags.check_contract(bag_dir, {n: c.type_name for n, c in contracts.load_contracts().items()})
-    cfg = config_from_bag(bag_dir) if cfg is None else cfg
+    cfg = config_from_bag(bag_dir) if cfg is None else config.validate_config(cfg)
     seed = int(cfg["seed"])
 
     data = agent_data(bag_dir)
     povs, pairs, set_ids = data["povs"], data["pairs"], data["set_ids"]
     poses, recorded = true_poses(bag_dir, povs)
-    true_positions = poses[:, :2].copy()
     change_events = events(bag_dir)
     totals = agent_totals(bag_dir)
 
     representation = pipeline.build_representation(povs, pairs, set_ids, cfg, seed, progress)
-    flat = {
-        "pov.count": int(len(povs)),
-        "pov.max_pose_drift": pipeline._pose_drift(povs, poses),
-        "equality_sets.count": int(len(np.unique(set_ids))),
-        "equality_sets.pairs": int(len(pairs)),
+    arrays = pipeline.run_arrays(povs, poses[:, :2].copy(), pairs, set_ids, representation, cfg)
+    arrays.update({"true_poses": poses, "motor_states": povs[:, 0], "pov_ids": data["ids"]})
+    if all(frame in change_events for frame in data["pov_frames"]):
+        # the object's grid position of the change each POV answered (recorded ground truth);
+        # otherwise pipeline.ground_truth_from_motor infers it from the tip displacement
+        arrays["grid_index"] = np.array(
+            [int(change_events[f]["grid_index"]) for f in data["pov_frames"]], dtype=int)
+    counters = {
         "exploration.changes": int(len(change_events)),
         "exploration.redistributions": int(sum(int(e["kind"]) == 1
                                                for e in change_events.values())),
-    }
-    flat.update(pipeline.evaluate(representation, true_positions, povs, cfg, seed, progress))
-    timings = {**representation.timings_s, "reaching": flat.pop("timings_s.reaching")}
-    flat.update({
         "analysis.bag": str(bag_dir),
         "analysis.true_positions": f"{recorded} of {len(povs)} from recorded /body/sensor_pose, "
                                    f"{len(povs) - recorded} from core.arm.forward",
         "analysis.complete": totals is not None
         and (totals["points_of_view"], totals["compensation_rows"]) == (len(povs), len(pairs)),
-    })
-
-    world = build_world(seed, pipeline.world_params(cfg))
-    grid_index = np.array([int(change_events[f]["grid_index"]) if f in change_events else -1
-                           for f in data["pov_frames"]], dtype=int)
-    produced = pipeline.StrategyOutput(
-        povs=povs, pairs=pairs, set_ids=set_ids, true_positions=true_positions, metrics={},
-        arrays={"motor_states": povs[:, 0], "true_poses": poses, "grid_index": grid_index,
-                "grid": world.grid, "grid_spacing": np.float64(world.spacing),
-                "initial_motor_state": world.m0, "receptors": world.receptors,
-                "initial_lights": world.initial_lights, "pov_ids": data["ids"]},
-        timings_s={})
-    arrays = dict(produced.arrays)
-    arrays.update(pipeline.run_arrays(produced, representation, cfg, seed))
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if cfg["output"]["figures"]:
-        from . import figures
-
-        arrays.update(pipeline.figure_examples(cfg))
-        figures.draw_all(arrays, out_dir / pipeline.FIGURES_DIR, seed=seed, progress=None)
-    np.savez_compressed(out_dir / pipeline.ARRAYS_FILE, **arrays)
-    timings["total"] = time.perf_counter() - started
-    flat.update({f"timings_s.{key}": value for key, value in timings.items()})
-    flat["strategy"] = "naive"
-    flat["seed"] = seed
-    metrics = pipeline.nest(flat)
-    from . import config as config_mod
-    metrics["config"] = config_mod.flatten(cfg)
-    pipeline.write_metrics(metrics, out_dir / pipeline.METRICS_FILE)
-    return metrics
+        **{f"timings_s.{key}": value for key, value in representation.timings_s.items()},
+    }
+    counters["timings_s.total"] = time.perf_counter() - started
+    return pipeline.evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
+                                       progress=progress)
