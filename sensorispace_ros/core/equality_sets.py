@@ -25,9 +25,13 @@ def equality_sets_from_poses(true_positions: np.ndarray, spacing: float, *,
     lattice displacement ``(dx, dy)`` has ``dx > 0`` or ``dx == 0, dy > 0``.
 
     Returns ``pairs`` ``(K, 2)`` and ``set_ids`` ``(K,)`` (0-based, numbered
-    in lexicographic order of the displacement). Raises if a position is
-    farther than ``lattice_tol * spacing`` from the lattice through the
-    first one (the shortcut assumes grid displacements).
+    in lexicographic order of the displacement).
+
+    The lattice's offset is the circular mean of the positions' phases
+    (``position / spacing mod 1`` per axis). A position farther than
+    ``lattice_tol * spacing`` from that lattice belongs to no pair: in
+    simulation 1 this is the initial POV, whose object position (the grid
+    centre) is half a cell off the grid, so no grid displacement reaches it.
     """
     positions = np.asarray(true_positions, dtype=float)
     if positions.ndim != 2 or positions.shape[1] != 2:
@@ -41,14 +45,16 @@ def equality_sets_from_poses(true_positions: np.ndarray, spacing: float, *,
     if len(positions) < 2:
         return np.empty((0, 2), dtype=int), np.empty(0, dtype=int)
 
-    offset = (positions - positions[0]) / spacing
+    scaled = positions / spacing
+    phase = np.angle(np.mean(np.exp(2j * np.pi * scaled), axis=0)) / (2 * np.pi)
+    offset = scaled - phase
     lattice = np.rint(offset)
-    off_lattice = np.abs(offset - lattice).max()
-    if off_lattice > lattice_tol:
-        raise ValueError(f"true_positions are {off_lattice:.3f} spacings off the lattice "
-                         f"of spacing {spacing} (lattice_tol={lattice_tol})")
+    on_lattice = np.flatnonzero(np.abs(offset - lattice).max(axis=1) <= lattice_tol)
     lattice = lattice.astype(np.int64)
-    i, j = np.triu_indices(len(positions), k=1)
+    i, j = np.triu_indices(len(on_lattice), k=1)
+    i, j = on_lattice[i], on_lattice[j]
+    if len(i) == 0:
+        return np.empty((0, 2), dtype=int), np.empty(0, dtype=int)
     delta = lattice[j] - lattice[i]
     # Orient each pair so its displacement is the canonical one of +-delta.
     flip = (delta[:, 0] < 0) | ((delta[:, 0] == 0) & (delta[:, 1] < 0))

@@ -61,9 +61,17 @@ def test_single_position_gives_no_pair():
     assert pairs.shape == (0, 2) and set_ids.shape == (0,)
 
 
-def test_rejects_positions_off_the_lattice():
-    with pytest.raises(ValueError, match="off the lattice"):
-        equality_sets_from_poses(np.array([[0.0, 0.0], [0.5 * SPACING, 0.0]]), SPACING)
+def test_position_off_the_lattice_belongs_to_no_pair(positions):
+    # Like the initial POV of simulation 1: half a cell off the grid, first in the list.
+    off = positions[0] + 0.5 * SPACING
+    pairs, set_ids = equality_sets_from_poses(np.vstack([off, positions]), SPACING)
+    assert not np.any(pairs == 0)
+    n = len(positions)
+    assert len(pairs) == n * (n - 1) // 2
+    displacement = positions[pairs[:, 1] - 1] - positions[pairs[:, 0] - 1]
+    for set_id in np.unique(set_ids):
+        members = displacement[set_ids == set_id]
+        assert np.abs(members - members[0]).max() < 1e-3
 
 
 @pytest.mark.parametrize("args, name", [
