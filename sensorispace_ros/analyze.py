@@ -154,7 +154,10 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     totals = agent_totals(bag_dir)
 
     representation = pipeline.build_representation(povs, pairs, set_ids, cfg, seed, progress)
-    arrays = pipeline.run_arrays(povs, poses[:, :2].copy(), pairs, set_ids, representation, cfg)
+    produced = pipeline.StrategyOutput(povs=povs, pairs=pairs, set_ids=set_ids,
+                                       true_positions=poses[:, :2].copy(), metrics={}, arrays={},
+                                       timings_s={})
+    arrays = pipeline.run_arrays(produced, representation, cfg, seed)
     arrays.update({"true_poses": poses, "motor_states": povs[:, 0], "pov_ids": data["ids"]})
     if all(frame in change_events for frame in data["pov_frames"]):
         # the object's grid position of the change each POV answered (recorded ground truth);
@@ -162,6 +165,7 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         arrays["grid_index"] = np.array(
             [int(change_events[f]["grid_index"]) for f in data["pov_frames"]], dtype=int)
     counters = {
+        "pov.max_pose_drift": pipeline._pose_drift(povs, poses),
         "exploration.changes": int(len(change_events)),
         "exploration.redistributions": int(sum(int(e["kind"]) == 1
                                                for e in change_events.values())),
@@ -172,6 +176,9 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         and (totals["points_of_view"], totals["compensation_rows"]) == (len(povs), len(pairs)),
         **{f"timings_s.{key}": value for key, value in representation.timings_s.items()},
     }
+    for name, value in (totals or {}).items():
+        # the agent's own counters (/agent/done); "compensated" is the offline key too
+        counters["exploration.compensated" if name == "compensated" else f"agent.{name}"] = value
     counters["timings_s.total"] = time.perf_counter() - started
     return pipeline.evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
                                        progress=progress)

@@ -74,9 +74,9 @@ def write_run(bag, with_poses=True, config=CONFIG):
             writer.write("/agent/compensations", next(t), cloud(
                 "/agent/compensations", {"set": part[:, 0], "pov_from": IDS[part[:, 1]],
                                          "pov_to": IDS[part[:, 2]]}, f"change/{20 + k}"))
-        writer.write("/agent/done", next(t), cloud(
-            "/agent/done", {"changes": [P], "points_of_view": [P], "compensation_rows": [6]},
-            f"end/{P + 1}"))
+        done = {column: [7] for column in contracts.contract("/agent/done").columns}
+        done.update({"changes": [P], "points_of_view": [P], "compensation_rows": [6]})
+        writer.write("/agent/done", next(t), cloud("/agent/done", done, f"end/{P + 1}"))
     return povs, rows
 
 
@@ -88,8 +88,9 @@ def test_agent_data_is_rebuilt_like_the_representation_node_does(tmp_path):
     assert np.array_equal(data["pairs"], rows[:, 1:])
     assert np.array_equal(data["set_ids"], rows[:, 0])
     assert data["pov_frames"] == [f"change/{i + 1}" for i in range(P)]
-    assert analyze.agent_totals(tmp_path / "bag") == {
-        "changes": P, "points_of_view": P, "compensation_rows": 6}
+    totals = analyze.agent_totals(tmp_path / "bag")
+    assert set(totals) == set(contracts.contract("/agent/done").columns)
+    assert (totals["changes"], totals["points_of_view"], totals["compensation_rows"]) == (P, P, 6)
     grid = {f: int(e["grid_index"]) for f, e in analyze.events(tmp_path / "bag").items()}
     assert grid == {f"change/{i + 1}": 100 + i for i in range(P)}
 
