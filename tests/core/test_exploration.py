@@ -15,10 +15,19 @@ def small_world():
     return build_world(0, SMALL)
 
 
+PROGRESS = []
+
+
 @pytest.fixture(scope="module")
 def small_result(small_world):
     w = small_world
-    return explore_paper(m0=w.m0, grid=w.grid, events=w.events, initial_center=w.initial_center)
+    return explore_paper(m0=w.m0, grid=w.grid, events=w.events, initial_center=w.initial_center,
+                         progress=lambda done, total: PROGRESS.append((done, total)))
+
+
+def test_progress_reaches_every_event(small_world, small_result):
+    assert PROGRESS[-1] == (len(small_world.events), len(small_world.events))
+    assert [d for d, _ in PROGRESS] == sorted(d for d, _ in PROGRESS)
 
 
 def ring_grid_indices(w):

@@ -27,9 +27,19 @@ def starts():
                      for r in TIP_RADII])
 
 
+PROGRESS = []
+
+
 @pytest.fixture(scope="module")
 def sampled(starts):
-    return pov.sample_points_of_view(starts)
+    return pov.sample_points_of_view(starts, progress=lambda done, total: PROGRESS.append(
+        (done, total)))
+
+
+def test_progress_counts_closed_loops_up_to_all(sampled):
+    done = [d for d, _ in PROGRESS]
+    assert done == sorted(done) and done[-1] == len(TIP_RADII)
+    assert {t for _, t in PROGRESS} == {len(TIP_RADII)}
 
 
 def test_motor_reaching_helper_reaches_the_radius(starts):
