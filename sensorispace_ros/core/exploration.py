@@ -177,7 +177,8 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     without running Nelder-Mead. The outcome is identical (tests compare it
     with ``False``); ~80 % of the paper grid lies beyond reach, so this saves
     most of the search time.
-    ``progress(done, total)`` is called every 100 events.
+    ``grid`` is the object's grid (checked against the events' grid
+    indices). ``progress(done, total)`` is called every 100 events.
     """
     m0 = np.asarray(m0, dtype=float)
     if m0.shape != (arm.N_JOINTS,):
@@ -185,6 +186,10 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     grid = np.asarray(grid, dtype=float)
     if grid.ndim != 2 or grid.shape[1] != 2:
         raise ValueError(f"grid must have shape (G, 2), got {grid.shape}")
+    on_grid = [e for e in events if e.grid_index >= 0]
+    if on_grid and not np.allclose([e.center for e in on_grid],
+                                   grid[[e.grid_index for e in on_grid]]):
+        raise ValueError("events: an event's centre is not the grid position of its grid_index")
     if not threshold > 0:
         raise ValueError(f"threshold must be > 0, got {threshold}")
     if not rigid_tol >= 0:

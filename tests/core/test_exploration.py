@@ -184,6 +184,8 @@ def test_explore_rejects_bad_parameters(small_world):
     w = small_world
     with pytest.raises(ValueError, match="m0"):
         explore_paper(m0=np.zeros(3), grid=w.grid, events=w.events)
+    with pytest.raises(ValueError, match="grid position"):
+        explore_paper(m0=w.m0, grid=w.grid[::-1], events=w.events)
     with pytest.raises(ValueError, match="threshold"):
         explore_paper(m0=w.m0, grid=w.grid, events=w.events, threshold=0.0)
 
