@@ -278,65 +278,25 @@ def evaluate_run(cfg: dict, results_dir: Path, bag_dir: Path | None, stream) -> 
 def evaluate_representation(results_dir: Path, cfg: dict, stream=None) -> dict:
     """Evaluate what the representation node wrote (no bag needed).
 
-    Ground truth is the body's: the sensor pose of every POV sample through
-    the arm's forward model, as /body/sensor_pose reports it. Joined here, in
-    the evaluator, never in the agent or the representation.
+    Ground truth is the body's: the sensor pose of every POV through the
+    arm's forward model (pipeline.evaluate_graph_run), joined here, in the
+    evaluator, never in the agent or the representation. The agent's own
+    totals (from /agent/done) are reported under ``agent.*``.
     """
     import numpy as np
 
     from . import pipeline
-    from .core import arm
-    from .nodes import build_world
     from .nodes.representation import RESULT_FILE
 
     with np.load(Path(results_dir) / RESULT_FILE) as stored:
         arrays = {key: stored[key] for key in stored.files}
-    povs = arrays["povs"]
-    poses = arm.forward(povs)
-    true_poses = poses[:, 0]
-    representation = pipeline.Representation(
-        distance=arrays["hausdorff"],
-        before={dim: arrays[f"embedding_{dim}_before"] for dim in pipeline.DIMENSIONS},
-        iterations={dim: arrays[f"embedding_{dim}_iterations"] for dim in pipeline.DIMENSIONS},
-        set_spread={dim: arrays[f"set_spread_{dim}"] for dim in pipeline.DIMENSIONS},
-        timings_s=json.loads(str(arrays.get("timings_s_json", "{}"))))
-    flat = {"pov.count": int(len(povs)),
-            "pov.max_pose_drift": float(np.max(arm.pose_error(poses, true_poses[:, None, :])))
-            if len(povs) else 0.0,
-            "equality_sets.count": int(len(np.unique(arrays["set_ids"]))),
-            "equality_sets.pairs": int(len(arrays["pairs"]))}
-    for key in ("exploration.compensated", "exploration.changes"):
-        name = "agent_" + key.split(".")[1]
-        if name in arrays:
-            flat[key] = int(arrays[name])
-    flat.update(pipeline.evaluate(representation, true_poses[:, :2], povs, cfg, cfg["seed"]))
-    timings = dict(representation.timings_s)
-    timings["reaching"] = flat.pop("timings_s.reaching")
-    flat.update({f"timings_s.{key}": value for key, value in timings.items()})
-    flat["strategy"] = "naive-graph"
-    flat["seed"] = cfg["seed"]
-    metrics = pipeline.nest(flat)
-    from . import config
-    metrics["config"] = config.flatten(cfg)
-    pipeline.write_metrics(metrics, Path(results_dir) / pipeline.METRICS_FILE)
-    if cfg["output"]["figures"]:
-        world = build_world(cfg)
-        arrays.update({"true_positions": true_poses[:, :2], "true_poses": true_poses,
-                       "motor_states": povs[:, 0], "grid": world.grid,
-                       "grid_spacing": np.float64(world.spacing),
-                       "grid_index": np.full(len(povs), -1),
-                       "initial_motor_state": world.m0, "receptors": world.receptors,
-                       "initial_lights": world.initial_lights,
-                       "config_json": np.asarray(json.dumps(cfg, sort_keys=True)),
-                       "seed": np.int64(cfg["seed"])})
-        try:
-            from . import figures
-            arrays.update(pipeline.figure_examples(cfg))
-            figures.draw_all(arrays, Path(results_dir) / pipeline.FIGURES_DIR, seed=cfg["seed"])
-        except Exception as exc:   # figures are a by-product: report, keep the metrics
-            print(f"[launch] figures not drawn: {type(exc).__name__}: {exc}",
-                  file=stream or sys.stderr)
-    return metrics
+    counters = {f"agent.{key[len('agent_'):]}": int(value) for key, value in arrays.items()
+                if key.startswith("agent_")}
+    timings = json.loads(str(arrays.pop("timings_s_json", "{}")))
+    counters.update({f"timings_s.{key}": value for key, value in timings.items()})
+    arrays = {key: value for key, value in arrays.items() if not key.startswith("agent_")}
+    return pipeline.evaluate_graph_run(arrays, cfg, results_dir, metrics=counters,
+                                       strategy="naive")
 
 
 def print_summary(metrics: dict, results_dir: Path, stream) -> None:

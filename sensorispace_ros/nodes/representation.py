@@ -128,6 +128,7 @@ class RepresentationNode(GraphNode):
                 arrays[f"embedding_{dim}_iterations"] = representation.iterations[dim]
                 arrays[f"set_spread_{dim}"] = representation.set_spread[dim]
             arrays["timings_s_json"] = np.asarray(json.dumps(representation.timings_s))
+            arrays.update({f"agent_{key}": np.int64(value) for key, value in self.totals.items()})
             self.results_dir.mkdir(parents=True, exist_ok=True)
             np.savez(self.results_dir / RESULT_FILE, **arrays)
             self.result = arrays

@@ -69,7 +69,7 @@ def _assert_same_as_offline(result, offline):
     np.testing.assert_array_equal(arrays["povs"], produced.povs)
     np.testing.assert_array_equal(arrays["pairs"], produced.pairs)
     np.testing.assert_array_equal(arrays["set_ids"], produced.set_ids)
-    assert agent.compensated == produced.metrics["exploration.compensated"]
+    assert agent.events_compensated == produced.metrics["exploration.compensated"]
     for dim in pipeline.DIMENSIONS:
         np.testing.assert_allclose(arrays[f"embedding_{dim}_before"], representation.before[dim],
                                    atol=1e-6, rtol=0)
