@@ -1,0 +1,140 @@
+"""Hausdorff matrix over the periodic motor metric (paper Eq. hausdorff)."""
+import numpy as np
+import pytest
+from scipy.spatial.distance import directed_hausdorff
+
+from sensorispace_ros.core.hausdorff import (
+    directed_hausdorff_pair,
+    hausdorff_matrix,
+    hausdorff_matrix_bruteforce,
+    hausdorff_pair,
+    motor_distance,
+)
+
+TWO_PI = 2 * np.pi
+
+
+def literal_matrix(povs):
+    """The paper's formula, arccos(cos(.)) and all, one pair at a time."""
+    P = len(povs)
+    out = np.zeros((P, P))
+    for i in range(P):
+        for j in range(P):
+            diff = povs[i][:, None, :] - povs[j][None, :, :]
+            d = np.sqrt(np.sum(np.arccos(np.cos(diff)) ** 2, axis=-1))
+            out[i, j] = max(d.min(axis=1).max(), d.min(axis=0).max())
+    return out
+
+
+def closed_curves(rng, P, N, K=4, spread=20.0):
+    """POV-like sets: smooth closed loops with centres spread over several 2 pi."""
+    t = TWO_PI * np.arange(N) / N
+    centre = rng.uniform(-spread, spread, size=(P, 1, K))
+    amp = rng.uniform(0.2, 1.5, size=(P, 2, K))
+    phase = rng.uniform(0, TWO_PI, size=(P, 1, K))
+    return (centre + amp[:, :1] * np.cos(t[None, :, None] + phase)
+            + amp[:, 1:] * np.sin(2 * t[None, :, None] + phase))
+
+
+@pytest.fixture(scope="module")
+def random_sets():
+    return np.random.default_rng(7).uniform(-4 * np.pi, 4 * np.pi, size=(11, 13, 4))
+
+
+def test_motor_distance_is_periodic_and_bounded():
+    a = np.array([0.1, -3.0, 2.0, 6.0])
+    assert motor_distance(a, a + TWO_PI * np.array([1, -2, 3, 0])) == pytest.approx(0, abs=1e-12)
+    # Each joint contributes at most pi: the farthest point is pi away per joint.
+    assert motor_distance(np.zeros(4), np.full(4, np.pi)) == pytest.approx(2 * np.pi)
+    assert motor_distance(np.zeros(4), np.full(4, np.pi + 0.3)) == pytest.approx(2 * (np.pi - 0.3))
+    # Broadcasting over leading axes, same value as the arccos formula.
+    rng = np.random.default_rng(0)
+    x, y = rng.uniform(-20, 20, size=(2, 5, 3, 4))
+    expected = np.sqrt(np.sum(np.arccos(np.cos(x - y)) ** 2, axis=-1))
+    np.testing.assert_allclose(motor_distance(x, y), expected, atol=1e-12)
+    assert motor_distance(x, y[0, 0]).shape == (5, 3)
+
+
+def test_matrix_equals_literal_arccos_formula(random_sets):
+    expected = literal_matrix(random_sets)
+    np.testing.assert_allclose(hausdorff_matrix(random_sets, block=3), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(hausdorff_matrix_bruteforce(random_sets, block=4), expected,
+                               rtol=0, atol=1e-12)
+
+
+def test_pair_functions_match_literal(random_sets):
+    A, B = random_sets[0], random_sets[1]
+    expected = literal_matrix(random_sets[:2])[0, 1]
+    assert hausdorff_pair(A, B) == pytest.approx(expected, abs=1e-12)
+    assert hausdorff_pair(A, B) == max(directed_hausdorff_pair(A, B), directed_hausdorff_pair(B, A))
+
+
+def test_fast_path_is_bitwise_the_brute_force():
+    rng = np.random.default_rng(3)
+    povs = closed_curves(rng, P=23, N=37)
+    # Identical and nearly identical POVs make many exact ties for the screen.
+    povs[5] = povs[4]
+    povs[6] = povs[4] + 1e-7
+    povs[7] = np.roll(povs[8], 5, axis=0) + TWO_PI
+    fast = hausdorff_matrix(povs, block=4)
+    brute = hausdorff_matrix_bruteforce(povs, block=5)
+    assert np.array_equal(fast, brute)
+    assert fast[4, 5] == 0.0
+    assert np.array_equal(hausdorff_matrix(povs, block=7, n_jobs=2), brute)
+
+
+def test_near_ties_below_the_screen_resolution_are_resolved_exactly():
+    # The 16-bit screen cannot tell 1e-7 apart; the exact pass must.
+    base = np.zeros((1, 4))
+    A = np.array([[1.0, 0, 0, 0], [1.0 + 1e-7, 0, 0, 0], [1.0 - 1e-7, 0, 0, 0]])
+    B = np.vstack([base, base, base])
+    H = hausdorff_matrix(np.stack([A, B]))
+    assert H[0, 1] == 1.0 + 1e-7
+
+
+def test_symmetric_zero_diagonal_and_triangle_inequality():
+    povs = closed_curves(np.random.default_rng(11), P=14, N=20)
+    H = hausdorff_matrix(povs)
+    assert np.array_equal(H, H.T)
+    assert np.all(np.diag(H) == 0)
+    assert np.all(H[~np.eye(14, dtype=bool)] > 0)
+    triangle_gap = H[:, None, :] - (H[:, :, None] + H[None, :, :])   # H_ik - (H_ij + H_jk)
+    assert triangle_gap.max() <= 1e-12
+
+
+def test_invariant_to_whole_turns_of_any_joint():
+    rng = np.random.default_rng(5)
+    povs = closed_curves(rng, P=9, N=16)
+    turns = rng.integers(-3, 4, size=povs.shape)
+    np.testing.assert_allclose(hausdorff_matrix(povs + TWO_PI * turns), hausdorff_matrix(povs),
+                               rtol=0, atol=1e-12)
+
+
+def test_matches_scipy_when_no_difference_wraps():
+    # Coordinates in [0, 3): every difference lies in (-pi, pi), the metric is Euclidean.
+    povs = np.random.default_rng(2).uniform(0.0, 3.0, size=(6, 25, 4))
+    H = hausdorff_matrix(povs)
+    for i in range(6):
+        for j in range(6):
+            expected = max(directed_hausdorff(povs[i], povs[j])[0],
+                           directed_hausdorff(povs[j], povs[i])[0])
+            assert H[i, j] == pytest.approx(expected, abs=1e-12)
+
+
+def test_other_shapes_and_progress():
+    povs = closed_curves(np.random.default_rng(9), P=5, N=1, K=3)
+    calls = []
+    H = hausdorff_matrix(povs, block=2, progress=lambda done, total: calls.append((done, total)))
+    np.testing.assert_allclose(H, literal_matrix(povs), atol=1e-12)
+    assert calls == [(1, 3), (2, 3), (3, 3)]
+
+
+@pytest.mark.parametrize("bad, word", [
+    (np.zeros((3, 4)), "shape"),
+    (np.full((2, 3, 4), np.nan), "NaN"),
+])
+def test_bad_input_raises(bad, word):
+    with pytest.raises(ValueError, match=word):
+        hausdorff_matrix(bad)
+    with pytest.raises(ValueError, match="block"):
+        hausdorff_matrix(np.zeros((2, 3, 4)), block=0)
