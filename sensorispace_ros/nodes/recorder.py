@@ -34,6 +34,7 @@ from sensorispace_ros import bags, contracts
 # and rclpy's built-ins. Everything else the recorder is given is stored.
 NOT_RUN_CONFIG_PREFIXES = ("graph.", "recorder.")
 RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
+BATCH_TAKE = 1000  # messages taken per callback at most, so timers still run
 
 
 def is_run_config(name: str) -> bool:
@@ -106,9 +107,10 @@ class Recorder(Node):
         self._window_start, self._window_count = time.monotonic(), 0
         self.first_message_at: float | None = None
         self.last_message_at: float | None = None
-        for name, contract in self.contracts.items():
-            self.create_subscription(contract.msg_type, name, self._writer_for(name),
-                                     contract.qos, raw=True)
+        self.subscriptions_ = {
+            name: self.create_subscription(contract.msg_type, name, self._recorder_for(name),
+                                           contract.qos, raw=True)
+            for name, contract in self.contracts.items()}
         # an idle graph still gets its last chunk onto disk within chunk_interval_s
         self.create_timer(min(0.25, chunk_interval_s), self.writer.flush_if_due)
         self.create_timer(self.stats_period_s, self._log_rate)
@@ -119,17 +121,29 @@ class Recorder(Node):
             return self.get_parameter(name).value
         return self.declare_parameter(name, default).value
 
-    def _writer_for(self, topic: str):
-        def record(cdr: bytes, info=None) -> None:
-            received = (info or {}).get("received_timestamp") or time.time_ns()
-            self.writer.write(topic, received, cdr)
-            self.received += 1
-            self._window_count += 1
-            now = time.monotonic()
-            self.last_message_at = now
-            if self.first_message_at is None:
-                self.first_message_at = now
+    def _recorder_for(self, topic: str):
+        # Two parameters, so rclpy passes the message info (receive timestamp).
+        def record(cdr: bytes, info: dict) -> None:
+            self._store(topic, cdr, info)
+            # Measured: one executor round per message caps rclpy at ~2k msgs/s;
+            # taking what is already queued on this subscription here is ~10x cheaper.
+            subscription = self.subscriptions_[topic]
+            for _ in range(BATCH_TAKE):
+                with subscription.handle:
+                    taken = subscription.handle.take_message(subscription.msg_type, True)
+                if taken is None:
+                    return
+                self._store(topic, *taken)
         return record
+
+    def _store(self, topic: str, cdr: bytes, info: dict) -> None:
+        self.writer.write(topic, info.get("received_timestamp") or time.time_ns(), cdr)
+        self.received += 1
+        self._window_count += 1
+        now = time.monotonic()
+        self.last_message_at = now
+        if self.first_message_at is None:
+            self.first_message_at = now
 
     def _log_rate(self) -> None:
         now = time.monotonic()
@@ -154,8 +168,9 @@ class Recorder(Node):
             f"({self.sustained_rate():.0f} msgs/s sustained); {counts}")
 
 
-def drain(executor, recorder: Recorder, quiet_s: float = 0.3, limit_s: float = 5.0) -> None:
-    """Take what the middleware already queued before closing (no drops at shutdown)."""
+def drain(executor, recorder: Recorder, quiet_s: float = 0.3, limit_s: float = 4.0) -> None:
+    """Take what the middleware already queued before closing (no drops at shutdown).
+    ``limit_s`` stays under the launcher's 5 s SIGTERM -> SIGKILL grace period."""
     deadline = time.monotonic() + limit_s
     quiet_since = time.monotonic()
     while time.monotonic() < deadline:

@@ -27,6 +27,28 @@ def _message_class(type_name: str):
     return bags.message_class(type_name)
 
 
+def publish_blocking(publisher, cdr: bytes, give_up_s: float = 30.0) -> None:
+    """Publish, waiting while a KEEP_ALL writer's history is full.
+
+    Measured: publishing faster than a reliable reader acknowledges makes Fast
+    DDS fail the call ("cannot publish data") once its history is full and
+    max_blocking_time has passed; the sample was not sent, so back off and
+    send it again. Gives up (RuntimeError) after ``give_up_s`` without progress.
+    """
+    deadline = time.monotonic() + give_up_s
+    pause = 0.001
+    while True:
+        try:
+            publisher.publish(cdr)
+            return
+        except Exception as exc:  # rclpy's RCLError is not public
+            if type(exc).__name__ != "RCLError" or time.monotonic() > deadline:
+                raise RuntimeError(f"cannot publish on {publisher.topic_name}: "
+                                   f"{' '.join(str(exc).split())}") from None
+            time.sleep(pause)
+            pause = min(2 * pause, 0.05)
+
+
 class Replay(Node):
     """Publishers for the bag's topics; ``run`` does the replay."""
 
@@ -89,7 +111,7 @@ class Replay(Node):
                 delay = start_wall + (stamp_ns - first_stamp) / 1e9 / self.rate - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-            self.publishers_[topic].publish(cdr)
+            publish_blocking(self.publishers_[topic], cdr)
             self.published[topic] += 1
         for publisher in self.publishers_.values():
             publisher.wait_for_all_acked(Duration(seconds=10))
