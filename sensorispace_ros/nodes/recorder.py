@@ -24,7 +24,7 @@ from pathlib import Path
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from sensorispace_ros import bags, contracts
@@ -51,6 +51,13 @@ def qos_spec(profile) -> dict:
         "durability": "transient_local" if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
         else "volatile",
     }
+
+
+def lossless(profile: QoSProfile) -> QoSProfile:
+    """The contract's reliability and durability with KEEP_ALL history: a KEEP_LAST(1)
+    reader (the contract of the state topics) would overwrite messages not yet taken."""
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=profile.reliability,
+                      durability=profile.durability)
 
 
 def default_bag_path() -> str:
@@ -109,7 +116,7 @@ class Recorder(Node):
         self.last_message_at: float | None = None
         self.subscriptions_ = {
             name: self.create_subscription(contract.msg_type, name, self._recorder_for(name),
-                                           contract.qos, raw=True)
+                                           lossless(contract.qos), raw=True)
             for name, contract in self.contracts.items()}
         # an idle graph still gets its last chunk onto disk within chunk_interval_s
         self.create_timer(min(0.25, chunk_interval_s), self.writer.flush_if_due)

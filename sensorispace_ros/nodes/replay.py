@@ -1,7 +1,8 @@
 """replay: republish a recorded bag, raw CDR, with its original timing or as fast as possible.
 
-Publishers take the topic contract's QoS (RELIABLE + KEEP_ALL on data
-topics), replay starts only once subscribers have matched, and ends only when
+Publishers take the topic contract's reliability and durability with KEEP_ALL
+history (a KEEP_LAST(1) writer may overwrite a sample before a reader has
+it), replay starts only once subscribers have matched, and ends only when
 every reliable message is acknowledged, so a fast replay loses nothing.
 """
 from __future__ import annotations
@@ -16,6 +17,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from sensorispace_ros import bags, contracts
+from sensorispace_ros.nodes.recorder import lossless
 
 # /session/config is not in the contract: a late subscriber should still get it
 SESSION_CONFIG_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
@@ -73,7 +75,7 @@ class Replay(Node):
         self.expected = {t: info.counts.get(t, 0) for t in self.topics}
         self.publishers_ = {}
         for name in self.topics:
-            qos = available[name].qos if name in available else SESSION_CONFIG_QOS
+            qos = lossless(available[name].qos) if name in available else SESSION_CONFIG_QOS
             self.publishers_[name] = self.create_publisher(
                 _message_class(info.topics[name]), name, qos)
         self.published = {t: 0 for t in self.topics}
