@@ -159,11 +159,13 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
                                        timings_s={})
     arrays = pipeline.run_arrays(produced, representation, cfg, seed)
     arrays.update({"true_poses": poses, "motor_states": povs[:, 0], "pov_ids": data["ids"]})
-    if all(frame in change_events for frame in data["pov_frames"]):
-        # the object's grid position of the change each POV answered (recorded ground truth);
-        # otherwise pipeline.ground_truth_from_motor infers it from the tip displacement
-        arrays["grid_index"] = np.array(
-            [int(change_events[f]["grid_index"]) for f in data["pov_frames"]], dtype=int)
+    # grid position of the object for the change each POV answered: recorded
+    # (/environment/event) where there is one, else inferred from the tip
+    # displacement (the initial POV answers no event)
+    inferred = pipeline.ground_truth_from_motor(povs, cfg)["grid_index"]
+    arrays["grid_index"] = np.array(
+        [int(change_events[f]["grid_index"]) if f in change_events else int(g)
+         for f, g in zip(data["pov_frames"], inferred)], dtype=int)
     counters = {
         "pov.max_pose_drift": pipeline._pose_drift(povs, poses),
         "exploration.changes": int(len(change_events)),

@@ -33,12 +33,12 @@ from sensorispace_ros import bags, contracts
 # (graph.*: graph.bag_dir is where to record), the recorder's own (recorder.*)
 # and rclpy's built-ins. Everything else the recorder is given is stored.
 NOT_RUN_CONFIG_PREFIXES = ("graph.", "recorder.")
-RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
+NOT_RUN_CONFIG_NAMES = ("use_sim_time", "start_type_description_service", "bag_path")  # rclpy, alias
 BATCH_TAKE = 1000  # messages taken per callback at most, so timers still run
 
 
 def is_run_config(name: str) -> bool:
-    return name not in RCLPY_PARAMETERS and not name.startswith(NOT_RUN_CONFIG_PREFIXES)
+    return name not in NOT_RUN_CONFIG_NAMES and not name.startswith(NOT_RUN_CONFIG_PREFIXES)
 
 
 def qos_spec(profile) -> dict:
@@ -75,7 +75,9 @@ class Recorder(Node):
     def __init__(self, **kwargs):
         super().__init__("recorder", automatically_declare_parameters_from_overrides=True,
                          **kwargs)
-        bag_path = self._own("graph.bag_dir", "") or default_bag_path()
+        # graph.bag_dir (the launcher's graph.* plumbing) or bag_path (same meaning)
+        bag_path = (self._own("graph.bag_dir", "") or self._own("bag_path", "")
+                    or default_bag_path())
         chunk_interval_s = float(self._own("recorder.chunk_interval_s",
                                            bags.DEFAULT_CHUNK_INTERVAL_S))
         self.stats_period_s = float(self._own("recorder.stats_period_s", 5.0))
