@@ -104,14 +104,15 @@ def hausdorff_matrix_bruteforce(povs, *, block: int = 8) -> np.ndarray:
     R = _reduced(povs)
     coords = [np.ascontiguousarray(R[:, :, k]) for k in range(K)]
     H2 = np.zeros((P, P))
+    size = (block * N) ** 2
+    d_buf, w_buf, acc_buf = np.empty(size), np.empty(size), np.empty(size)
     for i0, i1 in _row_blocks(P, block):
         for j0, j1 in _row_blocks(P, block):
             if j1 <= i0:
                 continue
             shape = ((i1 - i0) * N, (j1 - j0) * N)
-            d = np.empty(shape)
-            w = np.empty(shape)
-            acc = np.empty(shape)
+            n = shape[0] * shape[1]
+            d, w, acc = (buf[:n].reshape(shape) for buf in (d_buf, w_buf, acc_buf))
             for k in range(K):
                 np.subtract(coords[k][i0:i1].reshape(-1, 1),
                             coords[k][j0:j1].reshape(1, -1), out=d)
@@ -153,12 +154,20 @@ def _block_row(i0, i1, P, N, R, Q, block, H2):
     bi = i1 - i0
     abs_quanta = np.sqrt(K) + 0.5
     a_q = [Q[k, i0:i1].reshape(-1, 1) for k in range(K)]
+    # Buffers are reused across tiles: fresh multi-MB arrays cost a page
+    # fault per 4 KiB on first touch, which measured as slow as the kernel.
+    size = bi * N * block * N
+    diff_buf = np.empty(size, dtype=np.int16)
+    sq_buf = np.empty(size, dtype=np.float32)
+    acc_buf = np.empty(size, dtype=np.float32)
     for j0 in range(i0, P, block):
         j1 = min(j0 + block, P)
         bj = j1 - j0
-        diff = np.empty((bi * N, bj * N), dtype=np.int16)
-        sq = np.empty((bi * N, bj * N), dtype=np.float32)
-        acc = np.empty((bi * N, bj * N), dtype=np.float32)
+        shape = (bi * N, bj * N)
+        n = shape[0] * shape[1]
+        diff = diff_buf[:n].reshape(shape)
+        sq = sq_buf[:n].reshape(shape)
+        acc = acc_buf[:n].reshape(shape)
         for k in range(K):
             np.subtract(a_q[k], Q[k, j0:j1].reshape(1, -1), out=diff)
             # A casting copy then an in-place square beats a casting multiply.
@@ -167,9 +176,9 @@ def _block_row(i0, i1, P, N, R, Q, block, H2):
             np.multiply(target, target, out=target)
             if k:
                 acc += sq
-        acc = acc.reshape(bi, N, bj, N)
-        row = np.sqrt(acc.min(axis=3))             # (bi, N, bj): a of I to POV of J
-        col = np.sqrt(acc.min(axis=1))             # (bi, bj, N): b of J to POV of I
+        acc4 = acc.reshape(bi, N, bj, N)
+        row = np.sqrt(acc4.min(axis=3))            # (bi, N, bj): a of I to POV of J
+        col = np.sqrt(acc4.min(axis=1))            # (bi, bj, N): b of J to POV of I
         top = np.maximum(row.max(axis=1), col.max(axis=2))          # (bi, bj)
         # A sample can hold the true sup-inf only if its screened value is
         # within twice the screening error of the screened maximum.

@@ -1,0 +1,205 @@
+"""Curvilinear Component Analysis (Demartines & Herault 1997) as a
+scikit-learn style estimator (paper Sec. "Building a topological
+representation": POVs are projected to 2-D and 3-D with CCA).
+
+The update rule and schedules follow the SOM Toolbox ``cca.m``: one random
+sample i per step pulls or pushes every other projection j along
+Y_j - Y_i by exp(-dy_ij / lambda) * (dx_ij / dy_ij - 1); step size alpha and
+neighbourhood radius lambda decay geometrically ("potency curve") from
+alpha0 to alpha0 / 100 and from lambda0 to ``lambda_end`` over
+n_epochs * P steps. Where cca.m starts from a random or PCA projection, the
+default here is classical MDS (issue #2: CCA from MDS is reproducible and
+needs fewer epochs).
+"""
+from __future__ import annotations
+
+import numbers
+import sys
+
+import numpy as np
+from scipy.spatial.distance import pdist, squareform
+from sklearn.base import BaseEstimator
+
+_METRICS = ("precomputed", "euclidean")
+
+
+def _generator(random_state) -> np.random.Generator:
+    if random_state is None or isinstance(random_state, numbers.Integral):
+        return np.random.default_rng(random_state)
+    if isinstance(random_state, np.random.Generator):
+        return random_state
+    raise ValueError("random_state must be None, an int or a numpy Generator, "
+                     f"got {type(random_state).__name__}")
+
+
+def check_distance_matrix(X, name: str = "X") -> np.ndarray:
+    """A (P, P) float64 distance matrix, or a ValueError saying what is wrong."""
+    D = np.asarray(X, dtype=float)
+    if D.ndim != 2 or D.shape[0] != D.shape[1]:
+        raise ValueError(f"{name} must be a square (P, P) distance matrix, got shape {D.shape}")
+    if D.shape[0] < 2:
+        raise ValueError(f"{name} must describe at least 2 points, got {D.shape[0]}")
+    if not np.all(np.isfinite(D)):
+        raise ValueError(f"{name} contains NaN or infinite distances")
+    if np.any(D < 0):
+        raise ValueError(f"{name} contains negative distances (min {D.min():.3g})")
+    scale = max(float(D.max()), 1e-300)
+    asym = float(np.max(np.abs(D - D.T)))
+    if asym > 1e-9 * scale:
+        raise ValueError(f"{name} is not symmetric (max |D - D.T| = {asym:.3g})")
+    return np.ascontiguousarray(D)
+
+
+def classical_mds(distance, n_components: int) -> np.ndarray:
+    """Torgerson MDS: top eigenvectors of the double-centred squared distances.
+
+    Signs are fixed (largest-magnitude coordinate of each axis positive) so
+    the result does not depend on the LAPACK build.
+    """
+    D = np.asarray(distance, dtype=float)
+    P = D.shape[0]
+    sq = D * D
+    B = -0.5 * (sq - sq.mean(axis=0, keepdims=True) - sq.mean(axis=1, keepdims=True) + sq.mean())
+    k = min(n_components, P)
+    values, vectors = np.linalg.eigh(B)
+    order = np.argsort(values)[::-1][:k]
+    values = np.clip(values[order], 0.0, None)
+    vectors = vectors[:, order]
+    signs = np.sign(vectors[np.argmax(np.abs(vectors), axis=0), np.arange(k)])
+    signs[signs == 0] = 1.0
+    Y = vectors * signs * np.sqrt(values)
+    if k < n_components:
+        Y = np.hstack([Y, np.zeros((P, n_components - k))])
+    return Y
+
+
+def cca_stress(distance, embedding, lam: float) -> float:
+    """CCA's weighted stress 1/2 sum_ij (dx_ij - dy_ij)^2 exp(-dy_ij / lam)."""
+    dy = squareform(pdist(embedding))
+    return float(np.sum((distance - dy) ** 2 * np.exp(-dy / lam)) / 2.0)
+
+
+class CCA(BaseEstimator):
+    """Curvilinear Component Analysis.
+
+    Parameters
+    ----------
+    n_components : output dimension.
+    metric : "precomputed" (X is a (P, P) distance matrix) or "euclidean"
+        (X is a (P, D) data matrix).
+    n_epochs : training length; each epoch is P single-sample updates.
+    alpha0 : initial step size (decays to alpha0 / 100).
+    lambda0 : initial neighbourhood radius; default 3 * max std of the
+        initial embedding (cca.m).
+    init : "mds" (classical MDS), "random", or a (P, n_components) array.
+    lambda_end : final neighbourhood radius (cca.m uses 0.01), in the units
+        of the distances.
+    random_state : None, int or numpy Generator (sample order, random init).
+
+    Attributes
+    ----------
+    embedding_ : (P, n_components) projection.
+    stress_ : weighted stress at the final lambda.
+    n_iter_ : epochs run.
+    lambda0_ : the initial radius actually used.
+    """
+
+    def __init__(self, n_components=2, *, metric="precomputed", n_epochs=50, alpha0=0.5,
+                 lambda0=None, init="mds", random_state=None, verbose=0, lambda_end=0.01):
+        self.n_components = n_components
+        self.metric = metric
+        self.n_epochs = n_epochs
+        self.alpha0 = alpha0
+        self.lambda0 = lambda0
+        self.init = init
+        self.random_state = random_state
+        self.verbose = verbose
+        self.lambda_end = lambda_end
+
+    def fit(self, X, y=None):
+        self.fit_transform(X, y)
+        return self
+
+    def _check_params(self):
+        if not isinstance(self.n_components, numbers.Integral) or self.n_components < 1:
+            raise ValueError(f"n_components must be a positive integer, got {self.n_components!r}")
+        if self.metric not in _METRICS:
+            raise ValueError(f"metric must be one of {_METRICS}, got {self.metric!r}")
+        if not isinstance(self.n_epochs, numbers.Integral) or self.n_epochs < 1:
+            raise ValueError(f"n_epochs must be a positive integer, got {self.n_epochs!r}")
+        if not self.alpha0 > 0:
+            raise ValueError(f"alpha0 must be > 0, got {self.alpha0!r}")
+        if self.lambda0 is not None and not self.lambda0 > 0:
+            raise ValueError(f"lambda0 must be > 0 or None, got {self.lambda0!r}")
+        if not self.lambda_end > 0:
+            raise ValueError(f"lambda_end must be > 0, got {self.lambda_end!r}")
+
+    def _distances(self, X) -> np.ndarray:
+        if self.metric == "precomputed":
+            return check_distance_matrix(X)
+        data = np.asarray(X, dtype=float)
+        if data.ndim != 2 or data.shape[0] < 2:
+            raise ValueError(f"X must be a (P, D) data matrix with P >= 2, got shape {data.shape}")
+        if not np.all(np.isfinite(data)):
+            raise ValueError("X contains NaN or infinite values")
+        return np.ascontiguousarray(squareform(pdist(data, metric=self.metric)))
+
+    def _initial(self, init, dx, rng) -> np.ndarray:
+        P, d = dx.shape[0], self.n_components
+        if isinstance(init, str):
+            if init == "mds":
+                return classical_mds(dx, d)
+            if init == "random":
+                half_width = max(float(dx.max()), 1e-12) / 2.0
+                return rng.uniform(-half_width, half_width, size=(P, d))
+            raise ValueError(f"init must be 'mds', 'random' or an array, got {init!r}")
+        Y = np.array(init, dtype=float)
+        if Y.shape != (P, d):
+            raise ValueError(f"init array must have shape {(P, d)}, got {Y.shape}")
+        if not np.all(np.isfinite(Y)):
+            raise ValueError("init array contains NaN or infinite values")
+        return Y
+
+    def fit_transform(self, X, y=None, init=None):
+        self._check_params()
+        dx = self._distances(X)
+        rng = _generator(self.random_state)
+        Y = np.ascontiguousarray(self._initial(self.init if init is None else init, dx, rng))
+        P = dx.shape[0]
+        lambda0 = self.lambda0
+        if lambda0 is None:
+            lambda0 = 3.0 * float(np.max(np.std(Y, axis=0)))
+            if lambda0 <= 0:
+                lambda0 = max(float(dx.max()), 1e-12)
+        steps = int(self.n_epochs) * P
+        samples = rng.integers(P, size=steps)
+        fraction = np.arange(steps) / max(steps - 1, 1)
+        alpha = self.alpha0 * 0.01 ** fraction
+        neg_inv_lambda = -1.0 / (lambda0 * (self.lambda_end / lambda0) ** fraction)
+        # Coincident projections: cca.m replaces dy = 0 by 1; any positive
+        # floor works since their Dy = 0 anyway.
+        floor = 1e-12 * max(float(dx.max()), 1e-300)
+        diff = np.empty_like(Y)
+        dy = np.empty(P)
+        gain = np.empty(P)
+        for t in range(steps):
+            i = samples[t]
+            np.subtract(Y, Y[i], out=diff)
+            np.einsum("ij,ij->i", diff, diff, out=dy)
+            np.sqrt(dy, out=dy)
+            np.maximum(dy, floor, out=dy)
+            np.divide(dx[i], dy, out=gain)
+            gain -= 1.0
+            np.multiply(dy, neg_inv_lambda[t], out=dy)
+            np.exp(dy, out=dy)
+            gain *= dy
+            gain *= alpha[t]
+            diff *= gain[:, None]
+            Y += diff
+            if self.verbose and (t + 1) % P == 0:
+                print(f"CCA epoch {(t + 1) // P}/{self.n_epochs}", file=sys.stderr)
+        self.embedding_ = Y
+        self.lambda0_ = lambda0
+        self.n_iter_ = int(self.n_epochs)
+        self.stress_ = cca_stress(dx, Y, self.lambda_end)
+        return Y
