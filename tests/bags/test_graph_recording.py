@@ -10,11 +10,18 @@ message on any topic breaks one of these identities.
 from __future__ import annotations
 
 import io
+import os
+import signal
+import subprocess
+import sys
+import zlib
 
 import numpy as np
 import pytest
 
 from sensorispace_ros import analyze, bags
+
+from conftest import REPO
 
 TINY = """/**:
   ros__parameters:
@@ -38,19 +45,39 @@ TINY = """/**:
 """
 
 
-@pytest.fixture
-def recorded_tiny_run(tmp_path, ros_env):
+def _domain_id(name: str) -> int:
+    return 150 + (zlib.crc32(name.encode()) + os.getpid()) % 80
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """One launched tiny run for the module: (bag, results dir, config file)."""
     from sensorispace_ros import launcher
 
-    config = tmp_path / "tiny.yaml"
+    root = tmp_path_factory.mktemp("graph")
+    config = root / "tiny.yaml"
     config.write_text(TINY)
     log = io.StringIO()
-    launcher.launch_graph(config, run="tiny", domain_id=ros_env["domain_id"],
-                          record=True, results_root=tmp_path / "results",
-                          bags_root=tmp_path / "bags", timeout_s=240, stream=log)
-    bag = tmp_path / "bags" / "tiny"
+    previous = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    try:
+        result = launcher.launch_graph(config, run="tiny", domain_id=_domain_id("tiny_run"),
+                                       record=True, results_root=root / "results",
+                                       bags_root=root / "bags", timeout_s=240, stream=log)
+    finally:
+        if previous is None:
+            os.environ.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", None)
+        else:
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = previous
+    bag = root / "bags" / "tiny"
     assert (bag / "metadata.yaml").is_file(), log.getvalue()  # closed cleanly by SIGTERM
-    return bag
+    return {"bag": bag, "results": result.results_dir, "config": config,
+            "exit_code": result.exit_code, "log": log.getvalue()}
+
+
+@pytest.fixture
+def recorded_tiny_run(tiny_run):
+    return tiny_run["bag"]
 
 
 def test_graph_recording_drops_nothing(recorded_tiny_run):
@@ -77,3 +104,36 @@ def test_graph_recording_drops_nothing(recorded_tiny_run):
     settled = [m.data for _, _, _, m in bags.read_bag_messages(bag, ["/agent/settled"])]
     assert settled == list(range(len(settled)))
     assert np.isfinite(data["povs"]).all()
+
+
+def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_run, tmp_path):
+    from sensorispace_ros.nodes.representation import RESULT_FILE
+
+    if not (tiny_run["results"] / RESULT_FILE).is_file():
+        # not a replay problem: the live run has no representation to compare with
+        pytest.skip("the live run's representation node failed: "
+                    + tiny_run["log"].strip().splitlines()[-1])
+    live = np.load(tiny_run["results"] / RESULT_FILE)
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               ROS_DOMAIN_ID=str(_domain_id("replay")), PYTHONPATH=str(REPO))
+    representation = subprocess.Popen(
+        [sys.executable, "-m", "sensorispace_ros.nodes.representation", "--ros-args",
+         "--params-file", str(tiny_run["config"]), "-p", f"graph.results_dir:={tmp_path}",
+         "-p", "graph.exit_when_done:=true"], env=env, cwd=REPO,
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        replay = subprocess.run(
+            [sys.executable, "-m", "sensorispace_ros.cli", "replay", str(tiny_run["bag"]),
+             "--fast", "--topics", "/agent/points_of_view", "/agent/compensations",
+             "/agent/done"], env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
+        assert replay.returncode == 0, replay.stderr
+        output, _ = representation.communicate(timeout=180)
+    finally:
+        if representation.poll() is None:
+            os.kill(representation.pid, signal.SIGTERM)
+            representation.wait(timeout=10)
+    assert representation.returncode == 0, output
+    replayed = np.load(tmp_path / RESULT_FILE)
+    assert sorted(replayed.files) == sorted(live.files)
+    for name in live.files:
+        np.testing.assert_array_equal(replayed[name], live[name], err_msg=name)
