@@ -137,3 +137,25 @@ def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_r
     assert sorted(replayed.files) == sorted(live.files)
     for name in live.files:
         np.testing.assert_array_equal(replayed[name], live[name], err_msg=name)
+
+
+def test_the_bag_holds_the_run_configuration(tiny_run):
+    from sensorispace_ros import config
+
+    assert analyze.config_from_bag(tiny_run["bag"]) == config.load_config(tiny_run["config"])
+
+
+def test_analyze_of_the_bag_reproduces_the_live_metrics(tiny_run, tmp_path):
+    from sensorispace_ros import cli, pipeline
+
+    live_file = tiny_run["results"] / "metrics.json"
+    if not live_file.is_file():
+        pytest.skip("the live run wrote no metrics.json: " + tiny_run["log"].strip().splitlines()[-1])
+    assert cli.main(["analyze", str(tiny_run["bag"]), "--out", str(tmp_path)]) == 0
+
+    def comparable(path):
+        flat = pipeline.flatten_metrics(pipeline.read_metrics(path))
+        return {k: v for k, v in flat.items()
+                if not k.startswith("timings_s.") and k != "analysis.bag"}
+
+    assert comparable(tmp_path) == comparable(live_file)
