@@ -326,6 +326,26 @@ def session_config_cdr(params_yaml: str) -> bytes:
     return bytes(store.serialize_cdr(string_cls(data=params_yaml), SESSION_CONFIG_TYPE))
 
 
+def copy_bag(source: str | os.PathLike, target: str | os.PathLike,
+             topics: list[str] | None = None) -> dict[str, int]:
+    """Copy ``topics`` (default all) of a bag, bytes and timestamps unchanged, into a new
+    bag (e.g. a small sample without the bulky probing streams). Returns the counts."""
+    from rosbags.rosbag2 import Reader
+
+    info = bag_info(source)
+    chosen = list(info.topics) if topics is None else list(topics)
+    missing = sorted(set(chosen) - set(info.topics))
+    if missing:
+        raise BagError(f"bag {source} has no topic {', '.join(missing)}")
+    with Reader(Path(source)) as reader:
+        qos = {c.topic: list(c.ext.offered_qos_profiles) for c in reader.connections}
+    with BagWriter(target, {name: info.topics[name] for name in chosen},
+                   qos={name: qos.get(name, []) for name in chosen}) as writer:
+        for topic, _, timestamp, cdr in read_bag(source, chosen):
+            writer.write(topic, timestamp, cdr)
+        return dict(writer.counts)
+
+
 # ---------------------------------------------------------------- recovery
 
 

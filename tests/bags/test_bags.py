@@ -166,3 +166,15 @@ def test_errors_are_one_line(tmp_path):
         bags.BagWriter(tmp_path / "new", {"/x": "nope_msgs/msg/Nothing"})
     with pytest.raises(bags.BagError, match="cannot create bag"):
         bags.BagWriter(tmp_path / "good", TOPICS)
+
+
+def test_copy_bag_keeps_chosen_topics_bytes_and_timestamps(tmp_path):
+    write_bag(tmp_path / "full", 40)
+    counts = bags.copy_bag(tmp_path / "full", tmp_path / "part", [SETTLED, bags.SESSION_CONFIG_TOPIC])
+    assert counts == {SETTLED: 40, bags.SESSION_CONFIG_TOPIC: 1}
+    assert bags.bag_info(tmp_path / "part").topics == {
+        SETTLED: "std_msgs/msg/UInt64", bags.SESSION_CONFIG_TOPIC: bags.SESSION_CONFIG_TYPE}
+    original = [r for r in bags.read_bag(tmp_path / "full") if r[0] != SENSATION]
+    assert list(bags.read_bag(tmp_path / "part")) == original
+    with pytest.raises(bags.BagError, match="has no topic /nothing"):
+        bags.copy_bag(tmp_path / "full", tmp_path / "other", ["/nothing"])
