@@ -179,25 +179,38 @@ class CCA(BaseEstimator):
         # Coincident projections: cca.m replaces dy = 0 by 1; any positive
         # floor works since their Dy = 0 anyway.
         floor = 1e-12 * max(float(dx.max()), 1e-300)
-        diff = np.empty_like(Y)
+        # Coordinates-major layout: every update is a few ufunc calls on
+        # contiguous rows (measured 19 us/step for P=650, d=2, vs 33 with
+        # einsum on (P, d)).
+        YT = np.ascontiguousarray(Y.T)
+        diff = np.empty_like(YT)
+        sq = np.empty_like(YT)
         dy = np.empty(P)
         gain = np.empty(P)
+        d = YT.shape[0]
         for t in range(steps):
             i = samples[t]
-            np.subtract(Y, Y[i], out=diff)
-            np.einsum("ij,ij->i", diff, diff, out=dy)
+            np.subtract(YT, YT[:, i:i + 1], out=diff)
+            np.multiply(diff, diff, out=sq)
+            if d == 1:
+                np.copyto(dy, sq[0])
+            else:
+                np.add(sq[0], sq[1], out=dy)
+                for k in range(2, d):
+                    np.add(dy, sq[k], out=dy)
             np.sqrt(dy, out=dy)
             np.maximum(dy, floor, out=dy)
             np.divide(dx[i], dy, out=gain)
-            gain -= 1.0
+            np.subtract(gain, 1.0, out=gain)
             np.multiply(dy, neg_inv_lambda[t], out=dy)
             np.exp(dy, out=dy)
-            gain *= dy
-            gain *= alpha[t]
-            diff *= gain[:, None]
-            Y += diff
+            np.multiply(gain, dy, out=gain)
+            np.multiply(gain, alpha[t], out=gain)
+            np.multiply(diff, gain, out=diff)
+            np.add(YT, diff, out=YT)
             if self.verbose and (t + 1) % P == 0:
                 print(f"CCA epoch {(t + 1) // P}/{self.n_epochs}", file=sys.stderr)
+        Y = np.ascontiguousarray(YT.T)
         self.embedding_ = Y
         self.lambda0_ = lambda0
         self.n_iter_ = int(self.n_epochs)
