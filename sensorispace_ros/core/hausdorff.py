@@ -17,6 +17,7 @@ the brute force to the last bit.
 """
 from __future__ import annotations
 
+import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -138,18 +139,16 @@ def _quantised(R: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.moveaxis(q.astype(np.int16), -1, 0))
 
 
-def _exact_min_sq(R: np.ndarray, pov_a, sample_a, pov_b) -> np.ndarray:
+def _exact_min_sq(coords, pov_a, sample_a, pov_b) -> np.ndarray:
     """Exact squared distance from sample ``sample_a`` of POV ``pov_a`` to the
-    nearest sample of POV ``pov_b`` (vectors of candidates)."""
-    pts = R[pov_a, sample_a]               # (C, K)
-    sets = R[pov_b]                        # (C, N, K)
-    K = R.shape[-1]
-    sq = _squared_periodic([pts[:, None, k] for k in range(K)],
-                           [sets[:, :, k] for k in range(K)])
+    nearest sample of POV ``pov_b`` (vectors of candidates); ``coords`` is the
+    coordinate-major (K, P, N) copy of the reduced angles."""
+    sq = _squared_periodic([c[pov_a, sample_a][:, None] for c in coords],
+                           [c[pov_b] for c in coords])
     return sq.min(axis=1)
 
 
-def _block_row(i0, i1, P, N, R, Q, block, H2):
+def _block_row(i0, i1, P, N, RT, Q, block, H2):
     K = Q.shape[0]
     bi = i1 - i0
     abs_quanta = np.sqrt(K) + 0.5
@@ -189,11 +188,11 @@ def _block_row(i0, i1, P, N, R, Q, block, H2):
         ii, aa, jj = np.nonzero(row >= cut[:, None, :])
         exact = np.zeros((bi, bj))
         if ii.size:
-            m = _exact_min_sq(R, i0 + ii, aa, j0 + jj)
+            m = _exact_min_sq(RT, i0 + ii, aa, j0 + jj)
             np.maximum.at(exact, (ii, jj), m)
         ii, jj, bb = np.nonzero(col >= cut[:, :, None])
         if bb.size:
-            m = _exact_min_sq(R, j0 + jj, bb, i0 + ii)
+            m = _exact_min_sq(RT, j0 + jj, bb, i0 + ii)
             np.maximum.at(exact, (ii, jj), m)
         H2[i0:i1, j0:j1] = exact
 
@@ -205,8 +204,8 @@ def hausdorff_matrix(povs, *, block: int | None = None, progress=None,
 
     ``block`` POVs per tile (memory ~ 10 * (block * N)**2 bytes per worker,
     independent of P), ``progress(done, total)`` is called after each block
-    row, ``n_jobs`` threads share the rows (NumPy releases the GIL in its
-    loops; on a busy 2-core machine one thread was faster than two).
+    row, ``n_jobs`` threads (default: 2, or 1 on a single core) share the
+    rows; NumPy releases the GIL in its loops.
     """
     povs = _check_povs(povs)
     P, N, K = povs.shape
@@ -214,22 +213,23 @@ def hausdorff_matrix(povs, *, block: int | None = None, progress=None,
         block = max(1, min(P, 800 // N if N <= 800 else 1))
     if block < 1:
         raise ValueError(f"block must be >= 1, got {block}")
-    n_jobs = 1 if n_jobs is None else int(n_jobs)
+    n_jobs = min(2, os.cpu_count() or 1) if n_jobs is None else int(n_jobs)
     if n_jobs < 1:
         raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
     R = _reduced(povs)
     Q = _quantised(R)
+    RT = np.ascontiguousarray(np.moveaxis(R, -1, 0))
     H2 = np.zeros((P, P))
     rows = _row_blocks(P, block)
     total = len(rows)
     if n_jobs == 1:
         for done, (i0, i1) in enumerate(rows, 1):
-            _block_row(i0, i1, P, N, R, Q, block, H2)
+            _block_row(i0, i1, P, N, RT, Q, block, H2)
             if progress is not None:
                 progress(done, total)
     else:
         with ThreadPoolExecutor(max_workers=n_jobs) as pool:
-            futures = [pool.submit(_block_row, i0, i1, P, N, R, Q, block, H2)
+            futures = [pool.submit(_block_row, i0, i1, P, N, RT, Q, block, H2)
                        for i0, i1 in rows]
             for done, fut in enumerate(futures, 1):
                 fut.result()
