@@ -346,6 +346,25 @@ def copy_bag(source: str | os.PathLike, target: str | os.PathLike,
         return dict(writer.counts)
 
 
+def merge_bags(sources: list, target: str | os.PathLike) -> dict[str, int]:
+    """One bag holding every message of ``sources`` in timestamp order (e.g. the parts
+    of a recording interrupted by a recorder restart). Returns the counts."""
+    import heapq
+
+    infos = [bag_info(source) for source in sources]
+    topics: dict[str, str] = {}
+    for info in infos:
+        for name, msgtype in info.topics.items():
+            if topics.setdefault(name, msgtype) != msgtype:
+                raise BagError(f"cannot merge: topic {name} is {topics[name]} in one bag "
+                               f"and {msgtype} in {info.path}")
+    streams = [((t, topic, cdr) for topic, _, t, cdr in read_bag(s)) for s in sources]
+    with BagWriter(target, topics) as writer:
+        for timestamp, topic, cdr in heapq.merge(*streams, key=lambda m: m[0]):
+            writer.write(topic, timestamp, cdr)
+        return dict(writer.counts)
+
+
 # ---------------------------------------------------------------- recovery
 
 

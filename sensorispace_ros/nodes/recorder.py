@@ -15,8 +15,10 @@ SIGTERM / Ctrl-C: stop, drain what is already queued, close the bag (summary
 """
 from __future__ import annotations
 
+import shutil
 import signal
 import sys
+import tempfile
 import time
 from datetime import datetime, timezone
 from pathlib import Path
@@ -71,6 +73,32 @@ def config_yaml(parameters: dict) -> str:
     return config.to_parameter_file(config.unflatten(parameters))
 
 
+RESTART_SUFFIX = ".part-"
+
+
+def set_aside_earlier_recording(bag: Path) -> list[Path]:
+    """A restarted recorder (e.g. after kill -9) finds its bag directory: recover it and
+    move it aside as ``<bag>.part-<n>``; returns every part waiting to be merged."""
+    if bag.exists():
+        bags.recover_bag(bag)
+        existing = sorted(bag.parent.glob(f"{bag.name}{RESTART_SUFFIX}*"))
+        bag.rename(bag.with_name(f"{bag.name}{RESTART_SUFFIX}{len(existing) + 1}"))
+    return sorted(bag.parent.glob(f"{bag.name}{RESTART_SUFFIX}*"),
+                  key=lambda p: int(p.name.rsplit("-", 1)[1]))
+
+
+def merge_parts(bag: Path, parts: list[Path]) -> None:
+    """Replace ``bag`` by the merge of the earlier parts and itself; remove the parts."""
+    staging = Path(tempfile.mkdtemp(dir=bag.parent, prefix=f".{bag.name}.merge-"))
+    merged = staging / bag.name  # same name, so the MCAP file is <bag>.mcap already
+    bags.merge_bags([*parts, bag], merged)
+    shutil.rmtree(bag)
+    merged.rename(bag)
+    staging.rmdir()
+    for part in parts:
+        shutil.rmtree(part)
+
+
 class Recorder(Node):
     def __init__(self, **kwargs):
         super().__init__("recorder", automatically_declare_parameters_from_overrides=True,
@@ -102,6 +130,11 @@ class Recorder(Node):
         qos = {name: qos_spec(c.qos) for name, c in self.contracts.items()}
         if run_config:
             topics[bags.SESSION_CONFIG_TOPIC] = bags.SESSION_CONFIG_TYPE
+        self.earlier_parts = set_aside_earlier_recording(Path(bag_path))
+        if self.earlier_parts:
+            self.get_logger().warning(
+                f"{bag_path} exists (recorder restarted): recovered it; it is merged with "
+                f"this recording when the bag is closed")
         self.writer = bags.BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s)
         if run_config:
             self.writer.write(bags.SESSION_CONFIG_TOPIC, time.time_ns(),
@@ -171,6 +204,8 @@ class Recorder(Node):
         if self.writer.closed:
             return
         self.writer.close()
+        if self.earlier_parts:
+            merge_parts(self.writer.path, self.earlier_parts)
         counts = ", ".join(f"{t} {n}" for t, n in sorted(self.writer.counts.items()))
         self.get_logger().info(
             f"bag {self.writer.path} closed: {self.received} messages "

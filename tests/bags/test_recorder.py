@@ -139,3 +139,34 @@ def test_recorder_killed_with_sigkill_is_recoverable_up_to_the_last_closed_chunk
                    if reader.deserialize(raw, c.msgtype) is not None) == sum(report.counts.values())
     assert bags.read_session_config(bag).startswith("/**:")
     print(f"recovered {report.counts} (>= {on_disk} acknowledged before the last chunk closed)")
+
+
+def test_recorder_restarted_after_sigkill_merges_both_parts(ros_env, ros_context, children, tmp_path):
+    chunk_interval_s = 0.2
+    recorder, bag = start_recorder(children, ros_env, tmp_path, chunk_interval_s)
+    publishers = Publishers(ros_context)
+    publishers.wait_matched()
+    for i in range(400):
+        publishers.publish_round(i)
+    publishers.wait_acked()
+    time.sleep(5 * chunk_interval_s + 0.5)
+    os.kill(recorder.pid, signal.SIGKILL)
+    recorder.wait(timeout=10)
+    wait_for(lambda: all(p.get_subscription_count() == 0 for p in publishers.pub.values()),
+             30, "the killed recorder to leave the graph")
+
+    restarted, _ = start_recorder(children, ros_env, tmp_path, chunk_interval_s)
+    publishers.wait_matched()
+    for i in range(400, 800):
+        publishers.publish_round(i)
+    publishers.wait_acked()
+    os.kill(restarted.pid, signal.SIGTERM)
+    output, _ = restarted.communicate(timeout=30)
+    assert restarted.returncode == 0, output
+
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("bag")) == ["bag"]
+    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in bags.read_bag(bag, [SETTLED])]
+    assert settled == list(range(800))  # both parts, nothing lost, in order
+    info = bags.bag_info(bag)
+    assert info.counts[SENSATION] == 800 and info.counts[JOINTS] == 200
+    assert bags.read_session_config(bag).startswith("/**:")
