@@ -27,11 +27,10 @@ TWO_PI = 2.0 * np.pi
 # Fixed-point screen: 2 pi <-> 2**16, so int16 subtraction is the periodic wrap.
 _SCREEN_BITS = 16
 _QUANTUM = TWO_PI / 2.0 ** _SCREEN_BITS
-# Bound on |screened - exact| distance: each coordinate difference is off by
-# at most one quantum (two roundings of half a quantum), so the K-vector by
-# sqrt(K) quanta; float32 squares, sums and sqrt add a relative 2**-24 per
-# operation, bounded here by 1e-6 for any K we use.
-_SCREEN_REL = 1e-6
+# Bound on |screened - exact| distance: each coordinate's circular difference
+# is off by at most one quantum (two roundings of half a quantum), so the
+# K-vector by sqrt(K) quanta; float32 squares, K - 1 sums and the sqrt add at
+# most 2**-24 relative each, bounded by (K + 3) * 2**-23 (see _block_row).
 
 
 def motor_distance(a, b) -> np.ndarray:
@@ -45,8 +44,9 @@ def _check_povs(povs) -> np.ndarray:
     povs = np.asarray(povs, dtype=float)
     if povs.ndim != 3:
         raise ValueError(f"povs must have shape (P, N, K), got {povs.shape}")
-    if povs.shape[0] < 1 or povs.shape[1] < 1:
-        raise ValueError(f"povs must hold at least one POV of one sample, got {povs.shape}")
+    if min(povs.shape) < 1:
+        raise ValueError(f"povs must hold at least one POV of one sample of one joint, "
+                         f"got {povs.shape}")
     if not np.all(np.isfinite(povs)):
         raise ValueError("povs contains NaN or infinite motor values")
     return povs
@@ -152,6 +152,7 @@ def _block_row(i0, i1, P, N, RT, Q, block, H2):
     K = Q.shape[0]
     bi = i1 - i0
     abs_quanta = np.sqrt(K) + 0.5
+    rel = (K + 3) * 2.0 ** -23
     a_q = [Q[k, i0:i1].reshape(-1, 1) for k in range(K)]
     # Buffers are reused across tiles: fresh multi-MB arrays cost a page
     # fault per 4 KiB on first touch, which measured as slow as the kernel.
@@ -181,7 +182,7 @@ def _block_row(i0, i1, P, N, RT, Q, block, H2):
         top = np.maximum(row.max(axis=1), col.max(axis=2))          # (bi, bj)
         # A sample can hold the true sup-inf only if its screened value is
         # within twice the screening error of the screened maximum.
-        cut = top - 2.0 * (abs_quanta + _SCREEN_REL * top)
+        cut = top - 2.0 * (abs_quanta + rel * top)
         if j0 == i0:
             # Self pairs and the lower triangle of a diagonal tile are not needed.
             cut[np.tril_indices(bi, 0, bj)] = np.inf

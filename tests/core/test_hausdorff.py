@@ -127,11 +127,15 @@ def test_other_shapes_and_progress():
     H = hausdorff_matrix(povs, block=2, progress=lambda done, total: calls.append((done, total)))
     np.testing.assert_allclose(H, literal_matrix(povs), atol=1e-12)
     assert calls == [(1, 3), (2, 3), (3, 3)]
+    assert np.array_equal(hausdorff_matrix(povs[:1]), np.zeros((1, 1)))
+    many_joints = closed_curves(np.random.default_rng(10), P=7, N=9, K=9)
+    assert np.array_equal(hausdorff_matrix(many_joints), hausdorff_matrix_bruteforce(many_joints))
 
 
 @pytest.mark.parametrize("bad, word", [
     (np.zeros((3, 4)), "shape"),
     (np.full((2, 3, 4), np.nan), "NaN"),
+    (np.zeros((2, 3, 0)), "at least one"),
 ])
 def test_bad_input_raises(bad, word):
     with pytest.raises(ValueError, match=word):
