@@ -134,6 +134,18 @@ def _equal_3d(ax, points: np.ndarray) -> None:
     ax.set_box_aspect((1, 1, 1))
 
 
+def _face_on(ax, points: np.ndarray) -> None:
+    """Look at a (nearly planar) 3-D curve along its least-spread direction,
+    so a loop is seen as a loop rather than edge-on."""
+    centred = points - points.mean(axis=0)
+    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+    if normal[2] < 0:
+        normal = -normal
+    # Tilted a little off the normal so the 3-D axes stay readable.
+    ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(normal[2], -1, 1)))) * 0.8 + 8.0,
+                 azim=float(np.degrees(np.arctan2(normal[1], normal[0]))))
+
+
 def _motor_axes(ax) -> None:
     ax.set_xlabel("m1 (rad)", fontsize=8)
     ax.set_ylabel("m2 (rad)", fontsize=8)
@@ -173,20 +185,21 @@ def _config(arrays: Mapping) -> dict:
 
 
 def grid_transitions(positions: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """POV index pairs one grid step apart: (horizontal ``(H, 2)``, vertical ``(V, 2)``)."""
+    """POV index pairs one grid step apart: (horizontal ``(H, 2)``, vertical ``(V, 2)``).
+
+    By distance, not by rounding to a lattice: the initial POV sits half a
+    cell off the others' lattice and must get no transition.
+    """
+    from scipy.spatial import cKDTree
+
     positions = np.asarray(positions, dtype=float)
-    cell = np.rint(positions / spacing).astype(np.int64)
-    index = {tuple(c): i for i, c in enumerate(cell)}
-    horizontal, vertical = [], []
-    for i, (cx, cy) in enumerate(cell):
-        j = index.get((cx + 1, cy))
-        if j is not None:
-            horizontal.append((i, j))
-        j = index.get((cx, cy + 1))
-        if j is not None:
-            vertical.append((i, j))
-    return (np.asarray(horizontal, dtype=int).reshape(-1, 2),
-            np.asarray(vertical, dtype=int).reshape(-1, 2))
+    pairs = cKDTree(positions).query_pairs(1.01 * spacing, output_type="ndarray")
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    step = positions[pairs[:, 1]] - positions[pairs[:, 0]]
+    exact = np.abs(np.hypot(*step.T) - spacing) < 0.01 * spacing
+    horizontal = exact & (np.abs(step[:, 1]) < 0.01 * spacing)
+    vertical = exact & (np.abs(step[:, 0]) < 0.01 * spacing)
+    return pairs[horizontal], pairs[vertical]
 
 
 # ---------------------------------------------------------------------------
@@ -219,6 +232,7 @@ def fig06_point_of_view(arrays: Mapping) -> plt.Figure:
     ax.add_collection3d(Line3DCollection(segments, colors=order_colours, linewidths=2.0))
     ax.scatter(*example[shown, :3].T, c=order_colours[shown], s=25, depthshade=False)
     _equal_3d(ax, loop[:, :3])
+    _face_on(ax, loop[:, :3])
     _motor_axes(ax)
     ax.set_title("(a) the same POV in motor space: a closed 1-D loop\n"
                  "(joints 1-3; colour = position along the loop)", fontsize=10)
@@ -251,6 +265,8 @@ def fig06_point_of_view(arrays: Mapping) -> plt.Figure:
             loop = wrapped_path(povs[k])
             label = f"|tip| = {np.hypot(*tips[k, :2]):.2f}: one of two loops"
         ax.plot(*loop[:, :3].T, color=colours[k], linewidth=1.5, label=label)
+    if valid.any():
+        _face_on(ax, np.concatenate([closed(centred_loop(p))[:, :3] for p in povs[valid]]))
     _motor_axes(ax)
     ax.legend(fontsize=7, loc="upper left")
     ax.set_title("(b) their points of view in motor space", fontsize=10)
@@ -388,7 +404,7 @@ def choose_equality_sets(arrays: Mapping, count: int = 3, seed: int = 0) -> list
     displacement = positions[pairs[first, 1]] - positions[pairs[first, 0]]
     length = np.hypot(*displacement.T)
     # Readable arrows: a few grid steps long, in sets larger than most.
-    candidate = (length >= 2.5 * spacing) & (length <= 6.5 * spacing)
+    candidate = (length >= 2.5 * spacing) & (length <= 4.5 * spacing)
     candidate &= sizes >= np.quantile(sizes, 0.5)
     if candidate.sum() < count:
         candidate = np.ones(len(ids), dtype=bool)
@@ -416,7 +432,7 @@ def fig11_equality_sets(arrays: Mapping, seed: int = 0) -> plt.Figure:
     members = []
     for set_id in chosen:
         rows = np.flatnonzero(set_ids == set_id)
-        members.append(pairs[np.sort(rng.permutation(rows)[:25])])
+        members.append(pairs[np.sort(rng.permutation(rows)[:15])])
     fig = plt.figure(figsize=(16, 5.5))
     spaces = [(np.asarray(arrays["true_positions"]), "(a) external space: identical displacements"),
               (np.asarray(arrays["embedding_2d_before"]), "(b) 2-D representation"),
@@ -430,7 +446,7 @@ def fig11_equality_sets(arrays: Mapping, seed: int = 0) -> plt.Figure:
             _scatter(ax, segments[:, 1], colour, size=14)     # heads mark the direction
         if points.shape[1] == 3:
             _equal_3d(ax, points)
-    fig.suptitle("Three equality sets (up to 25 members each; dots mark where each change ends)",
+    fig.suptitle("Three equality sets (up to 15 members each; dots mark where each change ends)",
                  fontsize=11)
     fig.tight_layout()
     return fig
@@ -561,8 +577,8 @@ def _reaching_figure(arrays: Mapping, dim: str, number: int, seed: int) -> plt.F
     ax = fig.add_subplot(143, projection="3d")
     rng = rng_for(seed, "figures.reaching_background")
     for loop in povs[rng.permutation(len(povs))[:max(len(povs) // 10, 1)]]:
-        ax.plot(*wrapped_path(closed(loop))[:, :3].T, color="0.8", linewidth=0.4)
-    for stage, light in (("before", 0.6), ("after", 0.0)):
+        ax.plot(*wrapped_path(closed(loop))[:, :3].T, color="0.88", linewidth=0.4)
+    for stage, light in (("before", 0.5), ("after", 0.0)):
         for colour, motor in zip(PAIR_COLOURS, examples["motor"][stage]):
             shown = wrapped_path(motor)
             ax.plot(*shown[:, :3].T, color=_lighter(colour, light), linewidth=1.4,

@@ -198,7 +198,8 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
 def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 from the sensorimotor flow alone (issue #3)."""
     from .core.exploration import build_world
-    from .core.naive_agent import NaiveParams, run_naive
+    from .core.naive_agent import NaiveParams
+    from .core.naive_evaluation import run_naive
 
     timings: dict = {}
     world = build_world(seed, world_params(cfg))
@@ -255,7 +256,7 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
     iterations, in 2-D and 3-D, from the agent's data only."""
     from .core.cca import CCA
     from .core.hausdorff import hausdorff_matrix
-    from .core.regularize import iterate_regularization
+    from .core.regularize import iterate_regularization, set_spread
 
     povs = np.asarray(povs, dtype=float)
     if povs.ndim != 3 or povs.shape[2] != 4 or len(povs) < 4:
@@ -277,16 +278,19 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
     n_iterations = cfg["representation"]["regularization"]["iterations"]
     with _stage(progress, "regularization", timings):
         for k, (name, n_components) in enumerate(DIMENSIONS.items()):
-            def callback(iteration, *_args, _k=k):
+            def callback(iteration, _embedding, _k=k):
                 if progress is not None:
-                    progress(_k * n_iterations + iteration + 1, len(DIMENSIONS) * n_iterations)
-            embeddings, set_spread = iterate_regularization(
+                    progress(_k * n_iterations + iteration, len(DIMENSIONS) * n_iterations)
+            result = iterate_regularization(
                 distance, pairs, set_ids, n_components=n_components, n_iterations=n_iterations,
                 cca_params=cca_params(cfg),
                 random_state=_random_state(seed, f"regularization.{name}"),
                 init=None, callback=callback)
-            iterations[name] = np.stack([np.asarray(e) for e in embeddings])
-            spread[name] = np.asarray(set_spread, dtype=float)
+            iterations[name] = np.stack([np.asarray(e) for e in result.embeddings])
+            # result.set_spread[k] is measured before iteration k's averaging
+            # (k = 0: the Hausdorff metric); add the spread after the last one.
+            spread[name] = np.asarray([*result.set_spread,
+                                       set_spread(result.distances, pairs, set_ids)], dtype=float)
     return Representation(distance=distance, before=before, iterations=iterations,
                           set_spread=spread, timings_s=timings)
 
@@ -318,7 +322,7 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
             for key, value in quality_report(embedding, true_positions).items():
                 metrics[f"{prefix}.{key}"] = value
             metrics[f"{prefix}.neighbours_true_fraction"] = _neighbours_true_fraction(
-                embedding, true_positions, spacing)
+                embedding, true_positions)
             metrics[f"metric.{dim}.{stage}.unit_step_cv"] = _unit_step_cv(
                 squareform(pdist(embedding)), neighbours)
         spread = representation.set_spread[dim]
@@ -337,10 +341,18 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
         for k, (name, distance) in enumerate(graphs.items()):
             result = reaching_evaluation(distance, true_positions, random_state=reaching_seed,
                                          **options)
-            for key, value in result.items():
-                if key == "median":
-                    key = "straightness_median"
-                metrics[f"reaching.{name}.{key}"] = value
+            reached = [v for v in result["straightness"] if v is not None]
+            degree = np.sum(distance < result["radius"], axis=1) - 1
+            metrics.update({
+                f"reaching.{name}.straightness_median": result["straightness_median"],
+                f"reaching.{name}.straightness_p90": float(np.percentile(reached, 90))
+                if reached else float("nan"),
+                f"reaching.{name}.radius": result["radius"],
+                f"reaching.{name}.degree_mean": float(np.mean(degree)),
+                f"reaching.{name}.degree_max": int(np.max(degree)),
+                f"reaching.{name}.graph_components": result["n_components"],
+                f"reaching.{name}.unreachable": result["unreachable"],
+            })
             if progress is not None:
                 progress(k + 1, len(graphs))
     metrics["timings_s.reaching"] = timings["reaching"]
@@ -374,16 +386,17 @@ def _unit_step_cv(distance: np.ndarray, pairs: np.ndarray) -> float:
     return float(np.std(lengths) / np.mean(lengths))
 
 
-def _neighbours_true_fraction(embedding: np.ndarray, positions: np.ndarray, spacing: float,
+def _neighbours_true_fraction(embedding: np.ndarray, positions: np.ndarray,
                               k: int = 4) -> float:
-    """Fraction of POVs whose ``k`` nearest neighbours in the representation are
-    all true neighbours (within 1.5 grid steps outside: the 8-neighbourhood)."""
+    """Fraction of POVs whose ``k`` nearest neighbours in the representation
+    are also their ``k`` nearest outside (ties in the grid allowed)."""
     from scipy.spatial import cKDTree
 
     k = min(k, len(embedding) - 1)
     _, index = cKDTree(embedding).query(embedding, k=k + 1)
+    true_kth, _ = cKDTree(positions).query(positions, k=k + 1)
     gap = np.linalg.norm(positions[index[:, 1:]] - positions[:, None, :], axis=-1)
-    return float(np.mean(np.all(gap <= 1.5 * spacing, axis=1)))
+    return float(np.mean(np.all(gap <= true_kth[:, -1:] * (1.0 + 1e-9), axis=1)))
 
 
 def _spearman(a: np.ndarray, b: np.ndarray) -> float:
