@@ -164,7 +164,7 @@ class AgentNode(GraphNode):
             self.done_pub.publish(messages.table_to_cloud(
                 {"changes": number, "points_of_view": self.n_povs,
                  "compensation_rows": self.n_rows,
-                 "compensated": self.agent.events_compensated,
+                 "compensated": self.agent.compensated,
                  "queries": self.agent.queries_total, "calls": self.agent.calls_total},
                 self.columns["/agent/done"], header))
             self.settled_pub.publish(UInt64(data=number))
@@ -181,22 +181,21 @@ class AgentNode(GraphNode):
         self.settled_pub.publish(UInt64(data=number))
 
     def publish_reaction(self, reaction, header) -> None:
-        povs = np.asarray(reaction.new_points_of_view, dtype=float)
+        povs = np.asarray(reaction.new_povs, dtype=float)
         if len(povs):
-            ids = np.asarray(reaction.new_pov_indices, dtype=np.int64)
+            ids = np.asarray(reaction.new_pov_ids, dtype=np.int64)
             n_samples, n_motors = povs.shape[1:]
             self.pov_pub.publish(messages.table_to_cloud(
                 {"pov": np.repeat(ids, n_samples), "sample": np.tile(np.arange(n_samples), len(ids)),
                  **{f"m{j}": povs[:, :, j].ravel() for j in range(n_motors)}},
                 self.columns["/agent/points_of_view"], header))
             self.n_povs += len(povs)
-        pairs = np.asarray(reaction.equality_pairs, dtype=np.int64).reshape(-1, 2)
-        if len(pairs):
+        rows = np.asarray(reaction.equality_rows, dtype=np.int64).reshape(-1, 3)
+        if len(rows):
             self.compensation_pub.publish(messages.table_to_cloud(
-                {"set": np.asarray(reaction.equality_set_ids, dtype=np.int64),
-                 "pov_from": pairs[:, 0], "pov_to": pairs[:, 1]},
+                {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]},
                 self.columns["/agent/compensations"], header))
-            self.n_rows += len(pairs)
+            self.n_rows += len(rows)
 
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
         self.command_pub.publish(messages.matrix_to_cloud(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import contracts, messages
+from ..core import arm, retina
 from ..core.body import SimulatedBody
 from . import GraphNode, build_world, parse_frame, run_node
 
@@ -47,7 +48,20 @@ class BodyNode(GraphNode):
         elif self.body.lights_world is None:
             self.drop("/environment/lights", "end of run before any lights")
             return
-        self.answer(self.body.motor_state[None, :], msg.header)
+        self.publish_passive(msg.header)
+
+    def publish_passive(self, header) -> None:
+        """What the resting eye sees after a change. Not a query of the agent's: computed
+        for the single resting pose exactly as the offline driver does
+        (core.naive_evaluation._passive_sensation), so both runs see the same bits."""
+        rest = self.body.motor_state
+        pose = arm.forward(rest)
+        sensation = retina.sensation(pose, self.body.lights_world, self.body.receptor_positions)
+        self.sensation_pub.publish(messages.matrix_to_cloud(
+            np.reshape(sensation, (1, -1)), self.columns["/body/sensation"], header))
+        self.pose_pub.publish(messages.matrix_to_cloud(
+            np.reshape(pose, (1, 3)), self.columns["/body/sensor_pose"], header))
+        self.joint_pub.publish(messages.motor_to_joint_state(rest, header))
 
     def on_command(self, msg) -> None:
         parsed = parse_frame(msg.header.frame_id)

@@ -27,7 +27,11 @@ def smoke_cfg():
 
 @pytest.fixture(scope="module")
 def offline(smoke_cfg):
-    produced = pipeline.run_naive_strategy(smoke_cfg, smoke_cfg["seed"])
+    from sensorispace_ros.core.exploration import build_world
+    from sensorispace_ros.core.naive_agent import NaiveParams
+    from sensorispace_ros.core.naive_evaluation import run_naive
+    world = build_world(smoke_cfg["seed"], pipeline.world_params(smoke_cfg))
+    produced = run_naive(world, NaiveParams(**smoke_cfg["naive"]), smoke_cfg["seed"])
     representation = pipeline.build_representation(
         produced.povs, produced.pairs, produced.set_ids, smoke_cfg, smoke_cfg["seed"])
     return produced, representation
@@ -69,7 +73,7 @@ def _assert_same_as_offline(result, offline):
     np.testing.assert_array_equal(arrays["povs"], produced.povs)
     np.testing.assert_array_equal(arrays["pairs"], produced.pairs)
     np.testing.assert_array_equal(arrays["set_ids"], produced.set_ids)
-    assert agent.events_compensated == produced.metrics["exploration.compensated"]
+    assert agent.compensated == produced.metrics["exploration.compensated"]
     for dim in pipeline.DIMENSIONS:
         np.testing.assert_allclose(arrays[f"embedding_{dim}_before"], representation.before[dim],
                                    atol=1e-6, rtol=0)
