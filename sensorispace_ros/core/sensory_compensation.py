@@ -1,0 +1,169 @@
+"""Compensation from the sensorimotor flow alone (naive strategy, issue #3).
+
+The paper compensates an object displacement with Nelder-Mead on the tip
+pose, knowing the forward model and the displacement (Sec. 4.2). The naive
+agent knows neither: it looks for a motor state whose sensation in the
+current (static) environment equals a remembered target sensation,
+minimising ``|sense(m) - s_target|`` by Levenberg-Marquardt on
+finite-difference sensory Jacobians.
+
+Many searches (targets x restarts) run together: every LM iteration is ONE
+``sense`` call carrying each search's trial state and its finite-difference
+stencil. scipy's ``least_squares(method="lm")`` would need one call per
+search per Jacobian (it cannot batch across problems), i.e. ~100x more
+round trips for the ROS body.
+
+A search is accepted only if the sensory error is tiny, the Gauss-Newton step
+that would remove it is tiny in motor space, AND the sensory Jacobian at the
+solution has rank 3 (third singular value not negligible against the
+first). Without the rank test a blank or one-light sensation is
+"compensated" anywhere: its level set is 2- or 3-dimensional.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sensory_points_of_view import minimum_norm_correction, sensory_jacobian
+
+
+@dataclass
+class CompensationSearch:
+    """Outcome of a batch of LM searches, one row per (target, start) search.
+
+    ``motor_states`` final states ``(K, M)``; ``sensory_error`` final
+    ``|sense(m) - s_target|``; ``motor_residual`` norm of the Gauss-Newton
+    step that would remove that error (rad); ``rank_ratio`` third over first
+    singular value of the sensory Jacobian at the final state; ``accepted``
+    the three tests together; ``queries[k]`` motor states probed by search
+    ``k``; ``iterations[k]``; ``calls`` ``sense`` calls of the whole batch.
+    """
+
+    motor_states: np.ndarray
+    sensory_error: np.ndarray
+    motor_residual: np.ndarray
+    rank_ratio: np.ndarray
+    accepted: np.ndarray
+    queries: np.ndarray
+    iterations: np.ndarray
+    calls: int
+
+
+def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
+               fd_step: float = 1e-6, max_iterations: int = 40,
+               error_tol: float = 1e-10, motor_tol: float = 1e-8,
+               rank_ratio: float = 1e-3, max_step: float = 0.5,
+               initial_damping: float = 1e-3, stall_iterations: int = 6,
+               stall_factor: float = 0.5) -> CompensationSearch:
+    """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
+    from ``starts[k]`` for every search ``k`` at once.
+
+    ``target_sensations`` ``(K, S)``, ``starts`` ``(K, M)``. Each iteration
+    solves ``(J^T J + lambda I) dm = -J^T r`` (Levenberg's isotropic damping:
+    the step stays small along the level set's null direction instead of
+    wandering along it), caps ``|dm|`` at ``max_step`` rad, and probes the
+    trial state with its stencil in the batch's one ``sense`` call. A better
+    trial is kept and ``lambda`` shrinks; a worse one is dropped and
+    ``lambda`` grows (``lambda`` is relative to the mean squared singular
+    value of ``J``). A search stops when accepted (``sensory_error <=
+    error_tol`` and ``motor_residual <= motor_tol``), after ``max_iterations``,
+    or when its error has not fallen below ``stall_factor`` times its value
+    ``stall_iterations`` iterations earlier (a local minimum: the target is
+    not reachable from there).
+    """
+    targets = np.asarray(target_sensations, dtype=float)
+    point = np.array(starts, dtype=float, copy=True)
+    n_motors = int(body.n_motors)
+    if point.ndim != 2 or point.shape[1] != n_motors:
+        raise ValueError(f"starts must have shape (K, {n_motors}), got {point.shape}")
+    if targets.ndim != 2 or len(targets) != len(point):
+        raise ValueError(f"target_sensations must have shape ({len(point)}, S), "
+                         f"got {targets.shape}")
+    _check_search_parameters(fd_step=fd_step, max_iterations=max_iterations,
+                             error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio,
+                             max_step=max_step, initial_damping=initial_damping,
+                             stall_iterations=stall_iterations, stall_factor=stall_factor)
+    n_search = len(point)
+    rows_per_state = n_motors + 1
+    queries = np.zeros(n_search, dtype=int)
+    iterations = np.zeros(n_search, dtype=int)
+    if n_search == 0:
+        empty = np.zeros(0)
+        return CompensationSearch(point, empty, empty, empty, np.zeros(0, bool),
+                                  queries, iterations, 0)
+
+    sensation, jac, _ = sensory_jacobian(body, point, fd_step)
+    calls = 1
+    queries += rows_per_state
+    residual = sensation - targets
+    error = np.linalg.norm(residual, axis=1)
+    damping = np.full(n_search, float(initial_damping))
+    history = [error.copy()]
+    active = np.ones(n_search, dtype=bool)
+    for iteration in range(1, max_iterations + 1):
+        done = _converged(jac, residual, error, error_tol, motor_tol)
+        active &= ~done
+        if iteration > stall_iterations:
+            stalled = error > stall_factor * history[-1 - stall_iterations]
+            active &= ~stalled
+        if not active.any():
+            break
+        idx = np.flatnonzero(active)
+        j = jac[idx]
+        normal = np.swapaxes(j, 1, 2) @ j
+        # A blank sensation has J = 0: keep the system solvable (step 0).
+        scale = np.maximum(np.trace(normal, axis1=1, axis2=2) / n_motors, 1e-20)
+        lhs = normal + (damping[idx] * scale)[:, None, None] * np.eye(n_motors)
+        rhs = -np.einsum("bsm,bs->bm", j, residual[idx])
+        step = np.linalg.solve(lhs, rhs[..., None])[..., 0]
+        length = np.linalg.norm(step, axis=1)
+        step *= np.minimum(1.0, max_step / np.maximum(length, 1e-300))[:, None]
+        trial = point[idx] + step
+        trial_sensation, trial_jac, _ = sensory_jacobian(body, trial, fd_step)
+        calls += 1
+        queries[idx] += rows_per_state
+        iterations[idx] += 1
+        trial_residual = trial_sensation - targets[idx]
+        trial_error = np.linalg.norm(trial_residual, axis=1)
+        better = trial_error < error[idx]
+        keep = idx[better]
+        point[keep] = trial[better]
+        jac[keep] = trial_jac[better]
+        residual[keep] = trial_residual[better]
+        error[keep] = trial_error[better]
+        damping[keep] = np.maximum(damping[keep] / 3.0, 1e-12)
+        worse = idx[~better]
+        damping[worse] = damping[worse] * 4.0
+        history.append(error.copy())
+
+    singular = np.linalg.svd(jac, compute_uv=False)
+    ratio = singular[:, 2] / np.maximum(singular[:, 0], 1e-300)
+    motor_residual = np.linalg.norm(minimum_norm_correction(jac, residual), axis=1)
+    accepted = (error <= error_tol) & (motor_residual <= motor_tol) & (ratio >= rank_ratio)
+    return CompensationSearch(motor_states=point, sensory_error=error,
+                              motor_residual=motor_residual, rank_ratio=ratio,
+                              accepted=accepted, queries=queries, iterations=iterations,
+                              calls=calls)
+
+
+def _converged(jac, residual, error, error_tol, motor_tol):
+    converged = error <= error_tol
+    if converged.any():
+        idx = np.flatnonzero(converged)
+        gn = np.linalg.norm(minimum_norm_correction(jac[idx], residual[idx]), axis=1)
+        converged[idx] = gn <= motor_tol
+    return converged
+
+
+def _check_search_parameters(**values) -> None:
+    for name in ("fd_step", "error_tol", "motor_tol", "rank_ratio", "max_step",
+                 "initial_damping"):
+        if not np.isfinite(values[name]) or values[name] <= 0:
+            raise ValueError(f"{name} must be a finite number > 0, got {values[name]}")
+    for name in ("max_iterations", "stall_iterations"):
+        value = values[name]
+        if int(value) != value or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {value}")
+    if not 0 < values["stall_factor"] < 1:
+        raise ValueError(f"stall_factor must be in (0, 1), got {values['stall_factor']}")

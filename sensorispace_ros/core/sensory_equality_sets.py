@@ -1,0 +1,191 @@
+"""Equality sets from sensation matching (naive simulation 2, issue #3).
+
+The paper's second simulation (Sec. 4.4) finds, for one object displacement
+e_i -> e_i+1, the POV changes M_ij -> M_i+1,j that compensate it from many
+starting POVs; those changes have equal external length, and the metric is
+regularised to make their internal lengths equal. The paper finds the
+compensating POV from the known sensor displacement. The naive agent does
+not know it. It senses one sample of every known POV before and after the
+change (one ``sense`` call each): POV j' after the change generating the
+sensation POV j generated before it means the eye at j' sees the moved
+object as it saw the unmoved one from j, i.e. pose(j') - pose(j) is the
+object's displacement, the same for every matched pair of that change.
+
+A match is trusted only if it is unique (no other POV's sensation near
+either side) and the sensation pins the eye's pose: the sensory Jacobian at
+j' has rank 3 (a blank or one-light sensation matches many poses). The rank
+at j' after the change equals the rank at j before it (same relative pose,
+same light layout), so a rank found once is carried along the matches
+instead of being measured again.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .sensory_points_of_view import has_full_pose_rank, sensory_jacobian
+
+RANK_UNKNOWN = -1
+RANK_DEFICIENT = 0
+RANK_FULL = 1
+
+
+def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: float = 1e-8,
+                     separation: float = 1e-6, tree: cKDTree | None = None):
+    """Unique one-to-one matches between two sets of sensations.
+
+    Returns ``(reference_index, current_index)``: row ``i`` of ``reference``
+    matches row ``j`` of ``current`` when ``|reference[i] - current[j]| <=
+    match_tol``, no other current row lies within ``separation`` of
+    ``reference[i]``, and no other reference row matches ``current[j]``.
+    ``tree``: a ``cKDTree`` of ``current`` to reuse across calls.
+    """
+    reference = np.asarray(reference, dtype=float)
+    current = np.asarray(current, dtype=float)
+    if not 0 < match_tol < separation:
+        raise ValueError(f"match_tol must be > 0 and < separation ({separation}), "
+                         f"got {match_tol}")
+    empty = np.zeros(0, dtype=int)
+    if len(reference) == 0 or len(current) == 0:
+        return empty, empty
+    tree = cKDTree(current) if tree is None else tree
+    if len(current) == 1:
+        distance, index = tree.query(reference, k=1)
+        near = distance <= match_tol
+    else:
+        distance, index = tree.query(reference, k=2)
+        near = (distance[:, 0] <= match_tol) & (distance[:, 1] > separation)
+        index = index[:, 0]
+    ref_idx = np.flatnonzero(near)
+    cur_idx = index[near]
+    # Two reference rows on one current row: neither is a trustworthy match.
+    counts = np.bincount(cur_idx, minlength=len(current))
+    single = counts[cur_idx] == 1
+    return ref_idx[single], cur_idx[single]
+
+
+def check_pose_rank(body, motor_states: np.ndarray, *, fd_step: float = 1e-6,
+                    rank_ratio: float = 1e-3, min_singular: float = 1e-4):
+    """Rank test of the sensory Jacobian at ``motor_states`` (one ``sense``
+    call, ``M + 1`` rows each). Returns ``(full_rank (B,) bool, rows)``."""
+    motor_states = np.asarray(motor_states, dtype=float)
+    if len(motor_states) == 0:
+        return np.zeros(0, dtype=bool), 0
+    _, jac, rows = sensory_jacobian(body, motor_states, fd_step)
+    return has_full_pose_rank(jac, rank_ratio, min_singular), rows
+
+
+class EqualitySetCollection:
+    """Equality sets as ``core.regularize`` takes them: ``pairs`` ``(K, 2)``
+    POV index changes i -> j, ``set_ids`` ``(K,)``, pairs of one set
+    compensating one displacement."""
+
+    def __init__(self, min_pairs: int = 2):
+        if int(min_pairs) != min_pairs or min_pairs < 1:
+            raise ValueError(f"min_pairs must be an integer >= 1, got {min_pairs}")
+        self.min_pairs = int(min_pairs)
+        self._pairs: list[np.ndarray] = []
+        self._ids: list[np.ndarray] = []
+        self.n_sets = 0
+        self.n_pairs = 0
+
+    def add(self, before: np.ndarray, after: np.ndarray) -> int:
+        """Record the changes ``before[k] -> after[k]`` of one displacement.
+        Changes to the same POV (zero displacement) are left out. Returns the
+        set id, or -1 when fewer than ``min_pairs`` changes remain (a set of
+        one constrains nothing)."""
+        pairs = np.stack([np.asarray(before, int), np.asarray(after, int)], axis=1)
+        pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+        if len(pairs) < self.min_pairs:
+            return -1
+        set_id = self.n_sets
+        self._pairs.append(pairs)
+        self._ids.append(np.full(len(pairs), set_id))
+        self.n_sets += 1
+        self.n_pairs += len(pairs)
+        return set_id
+
+    @property
+    def pairs(self) -> np.ndarray:
+        return np.concatenate(self._pairs) if self._pairs else np.zeros((0, 2), dtype=int)
+
+    @property
+    def set_ids(self) -> np.ndarray:
+        return np.concatenate(self._ids) if self._ids else np.zeros(0, dtype=int)
+
+
+class EqualitySetSweep:
+    """Simulation 2 over known POVs: call ``observe()`` after every change of
+    the environment (the body answers in the changed environment); each call
+    senses one sample of every POV and matches it with the previous sweep.
+
+    ``points_of_view`` ``(P, N, M)`` (any sample of a POV will do: all share
+    the eye's pose). ``rows`` counts motor states probed, ``calls`` the
+    ``sense`` calls.
+    """
+
+    def __init__(self, body, points_of_view: np.ndarray, *, fd_step: float = 1e-6,
+                 rank_ratio: float = 1e-3, min_singular: float = 1e-4,
+                 match_tol: float = 1e-8, separation: float = 1e-6, min_pairs: int = 2):
+        povs = np.asarray(points_of_view, dtype=float)
+        if povs.ndim != 3 or povs.shape[2] != int(body.n_motors):
+            raise ValueError(f"points_of_view must have shape (P, N, {body.n_motors}), "
+                             f"got {povs.shape}")
+        self.body = body
+        self.probe_states = povs[:, 0, :].copy()
+        self.fd_step, self.rank_ratio, self.min_singular = fd_step, rank_ratio, min_singular
+        self.match_tol, self.separation = match_tol, separation
+        self.sets = EqualitySetCollection(min_pairs)
+        self.rows = 0
+        self.calls = 0
+        self._previous: np.ndarray | None = None
+        self._previous_rank: np.ndarray | None = None
+
+    def observe(self) -> np.ndarray:
+        """Sweep, match with the previous sweep, record one set; returns this
+        change's pairs ``(k, 2)`` (empty when nothing matched)."""
+        current = np.asarray(self.body.sense(self.probe_states), dtype=float)
+        self.rows += len(current)
+        self.calls += 1
+        rank = np.full(len(current), RANK_UNKNOWN)
+        pairs = np.zeros((0, 2), dtype=int)
+        if self._previous is not None:
+            before, after = match_sensations(self._previous, current, match_tol=self.match_tol,
+                                             separation=self.separation)
+            before, after, rank = carry_rank(self, before, after, self._previous_rank, rank)
+            if self.sets.add(before, after) >= 0:
+                pairs = np.stack([before, after], axis=1)
+                pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+        self._previous, self._previous_rank = current, rank
+        return pairs
+
+    @property
+    def pairs(self) -> np.ndarray:
+        return self.sets.pairs
+
+    @property
+    def set_ids(self) -> np.ndarray:
+        return self.sets.set_ids
+
+
+def carry_rank(sweep, before, after, rank_before, rank_after):
+    """Keep the matches whose sensation has full pose rank.
+
+    The rank is carried from the matched row of the earlier sweep when it is
+    known there, otherwise measured at the later row's probe state (one
+    ``sense`` call for all of them); ``rank_after`` is filled in place.
+    ``sweep`` supplies ``body``, ``probe_states``, the rank thresholds and
+    the ``rows``/``calls`` counters.
+    """
+    known = rank_before[before]
+    rank_after[after] = known
+    unknown = after[known == RANK_UNKNOWN]
+    if len(unknown):
+        full, rows = check_pose_rank(sweep.body, sweep.probe_states[unknown],
+                                     fd_step=sweep.fd_step, rank_ratio=sweep.rank_ratio,
+                                     min_singular=sweep.min_singular)
+        sweep.rows += rows
+        sweep.calls += 1
+        rank_after[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
+    good = rank_after[after] == RANK_FULL
+    return before[good], after[good], rank_after

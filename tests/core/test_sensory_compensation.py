@@ -1,0 +1,96 @@
+"""Naive compensation: Levenberg-Marquardt on sensory error, with the rank test."""
+import types
+
+import numpy as np
+import pytest
+
+from sensorispace_ros.core import arm
+from sensorispace_ros.core.body import SimulatedBody
+from sensorispace_ros.core.exploration import build_world
+from sensorispace_ros.core.sensory_compensation import compensate
+from sensorispace_ros.core.world import draw_light_offsets
+
+
+@pytest.fixture(scope="module")
+def world():
+    return build_world(0)
+
+
+def _target(world):
+    body = SimulatedBody(world.receptors, world.initial_lights)
+    return body.sense(world.m0[None])[0]
+
+
+def test_translation_is_compensated_at_the_displaced_pose(world):
+    target = _target(world)
+    shift = np.array([-0.6, 0.4])
+    sim = SimulatedBody(world.receptors, world.initial_lights + shift)
+    body = types.SimpleNamespace(sense=sim.sense, n_motors=4, n_sensors=6)
+    starts = np.vstack([world.m0, world.m0 + [0.3, -0.2, 0.1, 0.0]])
+    result = compensate(body, np.repeat(target[None], 2, axis=0), starts)
+    assert result.accepted.all()
+    wanted = arm.forward(world.m0) + [*shift, 0.0]
+    # The eye moved with the object: same relative pose, same sensation.
+    assert np.max(arm.pose_error(arm.forward(result.motor_states), wanted)) < 1e-8
+    assert np.all(result.sensory_error <= 1e-10)
+    # One sense call per iteration carries every search and its stencil.
+    assert result.calls == result.iterations.max() + 1
+    assert sim.queries == result.queries.sum()
+
+
+def test_out_of_reach_translation_and_redistribution_are_refused(world):
+    target = _target(world)
+    starts = np.vstack([world.m0, world.m0 + [0.5, 0.5, -0.5, 0.0], world.m0 + [-1.0, 0, 0, 0]])
+    targets = np.repeat(target[None], len(starts), axis=0)
+    pose0 = arm.forward(world.m0)
+    shift = 4.0 * pose0[:2] / np.hypot(*pose0[:2])        # the sensor would need |tip| > 5
+    far = SimulatedBody(world.receptors, world.initial_lights + shift)
+    assert not compensate(far, targets, starts).accepted.any()
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        lights = world.initial_center + draw_light_offsets(rng, len(world.initial_offsets))
+        moved = SimulatedBody(world.receptors, lights)
+        assert not compensate(moved, targets, starts).accepted.any()
+
+
+def test_blank_target_is_refused_by_the_rank_test_alone(world):
+    # Lights only far along +x: an eye turned back sees nothing, anywhere.
+    lights = np.array([[9.0, -1.0], [10.0, 0.5], [11.0, 2.0]])
+    body = SimulatedBody(world.receptors, lights)
+    blank_target = np.zeros((1, 6))
+    start = np.array([[0.3, 0.2, -0.4, np.pi]])
+    assert np.all(body.sense(start) == 0.0)
+    result = compensate(body, blank_target, start)
+    # The error is exactly zero: only the rank test stands between a blank
+    # sensation and a "compensation" anywhere.
+    assert result.sensory_error[0] == 0.0
+    assert result.rank_ratio[0] < 1e-3
+    assert not result.accepted[0]
+
+
+def test_searches_are_independent_in_a_batch(world):
+    target = _target(world)
+    shift = np.array([0.3, 0.3])
+    body = SimulatedBody(world.receptors, world.initial_lights + shift)
+    good = world.m0
+    hopeless = np.array([0.0, 0.0, 0.0, world.m0.sum() + np.pi])     # eye turned away
+    together = compensate(body, np.repeat(target[None], 2, axis=0), np.vstack([good, hopeless]))
+    alone = compensate(body, target[None], good[None])
+    assert together.accepted[0] and not together.accepted[1]
+    np.testing.assert_allclose(together.motor_states[0], alone.motor_states[0], atol=1e-12)
+
+
+@pytest.mark.parametrize("name, value", [("error_tol", 0.0), ("max_iterations", 0),
+                                         ("stall_factor", 1.0), ("rank_ratio", -1.0)])
+def test_bad_search_parameters_are_named(world, name, value):
+    body = SimulatedBody(world.receptors, world.initial_lights)
+    with pytest.raises(ValueError, match=name):
+        compensate(body, np.zeros((1, 6)), world.m0[None], **{name: value})
+
+
+def test_shapes_are_checked(world):
+    body = SimulatedBody(world.receptors, world.initial_lights)
+    with pytest.raises(ValueError, match="starts"):
+        compensate(body, np.zeros((1, 6)), np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="target_sensations"):
+        compensate(body, np.zeros((2, 6)), world.m0[None])

@@ -1,0 +1,115 @@
+"""Equality sets from sensation matching (simulation 2 without ground truth)."""
+import numpy as np
+import pytest
+
+from sensorispace_ros.core import arm
+from sensorispace_ros.core.body import SensingOnly, SimulatedBody
+from sensorispace_ros.core.exploration import build_world
+from sensorispace_ros.core.points_of_view import project_onto_pose
+from sensorispace_ros.core.sensory_equality_sets import (EqualitySetCollection,
+                                                         EqualitySetSweep, match_sensations)
+from sensorispace_ros.core.world import draw_light_offsets
+
+
+def test_match_sensations_requires_closeness_and_uniqueness():
+    reference = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [5.0, 5.0, 5.0]])
+    current = np.array([[0, 1.0, 0],                     # reference 1, exactly
+                        [1.0 + 5e-9, 0, 0],              # reference 0, within match_tol
+                        [0, 0, 1.0 + 1e-9],              # reference 2 ...
+                        [0, 0, 1.0 + 5e-7],              # ... but a second row is too near
+                        [5.0, 5.0, 5.0 + 1e-6]])         # reference 3: too far
+    ref, cur = match_sensations(reference, current, match_tol=1e-8, separation=1e-6)
+    assert sorted(zip(ref.tolist(), cur.tolist())) == [(0, 1), (1, 0)]
+
+
+def test_two_references_on_one_row_match_neither():
+    reference = np.array([[1.0, 0.0], [1.0, 1e-9]])
+    ref, cur = match_sensations(reference, np.array([[1.0, 0.0], [0.0, 1.0]]),
+                                match_tol=1e-8, separation=1e-6)
+    assert len(ref) == len(cur) == 0
+
+
+def test_match_tolerance_must_be_below_separation():
+    with pytest.raises(ValueError, match="match_tol"):
+        match_sensations(np.zeros((1, 2)), np.zeros((1, 2)), match_tol=1e-3, separation=1e-4)
+
+
+def test_collection_drops_zero_displacements_and_lonely_changes():
+    sets = EqualitySetCollection(min_pairs=2)
+    assert sets.add([0, 1, 2], [3, 1, 4]) == 0           # 1 -> 1 is no displacement
+    assert sets.add([5], [6]) == -1                      # one change constrains nothing
+    assert sets.add([7, 8], [9, 10]) == 1
+    np.testing.assert_array_equal(sets.pairs, [[0, 3], [2, 4], [7, 9], [8, 10]])
+    np.testing.assert_array_equal(sets.set_ids, [0, 0, 1, 1])
+    assert sets.n_pairs == 4 and sets.n_sets == 2
+
+
+@pytest.fixture(scope="module")
+def lattice_povs():
+    """Stand-ins for known POVs: motor states whose sensor positions lie on a
+    lattice (spacing 0.3) at the start's orientation, each the start of its
+    POV (one sample is all a sweep uses)."""
+    world = build_world(0)
+    pose0 = arm.forward(world.m0)
+    offsets = np.array([(i, j) for i in range(-2, 3) for j in range(-2, 3)]) * 0.3
+    targets = pose0 + np.column_stack([offsets, np.zeros(len(offsets))])
+    motor, error = project_onto_pose(np.repeat(world.m0[None, None], len(targets), axis=0),
+                                     targets)
+    assert error.max() < 1e-12
+    return world, motor, offsets
+
+
+def test_sweep_pairs_have_one_true_displacement_per_change(lattice_povs):
+    world, motor, offsets = lattice_povs
+    sim = SimulatedBody(world.receptors, world.initial_lights)
+    sweep = EqualitySetSweep(SensingOnly(sim), motor)
+    sweep.observe()
+    changes = [np.array([0.3, 0.0]), np.array([0.0, -0.6]), np.array([0.3, 0.3])]
+    center = np.zeros(2)
+    for shift in changes:
+        center = center + shift
+        sim.set_lights(world.initial_lights + center)
+        pairs = sweep.observe()
+        moved = offsets[pairs[:, 1]] - offsets[pairs[:, 0]]
+        np.testing.assert_allclose(moved, np.repeat(shift[None], len(pairs), axis=0), atol=1e-9)
+        # Every lattice point whose displaced point is on the lattice is found.
+        expected = sum(np.any(np.all(np.isclose(offsets, o + shift), axis=1)) for o in offsets)
+        assert len(pairs) == expected
+    assert sweep.sets.n_sets == len(changes)
+    assert sweep.calls >= len(changes) + 1
+
+
+def test_redistribution_gives_no_pairs(lattice_povs):
+    world, motor, _ = lattice_povs
+    sim = SimulatedBody(world.receptors, world.initial_lights)
+    sweep = EqualitySetSweep(sim, motor)
+    sweep.observe()
+    rng = np.random.default_rng(3)
+    sim.set_lights(world.initial_center + 0.3 + draw_light_offsets(rng, 10))
+    assert len(sweep.observe()) == 0
+    assert sweep.sets.n_sets == 0
+
+
+def test_one_light_sensations_are_never_matched(lattice_povs):
+    world, motor, offsets = lattice_povs
+    # One light ahead of the eyes: sensations differ from pose to pose, but
+    # two numbers (projection, distance) cannot pin a 3-D pose (rank 2).
+    alpha = world.m0.sum()
+    light = arm.forward(world.m0)[:2] + 5.0 * np.array([np.cos(alpha), np.sin(alpha)])
+    sim = SimulatedBody(world.receptors, light[None])
+    sensed = sim.sense(motor[:, 0])
+    assert np.all(sensed.max(axis=1) > 1e-3)
+    sweep = EqualitySetSweep(sim, motor)
+    sweep.observe()
+    sim.set_lights(light[None] + [0.3, 0.0])
+    # Without the rank test these would match (the relative poses coincide).
+    ref, cur = match_sensations(sensed, sim.sense(motor[:, 0]))
+    assert len(ref) > 0
+    assert len(sweep.observe()) == 0
+
+
+def test_sweep_rejects_malformed_povs(lattice_povs):
+    world, motor, _ = lattice_povs
+    sim = SimulatedBody(world.receptors, world.initial_lights)
+    with pytest.raises(ValueError, match="points_of_view"):
+        EqualitySetSweep(sim, motor[:, 0])
