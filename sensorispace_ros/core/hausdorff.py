@@ -8,12 +8,18 @@ difference is taken on the circle, |wrap(a_k - b_k)| in [0, pi]. We compute
 ``hausdorff_matrix`` is exact (the same float64 numbers as
 ``hausdorff_matrix_bruteforce``) but does most of its work in 16-bit fixed
 point: angles quantised to 2 pi / 2**16 make the periodic wrap free (int16
-subtraction wraps around), and float32 squares are 4x cheaper to move than
-float64 differences. That screen only *selects* the motor samples that can
-be the sup-inf (every one whose screened value is within the proven screening
-error of the pair's screened maximum); those samples are then recomputed
-exactly in float64. Min and max are exact operations, so the result equals
-the brute force to the last bit.
+subtraction wraps around), and int16 differences and float32 squares move
+4x and 2x fewer bytes than float64. That screen only *selects* the motor
+samples that can be the sup-inf (every one whose screened value is within
+the proven screening error of the pair's screened maximum); those samples
+are then recomputed exactly in float64. Min and max are exact operations, so
+the result equals the brute force to the last bit. Measured on 649 POVs x
+100 samples: 3x less CPU than the (in-place, float64) brute force; two
+threads by default.
+
+Pruning by bounding balls of consecutive samples (dual-tree style) was tried
+and dropped: POV loops are long (~15 rad) next to the distances between
+POVs, so ball radii exceed the Hausdorff values until ~3 samples per ball.
 """
 from __future__ import annotations
 
