@@ -27,7 +27,7 @@ TINY = """/**:
   ros__parameters:
     seed: 0
     world:
-      grid_count: 8
+      grid_count: 12              # >= 11 points of view: the evaluation needs them
     pov:
       n_samples: 20
       step: 0.01
@@ -80,29 +80,36 @@ def recorded_tiny_run(tiny_run):
     return tiny_run["bag"]
 
 
+def frames(bag, topic) -> list[str]:
+    return [m.header.frame_id for _, _, _, m in bags.read_bag_messages(bag, [topic])]
+
+
 def test_graph_recording_drops_nothing(recorded_tiny_run):
     bag = recorded_tiny_run
     counts = bags.bag_info(bag).counts
     totals = analyze.agent_totals(bag)
     assert totals is not None, counts
     changes = totals["changes"]
-    assert counts["/body/motor_command"] == totals["calls"]
-    # one passive sensation per change, plus the initial one and the end
-    passive = counts["/agent/settled"]
-    assert passive == changes + 1
-    assert counts["/body/sensation"] == totals["calls"] + passive
-    assert counts["/body/sensor_pose"] == counts["/body/joint_states"] == counts["/body/sensation"]
-    assert counts["/environment/lights"] == passive
-    # /agent/done counts the end as a change: the events are change/1 .. change/<changes - 1>
-    assert counts["/environment/event"] == changes - 1
+    # The environment re-sends a change the agent has not settled yet (graph.resend_period_s),
+    # so a message may be recorded twice: the identities hold on distinct frame ids.
+    commands = frames(bag, "/body/motor_command")
+    assert len(commands) == len(set(commands)) == totals["calls"]
+    sensations = set(frames(bag, "/body/sensation"))
+    passive = {f for f in sensations if f.startswith(("change/", "end/"))}
+    assert sensations - passive == set(commands)
+    assert passive == {f"change/{k}" for k in range(changes)} | {f"end/{changes}"}
+    for topic in ("/body/sensor_pose", "/body/joint_states"):
+        assert set(frames(bag, topic)) == sensations, topic
+    assert set(frames(bag, "/environment/lights")) == passive
+    assert set(frames(bag, "/environment/event")) == {f"change/{k}" for k in range(1, changes)}
+    settled = [m.data for _, _, _, m in bags.read_bag_messages(bag, ["/agent/settled"])]
+    assert sorted(set(settled)) == list(range(changes + 1))
     data = analyze.agent_data(bag)
     assert len(data["ids"]) == totals["points_of_view"]
     assert len(data["pairs"]) == totals["compensation_rows"]
-    # every recorded sensor pose answers a recorded command row
+    # every POV's first motor state was commanded, and its answer recorded
     _, recorded = analyze.true_poses(bag, data["povs"])
     assert recorded == len(data["ids"])
-    settled = [m.data for _, _, _, m in bags.read_bag_messages(bag, ["/agent/settled"])]
-    assert settled == list(range(len(settled)))
     assert np.isfinite(data["povs"]).all()
 
 
@@ -135,8 +142,10 @@ def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_r
     assert representation.returncode == 0, output
     replayed = np.load(tmp_path / RESULT_FILE)
     assert sorted(replayed.files) == sorted(live.files)
+    assert "embedding_2d_iterations" in live.files, live.files
     for name in live.files:
-        np.testing.assert_array_equal(replayed[name], live[name], err_msg=name)
+        if name != "timings_s_json":  # wall-clock times differ, everything else must not
+            np.testing.assert_array_equal(replayed[name], live[name], err_msg=name)
 
 
 def test_the_bag_holds_the_run_configuration(tiny_run):
