@@ -17,8 +17,10 @@ import numbers
 import sys
 
 import numpy as np
+from scipy.linalg import eigh
 from scipy.spatial.distance import pdist, squareform
 from sklearn.base import BaseEstimator
+from threadpoolctl import threadpool_limits
 
 _METRICS = ("precomputed", "euclidean")
 
@@ -54,17 +56,19 @@ def classical_mds(distance, n_components: int) -> np.ndarray:
     """Torgerson MDS: top eigenvectors of the double-centred squared distances.
 
     Signs are fixed (largest-magnitude coordinate of each axis positive) so
-    the result does not depend on the LAPACK build.
+    the result does not depend on the LAPACK build. Only the top eigenpairs
+    are computed, on one BLAS thread: on a busy 2-core machine a threaded
+    OpenBLAS eigh of 500 points took 9.5 s instead of 0.24 s.
     """
     D = np.asarray(distance, dtype=float)
     P = D.shape[0]
     sq = D * D
     B = -0.5 * (sq - sq.mean(axis=0, keepdims=True) - sq.mean(axis=1, keepdims=True) + sq.mean())
     k = min(n_components, P)
-    values, vectors = np.linalg.eigh(B)
-    order = np.argsort(values)[::-1][:k]
-    values = np.clip(values[order], 0.0, None)
-    vectors = vectors[:, order]
+    with threadpool_limits(limits=1, user_api="blas"):
+        values, vectors = eigh(B, subset_by_index=[P - k, P - 1])
+    values = np.clip(values[::-1], 0.0, None)
+    vectors = vectors[:, ::-1]
     signs = np.sign(vectors[np.argmax(np.abs(vectors), axis=0), np.arange(k)])
     signs[signs == 0] = 1.0
     Y = vectors * signs * np.sqrt(values)
