@@ -210,6 +210,10 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     timings.update({key: float(value) for key, value in getattr(result, "timings_s", {}).items()
                     if key in ("exploration", "points_of_view", "equality_sets")})
     timings.setdefault("exploration", elapsed - sum(timings.values()))
+    # Ground-truth bookkeeping of the run (incl. the paper strategy for the
+    # coverage denominator): timed, but not a stage of the agent.
+    if "evaluation" in getattr(result, "timings_s", {}):
+        timings["naive_ground_truth"] = float(result.timings_s["evaluation"])
     povs = np.asarray(result.povs)
     true_poses = np.asarray(result.true_poses)
     metrics = {"pov.count": len(povs),
@@ -301,7 +305,18 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
 
 def evaluate(representation: Representation, true_positions: np.ndarray, povs: np.ndarray,
              cfg: dict, seed: int, progress=None) -> dict:
-    """Ground-truth numbers of a representation (flat dotted keys)."""
+    """Ground-truth numbers of a representation (flat dotted keys).
+
+    ``quality.<dim>.<stage>.*``: ``core.quality.quality_report`` plus
+    ``neighbours_true_fraction``; ``metric.*.unit_step_cv``: spread of the
+    internal lengths of equal external grid steps (Fig. 9 as a number);
+    ``regularization.<dim>.set_spread``: spread of the equality sets'
+    distances, first of the Hausdorff metric then after each iteration;
+    ``reaching.<graph>.*``: straightness of Dijkstra paths between the same
+    random start/target pairs in every graph, with its pruning radius and
+    degrees; ``timings_s.reaching``. ``povs`` is accepted so callers hand
+    over the whole run; no number here needs it yet.
+    """
     from .core.quality import quality_report
     from .core.reach import reaching_evaluation
 
@@ -396,7 +411,8 @@ def _neighbours_true_fraction(embedding: np.ndarray, positions: np.ndarray,
     _, index = cKDTree(embedding).query(embedding, k=k + 1)
     true_kth, _ = cKDTree(positions).query(positions, k=k + 1)
     gap = np.linalg.norm(positions[index[:, 1:]] - positions[:, None, :], axis=-1)
-    return float(np.mean(np.all(gap <= true_kth[:, -1:] * (1.0 + 1e-9), axis=1)))
+    # Ties: compensated sensor positions sit ~1e-7 off the exact grid.
+    return float(np.mean(np.all(gap <= true_kth[:, -1:] * (1.0 + 1e-3), axis=1)))
 
 
 def _spearman(a: np.ndarray, b: np.ndarray) -> float:

@@ -119,7 +119,8 @@ class Progress:
             self._line_width = len(line)
             self.stream.flush()
         else:
-            if not force and now - self._last_line < self.interval_s:
+            # 100 % is said by the stage's closing line.
+            if not force and (now - self._last_line < self.interval_s or self.fraction >= 1.0):
                 return
             self.stream.write(self.status() + "\n")
             self.stream.flush()

@@ -210,3 +210,73 @@ def test_reproduce_writes_metrics_and_prints_a_summary(tmp_path, capsys):
     assert "paper strategy, seed 1" in summary
     assert f"{metrics['exploration']['compensated']} compensated" in summary
     assert "2D after" in summary and "time (s)" in summary
+
+
+# ---------------------------------------------------------------------------
+# Progress display
+
+
+class FakeClock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class FakeTerminal:
+    def __init__(self, tty: bool):
+        self.text, self.tty = "", tty
+
+    def write(self, text):
+        self.text += text
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return self.tty
+
+
+def test_progress_in_a_log_prints_periodic_plain_lines_with_eta():
+    from sensorispace_ros.progress import Progress
+
+    clock, log = FakeClock(), FakeTerminal(tty=False)
+    progress = Progress(stream=log, interval_s=10.0, clock=clock)
+    with progress.stage("hausdorff", total=100):
+        for done in range(1, 101):
+            clock.now += 0.5                 # 50 s in all
+            progress(done)
+    lines = log.text.splitlines()
+    assert "\r" not in log.text
+    # one line per 10 s (at 10, 20, 30, 40 s), then the closing line
+    assert len(lines) == 5, lines
+    assert lines[0].startswith("[hausdorff]  20.0% elapsed 10.0s ETA 40.0s")
+    assert lines[-1] == "[hausdorff] done in 50.0s"
+    assert progress.durations["hausdorff"] == 50.0
+
+
+def test_progress_on_a_terminal_rewrites_one_line():
+    from sensorispace_ros.progress import Progress
+
+    clock, terminal = FakeClock(), FakeTerminal(tty=True)
+    progress = Progress(stream=terminal, clock=clock)
+    with progress.stage("cca"):
+        clock.now = 1.0
+        progress(0.25)                       # a fraction when no total is given
+        clock.now = 2.0
+        progress(3, 4)
+    assert terminal.text.count("\n") == 1    # only the closing line ends a line
+    assert "\r[cca]  25.0% elapsed 1.0s ETA 3.0s" in terminal.text
+    assert "\r[cca]  75.0% elapsed 2.0s ETA 0.7s" in terminal.text
+    assert terminal.text.endswith("[cca] done in 2.0s\n")
+
+
+def test_disabled_progress_is_silent():
+    from sensorispace_ros.progress import Progress
+
+    log = FakeTerminal(tty=False)
+    progress = Progress(stream=log, enabled=False, interval_s=0.0)
+    with progress.stage("x", total=2):
+        progress(1)
+    assert log.text == ""
