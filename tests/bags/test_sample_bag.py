@@ -1,0 +1,60 @@
+"""The committed sample bag (bags/sample_smoke): a launched smoke run (config/smoke.yaml)
+copied without the bulky /body/* probing streams (bags.copy_bag), ~350 KB."""
+from __future__ import annotations
+
+import numpy as np
+import yaml
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+from sensorispace_ros import analyze, bags, contracts, messages
+
+from conftest import REPO
+
+SAMPLE = REPO / "bags" / "sample_smoke"
+
+
+def test_sample_opens_with_both_readers_and_counts_agree():
+    meta = yaml.safe_load((SAMPLE / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["version"] == 9
+    meta_counts = {t["topic_metadata"]["name"]: t["message_count"]
+                   for t in meta["topics_with_message_count"]}
+    with AnyReader([SAMPLE], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        deserialised = sum(1 for c, _, raw in reader.messages()
+                           if reader.deserialize(raw, c.msgtype) is not None)
+    with open(SAMPLE / "sample_smoke.mcap", "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        decoded = sum(1 for _ in reader.iter_decoded_messages())
+    mcap_counts = {summary.channels[c].topic: n
+                   for c, n in summary.statistics.channel_message_counts.items()}
+    assert mcap_counts == meta_counts
+    assert deserialised == decoded == meta["message_count"] == sum(meta_counts.values())
+    assert meta_counts["/representation/embedding"] > 0 and meta_counts["/agent/done"] == 1
+
+
+def test_sample_rebuilds_the_recorded_embeddings():
+    from sensorispace_ros import pipeline
+
+    cfg = analyze.config_from_bag(SAMPLE)
+    data = analyze.agent_data(SAMPLE)
+    totals = analyze.agent_totals(SAMPLE)
+    assert (len(data["ids"]), len(data["pairs"])) == (
+        totals["points_of_view"], totals["compensation_rows"])
+    representation = pipeline.build_representation(
+        data["povs"], data["pairs"], data["set_ids"], cfg, cfg["seed"])
+
+    columns = contracts.contract("/representation/embedding").columns
+    recorded = {}
+    for _, _, _, msg in bags.read_bag_messages(SAMPLE, ["/representation/embedding"]):
+        recorded[msg.header.frame_id] = messages.cloud_to_table(msg, columns)
+    assert len(recorded) == 2 * (cfg["representation"]["regularization"]["iterations"] + 1)
+    for frame_id, table in recorded.items():
+        dim, _, k = frame_id.split("/")
+        stages = [representation.before[dim], *representation.iterations[dim]]
+        n = int(dim[0])
+        assert np.array_equal(table["pov"], data["ids"])
+        got = np.stack([table[c] for c in ("x", "y", "z")[:n]], axis=1)
+        np.testing.assert_allclose(got, stages[int(k)], rtol=0, atol=1e-9, err_msg=frame_id)
