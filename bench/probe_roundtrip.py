@@ -1,0 +1,214 @@
+"""Graph probe round trip vs a bare rclpy ping-pong of the same message sizes.
+
+Two server processes in one private domain (localhost discovery):
+  * the real body node (``python -m sensorispace_ros.nodes.body``), which
+    decodes each /body/motor_command, simulates the arm and retina, and
+    publishes /body/sensation, /body/sensor_pose and /body/joint_states;
+  * ``bench/rclpy_echo.py``, which answers a ``rows x 4`` float64
+    PointCloud2 with a prebuilt ``rows x 6`` one (one publication, no work).
+The client (this process, one node, SingleThreadedExecutor) probes the body
+exactly as the agent node does - ``nodes.agent.BodyOverTopics`` with the
+contract's publisher and ``messages`` packing - and pings the echo with
+prebuilt messages. Both are measured in the same run, interleaved in rounds
+so load changes hit both alike. Servers are stopped by PID.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+from bench.child import child_environment, load  # noqa: E402
+
+
+def _stop(proc: subprocess.Popen, grace_s: float = 5.0) -> None:
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(timeout=grace_s)
+        except subprocess.TimeoutExpired:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
+            rounds: int = 10, per_round: dict | None = None, seed: int = 0,
+            log_dir: str | Path | None = None) -> dict:
+    """Median / mean round trip per probe (ms) for the graph and the bare
+    ping-pong, single row and ``batch_rows`` rows; ratio graph / bare."""
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from sensor_msgs.msg import PointCloud2
+
+    from bench import rclpy_echo
+    from sensorispace_ros import config as config_mod
+    from sensorispace_ros import contracts, launcher, messages
+    from sensorispace_ros.nodes import build_world, frame
+    from sensorispace_ros.nodes.agent import BodyOverTopics
+
+    per_round = per_round or {1: 100, batch_rows: 20}
+    config = Path(config)
+    if not config.is_absolute():
+        config = HERE.parent / config
+    cfg = config_mod.load_config(config)
+    domain = launcher.free_domain_id()
+    env = child_environment({"ROS_DOMAIN_ID": str(domain),
+                             "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
+    log_dir = Path(log_dir) if log_dir else None
+    logs = []
+
+    def start(command, name):
+        out = subprocess.DEVNULL
+        if log_dir:
+            log_dir.mkdir(parents=True, exist_ok=True)
+            out = open(log_dir / f"{name}.log", "wb")
+            logs.append(out)
+        return subprocess.Popen(command, env=env, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True, cwd=HERE.parent)
+
+    servers = [
+        start([sys.executable, "-m", "sensorispace_ros.nodes.body", "--ros-args",
+               "--params-file", str(config)], "body"),
+        start([sys.executable, str(HERE / "rclpy_echo.py")], "echo"),
+    ]
+    context = Context()
+    rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("bench_probe_client", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    spin = lambda t: executor.spin_once(timeout_sec=t)  # noqa: E731
+    try:
+        command_columns = contracts.contract("/body/motor_command").columns
+        sensation_columns = contracts.contract("/body/sensation").columns
+        lights_columns = contracts.contract("/environment/lights").columns
+        command_pub = contracts.create_publisher(node, "/body/motor_command")
+        lights_pub = contracts.create_publisher(node, "/environment/lights")
+
+        def publish_command(motor_states, frame_id):     # as AgentNode.publish_command
+            command_pub.publish(messages.matrix_to_cloud(
+                motor_states, command_columns,
+                messages.make_header(frame_id, node.get_clock().now().nanoseconds)))
+
+        body = BodyOverTopics(publish_command, spin, n_motors=len(command_columns),
+                              n_sensors=len(sensation_columns))
+        passive = []
+
+        def on_sensation(msg):                            # as AgentNode.on_sensation
+            sensations = messages.cloud_to_matrix(msg, sensation_columns)
+            if msg.header.frame_id.startswith("cmd/"):
+                body.deliver(msg.header.frame_id, sensations)
+            else:
+                passive.append(msg.header.frame_id)
+
+        contracts.create_subscription(node, "/body/sensation", on_sensation)
+        ping_pub = node.create_publisher(PointCloud2, rclpy_echo.PING, rclpy_echo.QOS)
+        pong = {}
+        node.create_subscription(PointCloud2, rclpy_echo.PONG,
+                                 lambda msg: pong.__setitem__(msg.header.frame_id, msg),
+                                 rclpy_echo.QOS)
+
+        deadline = time.monotonic() + 60.0
+        while (command_pub.get_subscription_count() < 1 or ping_pub.get_subscription_count() < 1
+               or node.count_publishers("/body/sensation") < 1
+               or node.count_publishers(rclpy_echo.PONG) < 1):
+            if time.monotonic() > deadline:
+                raise RuntimeError("servers not discovered within 60 s")
+            if any(p.poll() is not None for p in servers):
+                raise RuntimeError("a server process exited early")
+            spin(0.05)
+        world = build_world(cfg)
+        lights_pub.publish(messages.matrix_to_cloud(
+            world.initial_lights, lights_columns, messages.make_header(frame("change", 0))))
+        while not passive:
+            if time.monotonic() > deadline:
+                raise RuntimeError("the body node never answered the lights")
+            spin(0.05)
+
+        rng = np.random.default_rng(seed)
+        sizes = sorted(per_round)
+        motor = {rows: world.m0 + 0.01 * rng.standard_normal((rows, 4)) for rows in sizes}
+        pings = {rows: rclpy_echo.float_cloud(rows, 4) for rows in sizes}
+        counter = [0]
+
+        def ping(rows):
+            counter[0] += 1
+            frame_id = f"ping/{counter[0]}"
+            msg = pings[rows]
+            msg.header = messages.make_header(frame_id)
+            started = time.perf_counter()
+            ping_pub.publish(msg)
+            while frame_id not in pong:
+                spin(0.5)
+            elapsed = time.perf_counter() - started
+            assert pong.pop(frame_id).width == rows
+            return elapsed
+
+        def probe(rows):
+            started = time.perf_counter()
+            reply = body.sense(motor[rows])
+            elapsed = time.perf_counter() - started
+            assert reply.shape == (rows, len(sensation_columns))
+            return elapsed
+
+        for rows in sizes:                                # warm-up: first messages allocate
+            for _ in range(5):
+                probe(rows)
+                ping(rows)
+        times = {(kind, rows): [] for kind in ("graph", "bare") for rows in sizes}
+        load_before = load()
+        for r in range(rounds):
+            for rows in sizes:
+                first, second = (("graph", probe), ("bare", ping)) if r % 2 == 0 \
+                    else (("bare", ping), ("graph", probe))
+                for kind, fn in (first, second):
+                    times[(kind, rows)].extend(fn(rows) for _ in range(per_round[rows]))
+        # The body's own computation for a batch, in this process, for reference.
+        from sensorispace_ros.core.body import SimulatedBody
+        sim = SimulatedBody(world.receptors, world.initial_lights, world.m0.copy())
+        compute = {}
+        for rows in sizes:
+            started = time.perf_counter()
+            for _ in range(20):
+                sim.sense(motor[rows])
+            compute[rows] = (time.perf_counter() - started) / 20
+        out = {"load_before": load_before, "load_after": load(), "domain_id": domain,
+               "rows": {}}
+        for rows in sizes:
+            g = np.asarray(times[("graph", rows)]) * 1e3
+            b = np.asarray(times[("bare", rows)]) * 1e3
+            out["rows"][str(rows)] = {
+                "probes": int(len(g)),
+                "graph_median_ms": float(np.median(g)), "graph_mean_ms": float(g.mean()),
+                "graph_p90_ms": float(np.percentile(g, 90)),
+                "bare_median_ms": float(np.median(b)), "bare_mean_ms": float(b.mean()),
+                "bare_p90_ms": float(np.percentile(b, 90)),
+                "ratio_median": float(np.median(g) / np.median(b)),
+                "ratio_mean": float(g.mean() / b.mean()),
+                "body_compute_ms": 1e3 * compute[rows],
+            }
+        return out
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        context.try_shutdown()
+        for proc in servers:
+            _stop(proc)
+        for log in logs:
+            log.close()
+
+
+if __name__ == "__main__":
+    import json
+    print(json.dumps(measure(), indent=2))

@@ -1,0 +1,67 @@
+"""The bare baseline of the probe benchmark: an rclpy node that answers every
+PointCloud2 on ``bench/ping`` with a prebuilt PointCloud2 of ``rows x 6``
+float64 on ``bench/pong`` (the size of the body's sensation reply), copying
+the request header. No decoding, no computation, one publication per request.
+
+    python bench/rclpy_echo.py      (ROS_DOMAIN_ID / discovery range from the environment)
+
+Runs until SIGTERM/SIGINT.
+"""
+from __future__ import annotations
+
+import array
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2, PointField
+
+PING, PONG = "bench/ping", "bench/pong"
+# Same QoS as the contract's /body/motor_command and /body/sensation, so the
+# comparison measures the graph's work, not a QoS difference.
+QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_ALL,
+                 durability=DurabilityPolicy.VOLATILE)
+
+
+def float_cloud(rows: int, columns: int, header=None) -> PointCloud2:
+    """A PointCloud2 of ``rows x columns`` float64 zeros (the wire size of a table)."""
+    fields = [PointField(name=f"c{k}", offset=8 * k, datatype=PointField.FLOAT64, count=1)
+              for k in range(columns)]
+    msg = PointCloud2(height=1, width=rows, fields=fields, is_bigendian=False,
+                      point_step=8 * columns, row_step=8 * columns * rows, is_dense=True,
+                      data=array.array("B", bytes(8 * columns * rows)))
+    if header is not None:
+        msg.header = header
+    return msg
+
+
+def main() -> int:
+    rclpy.init()
+    node = rclpy.create_node("bench_echo")
+    replies: dict[int, PointCloud2] = {}
+    pub = node.create_publisher(PointCloud2, PONG, QOS)
+
+    def on_ping(msg: PointCloud2) -> None:
+        reply = replies.get(msg.width)
+        if reply is None:
+            reply = replies[msg.width] = float_cloud(msg.width, 6)
+        reply.header = msg.header
+        pub.publish(reply)
+
+    node.create_subscription(PointCloud2, PING, on_ping, QOS)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
