@@ -30,8 +30,8 @@ RANK_DEFICIENT = 0
 RANK_FULL = 1
 
 
-def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: float = 1e-8,
-                     separation: float = 1e-6, tree: cKDTree | None = None):
+def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: float = 1e-6,
+                     separation: float = 1e-4, tree: cKDTree | None = None):
     """Unique one-to-one matches between two sets of sensations.
 
     Returns ``(reference_index, current_index)``: row ``i`` of ``reference``
@@ -109,6 +109,13 @@ class EqualitySetCollection:
     def pairs(self) -> np.ndarray:
         return np.concatenate(self._pairs) if self._pairs else np.zeros((0, 2), dtype=int)
 
+    def rows_since(self, n_sets: int) -> np.ndarray:
+        """Rows ``(set id, from, to)`` of the sets added after the first ``n_sets``."""
+        if n_sets >= self.n_sets:
+            return np.zeros((0, 3), dtype=int)
+        return np.column_stack([np.concatenate(self._ids[n_sets:]),
+                                np.concatenate(self._pairs[n_sets:])]).astype(int)
+
     @property
     def set_ids(self) -> np.ndarray:
         return np.concatenate(self._ids) if self._ids else np.zeros(0, dtype=int)
@@ -126,7 +133,7 @@ class EqualitySetSweep:
 
     def __init__(self, body, points_of_view: np.ndarray, *, fd_step: float = 1e-6,
                  rank_ratio: float = 1e-3, min_singular: float = 1e-4,
-                 match_tol: float = 1e-8, separation: float = 1e-6, min_pairs: int = 2):
+                 match_tol: float = 1e-6, separation: float = 1e-4, min_pairs: int = 2):
         povs = np.asarray(points_of_view, dtype=float)
         if povs.ndim != 3 or povs.shape[2] != int(body.n_motors):
             raise ValueError(f"points_of_view must have shape (P, N, {body.n_motors}), "

@@ -1,0 +1,737 @@
+"""The naive agent: explores by compensating, from the sensorimotor flow alone
+(issue #3).
+
+``NaiveAgent`` is event driven so the ROS agent node can wrap it unchanged:
+``start(m0)`` once, then ``react(passive_sensation)`` after every change of
+the environment. Its only access to the world is ``body.sense`` (a batch of
+motor states in, their sensations out, in the current static environment):
+no forward model, no displacement, no event kind. It never imports the arm,
+the retina or the world.
+
+Anchors. The paper compensates toward "the pose at the last successful
+compensation plus the displacement since", knowing the displacement. The
+agent only has sensations, and a remembered sensation stays a valid target
+only until the object's lights are redistributed, which the agent cannot
+tell from an out-of-reach translation (both make compensation fail).
+Re-anchoring on every failure keeps one target at a time and covers only
+22-48 % of the reachable positions (issue #3). Here the agent keeps a small
+pool of *snapshots*: after each event it records, in the environment of that
+event, the sensation at its resting arm (the anchor) and the sensation of
+one sample of every known POV (a sweep). At the next event it sweeps the
+known POVs again and
+
+* matches old sweeps with the new one: POV j' now sensing what POV j sensed
+  at snapshot time means pose(j') - pose(j) is the object's displacement
+  since then, so the snapshot is still valid ("confirmed"), the matched
+  changes form an equality set (simulation 2) and a known POV that matches
+  an anchor compensates it without any search;
+* compensates the anchors of confirmed snapshots (and of a few recent
+  unconfirmed ones, which is how the agent recovers after a redistribution)
+  by Levenberg-Marquardt from the remembered motor states whose current
+  sensation is most similar to the target;
+* samples the POV of every new compensating motor state.
+
+All anchors are recorded at a resting arm that is either the start or a
+compensating state; compensation keeps the eye's orientation, so every
+accepted POV is a spatial relative of the start's (the set {M*}_0).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .sensory_compensation import compensate
+from .sensory_equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
+                                    EqualitySetCollection, EqualitySetSweep,
+                                    check_pose_rank, match_sensations)
+from .sensory_points_of_view import sample_sensory_points_of_view
+
+EXPLORING = "exploring"
+EQUALITY_PASS = "equality_pass"
+
+
+@dataclass(frozen=True)
+class NaiveParams:
+    """Parameters of the naive strategy (``naive:`` section of the config).
+
+    POV walk: ``pov_*`` (see ``sample_sensory_points_of_view``).
+    Compensation: ``lm_*`` (see ``sensory_compensation.compensate``);
+    besides the resting state, ``lm_restarts`` remembered states are tried
+    per target. ``lm_error_tol``/``lm_motor_tol`` are tight because matches
+    between sweeps rely on compensating poses being exact (a pose error e
+    shows as a sensation error ~e).
+    Sensation matching: ``match_tol`` (measured: two compensations of the
+    same pose through different anchor chains differ by ~3e-9 in pose,
+    up to ~7e-8 in sensation; lattice neighbours differ by > 1e-3),
+    ``match_separation`` (uniqueness radius), ``rank_ratio`` and
+    ``min_singular`` (rank-3 test of the sensory Jacobian).
+    Anchors: ``max_snapshots`` kept, dropped after ``snapshot_patience``
+    events without a match or a compensation; at most
+    ``unconfirmed_attempts`` anchors of unconfirmed snapshots (most recent
+    first) are searched per event, and only from snapshots that knew fewer
+    than ``unconfirmed_max_povs`` POVs. ``frontier_attempts``: other rows of
+    the most recent confirmed snapshot searched per event (see
+    ``_frontier_requests``).
+    """
+
+    n_samples: int = 100
+    fd_step: float = 1e-6
+    pov_initial_step: float = 0.05
+    pov_min_step: float = 1e-3
+    pov_max_step: float = 0.15
+    pov_predictor_tol: float = 1e-3
+    pov_max_queries: int = 5000
+    pov_polish_iterations: int = 2
+    lm_max_iterations: int = 40
+    lm_stall_iterations: int = 4
+    lm_error_tol: float = 1e-10
+    lm_motor_tol: float = 1e-8
+    lm_max_step: float = 0.5
+    lm_restarts: int = 2
+    match_tol: float = 1e-6
+    match_separation: float = 1e-4
+    rank_ratio: float = 1e-3
+    min_singular: float = 1e-4
+    max_snapshots: int = 12
+    snapshot_patience: int = 20
+    unconfirmed_attempts: int = 4
+    unconfirmed_max_povs: int = 100
+    frontier_attempts: int = 8
+
+    def __post_init__(self):
+        positive_reals = ("fd_step", "pov_initial_step", "pov_min_step", "pov_max_step",
+                          "pov_predictor_tol", "lm_error_tol", "lm_motor_tol", "lm_max_step",
+                          "match_tol", "match_separation", "rank_ratio")
+        for name in positive_reals:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not np.isfinite(value) or value <= 0:
+                raise ValueError(f"naive.{name}: must be a finite number > 0, got {value!r}")
+        if isinstance(self.min_singular, bool) or not np.isfinite(self.min_singular) \
+                or self.min_singular < 0:
+            raise ValueError(f"naive.min_singular: must be a finite number >= 0, got "
+                             f"{self.min_singular!r}")
+        integers = {"n_samples": 2, "pov_max_queries": 1, "pov_polish_iterations": 0,
+                    "lm_max_iterations": 1, "lm_restarts": 1, "max_snapshots": 1,
+                    "snapshot_patience": 1, "unconfirmed_attempts": 0,
+                    "unconfirmed_max_povs": 0, "lm_stall_iterations": 1,
+                    "frontier_attempts": 0}
+        for name, minimum in integers.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
+                    or value < minimum:
+                raise ValueError(f"naive.{name}: must be an integer >= {minimum}, got {value!r}")
+        if not self.pov_min_step <= self.pov_initial_step <= self.pov_max_step:
+            raise ValueError("naive.pov_initial_step: must lie in [pov_min_step, pov_max_step], "
+                             f"got {self.pov_initial_step!r}")
+        if not self.match_tol < self.match_separation:
+            raise ValueError(f"naive.match_tol: must be < match_separation "
+                             f"({self.match_separation!r}), got {self.match_tol!r}")
+
+    @classmethod
+    def from_mapping(cls, values: dict | None) -> "NaiveParams":
+        values = dict(values or {})
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"naive.{unknown[0]}: unknown parameter")
+        return cls(**values)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class CompensationRecord:
+    """One accepted compensation: the anchor recorded at the agent's event
+    ``anchor_event`` with the arm resting at ``anchor_motor_state`` was
+    compensated at event ``event`` by ``motor_state``, which belongs to POV
+    ``pov`` (-1 when its POV could not be sampled whole, e.g. split).
+    ``searched``: found by LM (False: a known POV matched the anchor)."""
+
+    event: int
+    anchor_event: int
+    anchor_motor_state: np.ndarray
+    motor_state: np.ndarray
+    pov: int
+    searched: bool
+
+
+@dataclass
+class Reaction:
+    """What one ``start``/``react`` call did.
+
+    ``rest_motor_state`` where the arm rests now (the last command sent);
+    ``new_pov_ids`` and ``new_povs`` ``(n, N, M)`` the POVs it added;
+    ``compensations`` the accepted compensations; ``equality_rows``
+    ``(k, 3)`` the equality-set rows it found, columns (set id, POV from,
+    POV to), set ids global; ``queries``/``calls`` it spent.
+    """
+
+    event: int
+    compensated: bool
+    rest_motor_state: np.ndarray
+    new_pov_ids: np.ndarray
+    new_povs: np.ndarray
+    compensations: list = field(default_factory=list)
+    equality_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=int))
+    queries: int = 0
+    calls: int = 0
+
+
+@dataclass
+class _Request:
+    """An anchor to search for: row ``row`` of snapshot ``snapshot``'s sweep
+    (-1: its resting anchor), recorded at ``anchor_motor_state``."""
+
+    snapshot: int
+    row: int
+    target: np.ndarray
+    anchor_motor_state: np.ndarray
+    start: np.ndarray | None = None
+
+
+@dataclass
+class _Snapshot:
+    event: int
+    sensations: np.ndarray          # (K_t, S): one per POV known at that event
+    rank: np.ndarray                # (K_t,) RANK_* of those sensations
+    rest_sensation: np.ndarray      # the anchor
+    rest_motor_state: np.ndarray
+    rest_pov: int
+    rest_rank: int = RANK_UNKNOWN   # of the anchor, in the snapshot's environment
+    fails: int = 0
+
+
+class _CountingBody:
+    """Counts rows, calls and wall time per stage of the agent; exposes only
+    what the body exposes. A stage lasts from its ``stage = name`` to the
+    next one (or to ``pause()``)."""
+
+    def __init__(self, body):
+        self._body = body
+        self.n_motors = int(body.n_motors)
+        self.n_sensors = int(body.n_sensors)
+        self._stage = None
+        self._since = 0.0
+        self.rows: dict[str, int] = {}
+        self.calls: dict[str, int] = {}
+        self.seconds: dict[str, float] = {}
+
+    @property
+    def stage(self) -> str | None:
+        return self._stage
+
+    @stage.setter
+    def stage(self, name: str | None) -> None:
+        now = time.perf_counter()
+        if self._stage is not None:
+            self.seconds[self._stage] = self.seconds.get(self._stage, 0.0) + now - self._since
+        self._stage, self._since = name, now
+
+    def pause(self) -> None:
+        self.stage = None
+
+    def sense(self, motor_states):
+        motor_states = np.asarray(motor_states, dtype=float)
+        self.rows[self.stage] = self.rows.get(self.stage, 0) + len(motor_states)
+        self.calls[self.stage] = self.calls.get(self.stage, 0) + 1
+        answer = np.asarray(self._body.sense(motor_states), dtype=float)
+        if answer.shape != (len(motor_states), self.n_sensors):
+            raise ValueError(f"body.sense returned shape {answer.shape}, expected "
+                             f"({len(motor_states)}, {self.n_sensors})")
+        return answer
+
+    @property
+    def total_rows(self) -> int:
+        return sum(self.rows.values())
+
+    @property
+    def total_calls(self) -> int:
+        return sum(self.calls.values())
+
+
+class _PovStore:
+    """Growing ``(P, N, M)`` array of POV samples (amortised appends)."""
+
+    def __init__(self, n_samples: int, n_motors: int):
+        self._data = np.zeros((16, n_samples, n_motors))
+        self.count = 0
+
+    def append(self, samples: np.ndarray) -> int:
+        if self.count == len(self._data):
+            grown = np.zeros((2 * len(self._data),) + self._data.shape[1:])
+            grown[:self.count] = self._data[:self.count]
+            self._data = grown
+        self._data[self.count] = samples
+        self.count += 1
+        return self.count - 1
+
+    @property
+    def samples(self) -> np.ndarray:
+        return self._data[:self.count]
+
+
+class NaiveAgent:
+    """Event-driven naive explorer (see the module docstring).
+
+    ``body`` needs ``sense(motor_states (B, M)) -> (B, S)``, ``n_motors`` and
+    ``n_sensors``; ``sense`` is called from the thread that calls ``start``/
+    ``react`` and may be a round trip to another process. Every ``start``/
+    ``react`` ends with a one-row command: the arm rests at
+    ``rest_motor_state``. ``seed`` is kept for reproducible extensions; the
+    present policy draws no random numbers.
+    """
+
+    def __init__(self, body, params: NaiveParams | None = None, seed: int = 0):
+        self.params = params if params is not None else NaiveParams()
+        if not isinstance(self.params, NaiveParams):
+            raise ValueError(f"params: must be a NaiveParams, got {type(params).__name__}")
+        for name in ("n_motors", "n_sensors"):
+            value = getattr(body, name, None)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"body: must expose a positive integer {name}, got {value!r}")
+        if not callable(getattr(body, "sense", None)):
+            raise ValueError("body: must expose sense(motor_states)")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
+        self.seed = int(seed)
+        self._body = _CountingBody(body)
+        self.n_motors = self._body.n_motors
+        self._store = _PovStore(self.params.n_samples, self.n_motors)
+        self.pov_queries: list[int] = []           # walk queries of each POV
+        self.compensation_queries: list[int] = []  # per event with an accepted compensation
+        self.compensations: list[CompensationRecord] = []
+        self._sets = EqualitySetCollection(min_pairs=2)
+        self._pool: list[_Snapshot] = []
+        self._event = -1
+        self._rest: np.ndarray | None = None
+        self._rest_pov = -1
+        self.phase = EXPLORING
+        self._sweep: EqualitySetSweep | None = None
+        self.events_compensated = 0
+        self._frontier_success = 1.0     # moving average of frontier searches finding a new POV
+
+    # ------------------------------------------------------------------ API
+
+    @property
+    def points_of_view(self) -> np.ndarray:
+        """``(P, N, M)`` samples of every POV found so far (a copy)."""
+        return self._store.samples.copy()
+
+    @property
+    def compensated(self) -> int:
+        """Events (changes of the environment) with an accepted compensation."""
+        return self.events_compensated
+
+    @property
+    def rest_motor_state(self) -> np.ndarray | None:
+        return None if self._rest is None else self._rest.copy()
+
+    @property
+    def queries_total(self) -> int:
+        return self._body.total_rows
+
+    @property
+    def calls_total(self) -> int:
+        return self._body.total_calls
+
+    @property
+    def queries_by_stage(self) -> dict:
+        return dict(self._body.rows)
+
+    @property
+    def calls_by_stage(self) -> dict:
+        return dict(self._body.calls)
+
+    @property
+    def seconds_by_stage(self) -> dict:
+        """Wall time spent in each stage (sense calls and the agent's own
+        computation between them)."""
+        return dict(self._body.seconds)
+
+    def equality_sets(self):
+        """``(pairs (K, 2), set_ids (K,))`` found so far (exploration sweeps,
+        then the equality pass if one ran), for ``core.regularize``."""
+        return self._sets.pairs, self._sets.set_ids
+
+    def start(self, initial_motor_state) -> Reaction:
+        """Move to ``initial_motor_state``, sample its POV, record the first anchor."""
+        if self._event >= 0:
+            raise RuntimeError("start() was already called")
+        m0 = np.asarray(initial_motor_state, dtype=float).reshape(-1)
+        if m0.shape != (self.n_motors,) or not np.all(np.isfinite(m0)):
+            raise ValueError(f"initial_motor_state: must be {self.n_motors} finite numbers, "
+                             f"got {initial_motor_state!r}")
+        self._event = 0
+        before_rows, before_calls = self._body.total_rows, self._body.total_calls
+        new, sensations = self._sample_povs(m0[None])
+        self._rest = m0.copy()
+        self._rest_pov = new[0] if new else -1
+        self._body.stage = "rest"
+        rest_sensation = self._body.sense(m0[None])[0]
+        current = np.asarray(sensations).reshape(-1, self._body.n_sensors)
+        self._pool = [_Snapshot(0, current, np.full(len(current), RANK_FULL), rest_sensation,
+                                m0.copy(), self._rest_pov,
+                                RANK_FULL if new else RANK_UNKNOWN)]
+        self._body.pause()
+        new = np.asarray(new, dtype=int)
+        return Reaction(event=0, compensated=False, rest_motor_state=m0.copy(),
+                        new_pov_ids=new, new_povs=self._store.samples[new].copy(),
+                        queries=self._body.total_rows - before_rows,
+                        calls=self._body.total_calls - before_calls)
+
+    def react(self, passive_sensation) -> Reaction:
+        """Respond to one change of the environment; ``passive_sensation`` is
+        the sensation at the resting arm after the change."""
+        if self._event < 0:
+            raise RuntimeError("react() before start()")
+        passive = np.asarray(passive_sensation, dtype=float).reshape(-1)
+        if passive.shape != (self._body.n_sensors,) or not np.all(np.isfinite(passive)):
+            raise ValueError(f"passive_sensation: must be {self._body.n_sensors} finite numbers")
+        self._event += 1
+        before_rows, before_calls = self._body.total_rows, self._body.total_calls
+        if self.phase == EQUALITY_PASS:
+            reaction = self._react_equality_pass()
+        else:
+            reaction = self._react_exploring()
+        self._body.pause()
+        reaction.queries = self._body.total_rows - before_rows
+        reaction.calls = self._body.total_calls - before_calls
+        return reaction
+
+    def begin_equality_pass(self) -> None:
+        """Switch to simulation 2: from now on ``react`` only sweeps the known
+        POVs and matches each sweep with the previous one (no compensation,
+        no new POV), adding one equality set per change. Call it in the
+        environment before the first replayed change, then replay them."""
+        if self._event < 0:
+            raise RuntimeError("begin_equality_pass() before start()")
+        self.phase = EQUALITY_PASS
+        self._body.stage = "equality_pass"
+        self._sweep = EqualitySetSweep(
+            self._body, self._store.samples, fd_step=self.params.fd_step,
+            rank_ratio=self.params.rank_ratio, min_singular=self.params.min_singular,
+            match_tol=self.params.match_tol, separation=self.params.match_separation)
+        self._sweep.sets = self._sets
+        self._sweep.observe()       # the sweep "before" the first change
+        self._body.stage = "rest"
+        self._body.sense(self._rest[None])
+        self._body.pause()
+
+    # ------------------------------------------------------------ internals
+
+    def _react_equality_pass(self) -> Reaction:
+        n_before = self._sets.n_sets
+        self._body.stage = "equality_pass"
+        self._sweep.observe()
+        self._body.stage = "rest"
+        self._body.sense(self._rest[None])
+        return Reaction(event=self._event, compensated=False, rest_motor_state=self._rest.copy(),
+                        new_pov_ids=np.zeros(0, dtype=int),
+                        new_povs=np.zeros((0, self.params.n_samples, self.n_motors)),
+                        equality_rows=self._sets.rows_since(n_before))
+
+    def _react_exploring(self) -> Reaction:
+        p = self.params
+        t = self._event
+        rows_at_start = self._body.total_rows
+        sets_before = self._sets.n_sets
+
+        # 1. Sweep the known POVs: this event's memory of (motor, sensation).
+        self._body.stage = "sweep"
+        current = self._sweep_known()
+        rank_now = np.full(len(current), RANK_UNKNOWN)
+        tree = cKDTree(current) if len(current) else None
+        match = dict(match_tol=p.match_tol, separation=p.match_separation, tree=tree)
+
+        # 2. Match every snapshot's sweep, and its anchor, with this sweep.
+        matches, rest_hits = [], []
+        for snap in self._pool:
+            before, after = match_sensations(snap.sensations, current, **match)
+            known = snap.rank[before]
+            rank_now[after[known != RANK_UNKNOWN]] = known[known != RANK_UNKNOWN]
+            matches.append((before, after))
+        _, hit_snap, hit_pov = _match_each(np.stack([s.rest_sensation for s in self._pool]),
+                                           current, match)
+        rest_hits = np.full(len(self._pool), -1)
+        rest_hits[hit_snap] = hit_pov
+        for k in hit_snap:
+            if self._pool[k].rest_rank != RANK_UNKNOWN:
+                rank_now[rest_hits[k]] = self._pool[k].rest_rank
+        matched = np.concatenate([after for _, after in matches] + [hit_pov]).astype(int)
+        unknown = np.unique(matched)
+        unknown = unknown[rank_now[unknown] == RANK_UNKNOWN]
+        if len(unknown):
+            self._body.stage = "rank"
+            full, _ = check_pose_rank(self._body, self._store.samples[unknown, 0],
+                                      fd_step=p.fd_step, rank_ratio=p.rank_ratio,
+                                      min_singular=p.min_singular)
+            rank_now[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
+        matches = [(b[rank_now[a] == RANK_FULL], a[rank_now[a] == RANK_FULL])
+                   for b, a in matches]
+
+        # 3. Anchors: matched by a known POV, or searched for. A snapshot none
+        #    of whose POVs matches is from before a redistribution or from
+        #    before a long translation; its anchor is searched only while few
+        #    POVs were known (later a long translation puts the anchor's target
+        #    out of reach too, and the search would be wasted).
+        known_comp: dict[int, int] = {}          # snapshot index -> known POV
+        requests: list[_Request] = []
+        unconfirmed_left = p.unconfirmed_attempts
+        for k, snap in enumerate(self._pool):
+            hit = rest_hits[k]
+            if hit >= 0 and rank_now[hit] == RANK_FULL:
+                known_comp[k] = int(hit)
+            elif snap.rest_rank == RANK_DEFICIENT:
+                continue                # a blank anchor would be "compensated" anywhere
+            elif len(matches[k][0]) > 0:
+                requests.append(_Request(k, -1, snap.rest_sensation, snap.rest_motor_state))
+            elif unconfirmed_left > 0 and len(snap.sensations) < p.unconfirmed_max_povs:
+                requests.append(_Request(k, -1, snap.rest_sensation, snap.rest_motor_state))
+                unconfirmed_left -= 1
+        requests.extend(self._frontier_requests(matches))
+
+        # 4. Search (LM) for them; sample the POVs of new compensating states.
+        #    Their sensation now is the anchor's.
+        pov_rows_before = self._body.rows.get("pov", 0)
+        found, new_povs, new_sensations = self._search(requests, current, tree)
+        pov_rows = self._body.rows.get("pov", 0) - pov_rows_before
+        if new_povs:
+            current = np.vstack([current, np.asarray(new_sensations)])
+            rank_now = np.concatenate([rank_now, np.full(len(new_povs), RANK_FULL)])
+        found_rest = {r.snapshot: found[i] for i, r in enumerate(requests)
+                      if i in found and r.row < 0}
+        frontier = [i for i, r in enumerate(requests) if r.row >= 0]
+        if frontier:
+            hits = sum(1 for i in frontier if i in found and found[i][0] >= 0
+                       and found[i][0] in new_povs)
+            self._frontier_success = 0.9 * self._frontier_success + 0.1 * hits / len(frontier)
+
+        # 5. Equality sets: the changes matched for one snapshot (and the
+        #    compensations of its anchors) all compensate one displacement.
+        for k, snap in enumerate(self._pool):
+            before, after = matches[k]
+            extra_before, extra_after = [], []
+            for i, r in enumerate(requests):
+                if r.snapshot != k or i not in found or found[i][0] < 0:
+                    continue
+                source = r.row if r.row >= 0 else snap.rest_pov
+                if source >= 0 and source not in before:
+                    extra_before.append(source)
+                    extra_after.append(found[i][0])
+            self._sets.add(np.concatenate([before, extra_before]).astype(int),
+                           np.concatenate([after, extra_after]).astype(int))
+
+        # 6. Accepted compensations; rest at the one of the most recent
+        #    anchor (tracking it), else stay where the arm is. A POV's first
+        #    sample is where its sensation was recorded: resting there keeps
+        #    the anchor and the sweeps on the very same motor state.
+        records = []
+        rest_choice = None
+        for k, snap in enumerate(self._pool):
+            if k in known_comp:
+                pov, searched = known_comp[k], False
+                motor = self._store.samples[pov, 0].copy()
+            elif k in found_rest:
+                (pov, motor), searched = found_rest[k], True
+            else:
+                continue
+            records.append(CompensationRecord(event=t, anchor_event=snap.event,
+                                              anchor_motor_state=snap.rest_motor_state.copy(),
+                                              motor_state=motor.copy(), pov=int(pov),
+                                              searched=searched))
+            if rest_choice is None and pov >= 0:
+                rest_choice = (motor, int(pov))
+        for i, r in enumerate(requests):
+            if r.row >= 0 and i in found:
+                pov, motor = found[i]
+                records.append(CompensationRecord(
+                    event=t, anchor_event=self._pool[r.snapshot].event,
+                    anchor_motor_state=r.anchor_motor_state.copy(), motor_state=motor.copy(),
+                    pov=int(pov), searched=True))
+        self.compensations.extend(records)
+        if rest_choice is not None:
+            self._rest, self._rest_pov = rest_choice[0].copy(), rest_choice[1]
+        rest_rank = rank_now[self._rest_pov] if self._rest_pov >= 0 else RANK_UNKNOWN
+        if rest_rank == RANK_UNKNOWN:
+            self._body.stage = "rank"
+            full, _ = check_pose_rank(self._body, self._rest[None], fd_step=p.fd_step,
+                                      rank_ratio=p.rank_ratio, min_singular=p.min_singular)
+            rest_rank = RANK_FULL if full[0] else RANK_DEFICIENT
+            if self._rest_pov >= 0:
+                rank_now[self._rest_pov] = rest_rank
+        self._body.stage = "rest"
+        rest_sensation = self._body.sense(self._rest[None])[0]
+        if records:
+            self.events_compensated += 1
+            self.compensation_queries.append(self._body.total_rows - rows_at_start - pov_rows)
+
+        # 7. Snapshot of this event; forget superseded and long-failing ones.
+        kept = []
+        for k, snap in enumerate(self._pool):
+            alive = len(matches[k][0]) > 0 or k in known_comp or k in found_rest
+            snap.fails = 0 if alive else snap.fails + 1
+            comp_pov = known_comp[k] if k in known_comp else found_rest.get(k, (None,))[0]
+            # Compensated by where the arm now rests: the new snapshot has the
+            # same anchor pose relative to the object, in a later environment.
+            superseded = comp_pov is not None and comp_pov == self._rest_pov
+            if not superseded and snap.fails < p.snapshot_patience:
+                kept.append(snap)
+        snapshot = _Snapshot(t, current, rank_now, rest_sensation, self._rest.copy(),
+                             self._rest_pov, int(rest_rank))
+        self._pool = ([snapshot] + kept)[:p.max_snapshots]
+
+        new_idx = np.asarray(new_povs, dtype=int)
+        return Reaction(event=t, compensated=bool(records), rest_motor_state=self._rest.copy(),
+                        new_pov_ids=new_idx, new_povs=self._store.samples[new_idx].copy(),
+                        compensations=records, equality_rows=self._sets.rows_since(sets_before))
+
+
+    def _sweep_known(self) -> np.ndarray:
+        """Sensation of every known POV now, ``(K, S)``, in one call (one
+        sample each: all samples of a POV share the eye's pose)."""
+        if self._store.count == 0:
+            return np.zeros((0, self._body.n_sensors))
+        return self._body.sense(self._store.samples[:, 0])
+
+    def _frontier_requests(self, matches) -> list:
+        """Anchors beyond the rest: rows of the most recent confirmed snapshot
+        that no known POV matches, nearest (in that snapshot's sensations) to
+        a matched row. Their targets are the unknown positions next to the
+        known ones moved by the displacement; the matched neighbour's partner
+        is a start a lattice step from the target."""
+        p = self.params
+        for k, snap in enumerate(self._pool):
+            before, after = matches[k]
+            if len(before) == 0:
+                continue
+            unmatched = np.setdiff1d(np.flatnonzero(snap.rank != RANK_DEFICIENT), before)
+            unmatched = unmatched[unmatched != snap.rest_pov]
+            if len(unmatched) == 0 or p.frontier_attempts == 0:
+                return []
+            distance, nearest = cKDTree(snap.sensations[before]).query(
+                snap.sensations[unmatched], k=1)
+            order = np.argsort(distance, kind="stable")[:self._frontier_budget()]
+            return [_Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
+                             self._store.samples[unmatched[i], 0],
+                             self._store.samples[after[nearest[i]], 0]) for i in order]
+        return []
+
+    def _frontier_budget(self) -> int:
+        """Frontier searches this event: ``frontier_attempts`` while they
+        find new POVs, down to one when they keep failing (the known POVs
+        already fill the reachable region; later translations may still
+        uncover a corner, so the agent keeps trying once per event)."""
+        share = min(1.0, self._frontier_success / 0.2)
+        return max(1, int(np.ceil(self.params.frontier_attempts * share)))
+
+    def _search(self, requests, current, tree):
+        """LM toward every requested anchor (identical targets searched once)
+        from the request's own start, the resting state and the remembered
+        states that sense most like the target; sample the POVs of accepted
+        solutions that are not known POVs.
+
+        Returns ``{request index: (pov or -1, motor state)}`` for accepted
+        compensations, the new POV indices and their sensations.
+        """
+        p = self.params
+        if not requests:
+            return {}, [], []
+        targets = np.stack([r.target for r in requests])
+        group = _group_rows(targets, p.match_tol)
+        n_groups = int(group.max()) + 1
+        first = [int(np.flatnonzero(group == g)[0]) for g in range(n_groups)]
+        unique_targets = targets[first]
+        starts, owner = [], []
+        for g, target in enumerate(unique_targets):
+            # The agent's memory of this arrangement is the known POVs it just
+            # sensed: start from those that sense most like the target.
+            chosen = [self._rest]
+            if requests[first[g]].start is not None:
+                chosen.append(requests[first[g]].start)
+            if len(current):
+                nearest = np.argsort(np.linalg.norm(current - target, axis=1))[:p.lm_restarts]
+                chosen.extend(self._store.samples[nearest, 0])
+            starts.extend(chosen)
+            owner.extend([g] * len(chosen))
+        owner = np.asarray(owner)
+        self._body.stage = "compensation"
+        search = compensate(self._body, unique_targets[owner], np.asarray(starts),
+                            fd_step=p.fd_step, max_iterations=p.lm_max_iterations,
+                            error_tol=p.lm_error_tol, motor_tol=p.lm_motor_tol,
+                            rank_ratio=p.rank_ratio, max_step=p.lm_max_step,
+                            stall_iterations=p.lm_stall_iterations)
+        solution: dict[int, np.ndarray] = {}
+        for g in range(n_groups):
+            ok = np.flatnonzero((owner == g) & search.accepted)
+            if len(ok):
+                solution[g] = search.motor_states[ok[np.argmin(search.sensory_error[ok])]]
+        pov_of_group: dict[int, int] = {}
+        # A solution sensing what a known POV senses now is that POV (the
+        # solution has full rank, so the sensation pins the pose).
+        fresh = []
+        for g in sorted(solution):
+            if tree is not None:
+                distance, index = tree.query(unique_targets[g], k=1)
+                if distance <= p.match_tol:
+                    pov_of_group[g] = int(index)
+                    continue
+            fresh.append(g)
+        new_povs, new_sensations = [], []
+        if fresh:
+            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
+                                                 keep_invalid=True)
+            for g, pov, sensation in zip(fresh, povs, sensations):
+                pov_of_group[g] = pov
+                if pov >= 0:
+                    new_povs.append(pov)
+                    new_sensations.append(sensation)
+        found = {i: (pov_of_group[group[i]], solution[group[i]])
+                 for i in range(len(requests)) if group[i] in solution}
+        return found, new_povs, new_sensations
+
+    def _sample_povs(self, motor_states: np.ndarray, keep_invalid: bool = False):
+        """Walk the POVs of ``motor_states`` (one batch) and store the valid
+        ones. Returns their indices and sensations; with ``keep_invalid``,
+        one entry per state (-1 / None for an invalid POV)."""
+        p = self.params
+        self._body.stage = "pov"
+        walk = sample_sensory_points_of_view(
+            self._body, motor_states, n_samples=p.n_samples, fd_step=p.fd_step,
+            initial_step=p.pov_initial_step, min_step=p.pov_min_step, max_step=p.pov_max_step,
+            predictor_tol=p.pov_predictor_tol, rank_ratio=p.rank_ratio,
+            max_queries=p.pov_max_queries, polish_iterations=p.pov_polish_iterations)
+        indices, sensations = [], []
+        for i in range(len(motor_states)):
+            if walk.valid[i]:
+                indices.append(self._store.append(walk.samples[i]))
+                self.pov_queries.append(int(walk.queries[i]))
+                sensations.append(walk.target_sensations[i])
+            elif keep_invalid:
+                indices.append(-1)
+                sensations.append(None)
+        return indices, sensations
+
+
+def _match_each(rows: np.ndarray, current: np.ndarray, match: dict):
+    """``match_sensations`` of ``rows`` against ``current``; returns
+    ``(rows matched, their index, the matching current index)``."""
+    ref, cur = match_sensations(rows, current, **match)
+    return rows[ref], ref, cur
+
+
+def _group_rows(rows: np.ndarray, tol: float) -> np.ndarray:
+    """Label rows so that rows within ``tol`` of each other share a label."""
+    labels = np.full(len(rows), -1)
+    n = 0
+    for i in range(len(rows)):
+        if labels[i] >= 0:
+            continue
+        same = (labels < 0) & (np.linalg.norm(rows - rows[i], axis=1) <= tol)
+        labels[same] = n
+        n += 1
+    return labels

@@ -1,0 +1,221 @@
+"""Offline driver and ground-truth evaluation of the naive agent (issue #3).
+
+This is the evaluator's side: it owns the world (``core.exploration.World``),
+steps a ``SimulatedBody`` through the event schedule, hands the agent only
+``SensingOnly(body)`` and the passive sensation after each change, and
+afterwards joins what the agent produced with ground truth (true poses via
+``arm.forward``, object positions, event kinds). The agent never sees any
+of it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import arm, retina
+from .body import SensingOnly, SimulatedBody
+from .naive_agent import NaiveAgent, NaiveParams
+from .world import REDISTRIBUTION
+
+WRONG_POSE_TOL = 1e-3
+
+
+@dataclass
+class NaiveRunResult:
+    """Everything one naive run produced, joined with ground truth.
+
+    ``povs`` ``(P, N, 4)`` the agent's POVs; ``true_poses`` ``(P, 3)`` their
+    sensor poses; ``grid_index`` ``(P,)`` the grid position whose paper
+    compensation lands on the same sensor position (-1 if none); ``pairs``/
+    ``set_ids`` the agent's equality sets; ``metrics`` dotted keys
+    (``exploration.*``, ``naive.*``); ``timings_s`` per stage.
+    """
+
+    povs: np.ndarray
+    true_poses: np.ndarray
+    grid_index: np.ndarray
+    pairs: np.ndarray
+    set_ids: np.ndarray
+    metrics: dict
+    timings_s: dict
+    agent: NaiveAgent = field(repr=False, default=None)
+
+
+def run_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=None, *,
+              equality_pass: bool = False, paper_positions: np.ndarray | None = None,
+              body_wrapper=SensingOnly) -> NaiveRunResult:
+    """Run the naive agent through ``world.events`` and evaluate it.
+
+    ``equality_pass``: after exploring, replay the schedule once more with
+    the agent in simulation-2 mode (sweep and match only).
+    ``paper_positions`` ``(Q, 2)``: the sensor positions the paper strategy
+    compensates for this world (the coverage denominator); computed with
+    ``exploration.explore_paper`` when not given.
+    ``body_wrapper``: what the agent receives instead of the simulator
+    (default ``SensingOnly``: ``sense`` and the vector sizes).
+    ``progress(done, total)`` is called every 100 events.
+    """
+    params = params if params is not None else NaiveParams()
+    started = time.perf_counter()
+    body = SimulatedBody(world.receptors, world.initial_lights)
+    agent = NaiveAgent(body_wrapper(body), params, seed)
+
+    centers = [np.asarray(world.initial_center, float)]
+    layout = [0]                    # light layout version: +1 at each redistribution
+    kinds = ["initial"]
+    agent.start(world.m0)
+    n_events = len(world.events)
+    for k, event in enumerate(world.events):
+        body.set_lights(event.lights)
+        centers.append(np.asarray(event.center, float))
+        layout.append(layout[-1] + (event.kind == REDISTRIBUTION))
+        kinds.append(event.kind)
+        agent.react(_passive_sensation(body))
+        if progress is not None and callable(progress) and (k + 1) % 100 == 0:
+            progress(k + 1, n_events)
+    exploration_s = time.perf_counter() - started
+
+    equality_s = 0.0
+    if equality_pass:
+        t0 = time.perf_counter()
+        body.set_lights(world.initial_lights)
+        agent.begin_equality_pass()
+        for event in world.events:
+            body.set_lights(event.lights)
+            agent.react(_passive_sensation(body))
+        equality_s = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if paper_positions is None:
+        paper_positions = paper_compensated_positions(world)
+    metrics, true_poses, grid_index = evaluate_naive_run(
+        agent, world, np.asarray(centers), np.asarray(layout), kinds, paper_positions)
+    evaluation_s = time.perf_counter() - t0
+
+    pov_s = agent.seconds_by_stage.get("pov", 0.0)
+    pairs, set_ids = agent.equality_sets()
+    timings = {"exploration": exploration_s - pov_s, "points_of_view": pov_s,
+               "equality_sets": equality_s, "evaluation": evaluation_s}
+    metrics.update({f"naive.timings_s.{k}": float(v) for k, v in timings.items()})
+    metrics.update({f"naive.seconds_by_stage.{k}": float(v)
+                    for k, v in agent.seconds_by_stage.items()})
+    return NaiveRunResult(povs=agent.points_of_view, true_poses=true_poses,
+                          grid_index=grid_index, pairs=pairs, set_ids=set_ids, metrics=metrics,
+                          timings_s=timings, agent=agent)
+
+
+def _passive_sensation(body: SimulatedBody) -> np.ndarray:
+    """What the resting eye sees after a change (not a query of the agent's)."""
+    pose = arm.forward(body.motor_state)
+    return retina.sensation(pose, body.lights_world, body.receptor_positions)
+
+
+def paper_compensated_positions(world) -> np.ndarray:
+    """Sensor positions ``(Q, 2)`` the paper strategy compensates (with its
+    initial POV), for the coverage denominator."""
+    from .exploration import explore_paper
+
+    explored = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
+                             initial_center=world.initial_center)
+    return explored.true_poses[:, :2].copy()
+
+
+def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np.ndarray,
+                       kinds: list, paper_positions: np.ndarray):
+    """Ground-truth metrics of a finished run (``centers[t]``, ``layout[t]``,
+    ``kinds[t]``: object centre, light-layout version and event kind seen at
+    the agent's event ``t``; event 0 is the start)."""
+    povs = agent.points_of_view
+    pose0 = arm.forward(world.m0)
+    if len(povs):
+        true_poses = arm.forward(povs[:, 0])
+        drift = float(np.max(arm.pose_error(arm.forward(povs), true_poses[:, None, :])))
+    else:
+        true_poses, drift = np.zeros((0, 3)), 0.0
+
+    # Each accepted compensation against the pose its anchor asks for.
+    wrong = across_layouts = on_redistribution = 0
+    worst = 0.0
+    for record in agent.compensations:
+        target = arm.forward(record.anchor_motor_state)
+        target[:2] += centers[record.event] - centers[record.anchor_event]
+        error = float(arm.pose_error(arm.forward(record.motor_state), target))
+        worst = max(worst, error)
+        wrong += error > WRONG_POSE_TOL
+        across_layouts += layout[record.event] != layout[record.anchor_event]
+        on_redistribution += kinds[record.event] == REDISTRIBUTION
+
+    # Coverage (issue #3): distinct compensated sensor positions over the
+    # number the paper strategy compensates. The naive agent's positions need
+    # not be the paper's: an anchor recorded while the object is on the grid
+    # gives positions p0 + (grid differences), the start's anchor (object at
+    # the off-grid initial centre) gives the paper's p0 + (grid - centre).
+    # ``coverage_of_paper_positions`` counts the paper's positions reached.
+    distinct = 0
+    covered = 0
+    if len(povs):
+        pairs_close = cKDTree(true_poses[:, :2]).query_pairs(WRONG_POSE_TOL, output_type="ndarray")
+        duplicate = np.zeros(len(povs), dtype=bool)
+        duplicate[pairs_close.max(axis=1) if len(pairs_close) else []] = True
+        distinct = int(np.sum(~duplicate))
+        if len(paper_positions):
+            distance, _ = cKDTree(true_poses[:, :2]).query(paper_positions, k=1)
+            covered = int(np.sum(distance <= WRONG_POSE_TOL))
+    orientation_error = (float(np.max(np.abs(arm.wrap_angle(true_poses[:, 2] - pose0[2]))))
+                         if len(povs) else 0.0)
+
+    # The grid position whose paper compensation puts the sensor here.
+    grid_index = np.full(len(povs), -1)
+    if len(povs):
+        equivalent = true_poses[:, :2] - pose0[:2] + np.asarray(world.initial_center, float)
+        distance, index = cKDTree(world.grid).query(equivalent, k=1)
+        grid_index = np.where(distance <= WRONG_POSE_TOL, index, -1)
+
+    pairs, set_ids = agent.equality_sets()
+    set_deviation = 0.0
+    if len(pairs):
+        displacement = true_poses[pairs[:, 1], :2] - true_poses[pairs[:, 0], :2]
+        for s in np.unique(set_ids):
+            d = displacement[set_ids == s]
+            set_deviation = max(set_deviation, float(np.max(np.abs(d - d[0]))))
+
+    n_comp = len(agent.compensations)
+    pov_q = np.asarray(agent.pov_queries, dtype=float)
+    comp_q = np.asarray(agent.compensation_queries, dtype=float)
+    state_changes = sum(k == REDISTRIBUTION for k in kinds)
+    metrics = {
+        "exploration.events": len(kinds) - 1,
+        "exploration.state_changes": int(state_changes),
+        "exploration.compensated": int(agent.compensated),
+        "exploration.state_changes_compensated": int(on_redistribution),
+        "pov.count": int(len(povs)),
+        "pov.max_pose_drift": drift,
+        "naive.queries_total": int(agent.queries_total),
+        "naive.calls_total": int(agent.calls_total),
+        "naive.queries_per_pov": float(pov_q.mean()) if len(pov_q) else 0.0,
+        "naive.queries_per_pov_max": int(pov_q.max()) if len(pov_q) else 0,
+        "naive.queries_per_compensation": float(comp_q.mean()) if len(comp_q) else 0.0,
+        "naive.coverage": distinct / max(len(paper_positions), 1),
+        "naive.distinct_positions": distinct,
+        "naive.duplicate_povs": int(len(povs) - distinct),
+        "naive.paper_positions": int(len(paper_positions)),
+        "naive.coverage_of_paper_positions": covered / max(len(paper_positions), 1),
+        "naive.wrong_poses": int(wrong),
+        "naive.worst_pose_error": worst,
+        "naive.state_changes_accepted": int(on_redistribution),
+        "naive.accepted_across_redistribution": int(across_layouts),
+        "naive.compensations_accepted": int(n_comp),
+        "naive.compensations_searched": int(sum(r.searched for r in agent.compensations)),
+        "naive.max_orientation_error": orientation_error,
+        "naive.equality_sets": int(len(np.unique(set_ids))),
+        "naive.equality_pairs": int(len(pairs)),
+        "naive.equality_set_max_deviation": set_deviation,
+    }
+    for stage, rows in sorted(agent.queries_by_stage.items()):
+        metrics[f"naive.queries_by_stage.{stage}"] = int(rows)
+    for stage, calls in sorted(agent.calls_by_stage.items()):
+        metrics[f"naive.calls_by_stage.{stage}"] = int(calls)
+    return metrics, true_poses, grid_index

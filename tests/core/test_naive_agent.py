@@ -1,0 +1,203 @@
+"""The naive agent: only ``sense`` in, checked against ground truth outside it."""
+import ast
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core.body import SimulatedBody
+from sensorispace_ros.core.exploration import build_world
+from sensorispace_ros.core.naive_agent import NaiveAgent, NaiveParams
+from sensorispace_ros.core.naive_evaluation import run_naive
+from sensorispace_ros.core.points_of_view import loop_winding as analytic_winding
+from sensorispace_ros.core.sensory_points_of_view import loop_winding
+from sensorispace_ros.core.world import REDISTRIBUTION
+
+CORE = Path(__file__).resolve().parents[2] / "sensorispace_ros" / "core"
+NAIVE_MODULES = ("naive_agent", "sensory_points_of_view", "sensory_compensation",
+                 "sensory_equality_sets")
+# Modules that know the arm, the retina, the lights or the events.
+GROUND_TRUTH = {"arm", "retina", "world", "body", "exploration", "naive_evaluation",
+                "points_of_view", "compensation", "equality_sets"}
+
+
+def _imported_core_modules(path: Path) -> set:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            module = node.module or ""
+            if node.level and not module:                   # from . import x
+                names.update(alias.name for alias in node.names)
+            else:
+                names.add(module.split(".")[-1])
+                names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[-1] for alias in node.names)
+    return names
+
+
+@pytest.mark.parametrize("module", NAIVE_MODULES)
+def test_naive_modules_import_no_ground_truth(module):
+    assert not _imported_core_modules(CORE / f"{module}.py") & GROUND_TRUTH
+
+
+def test_loading_the_agent_loads_no_ground_truth_module():
+    code = ("import sys, sensorispace_ros.core.naive_agent\n"
+            "print(' '.join(m.split('.')[-1] for m in sys.modules "
+            "if m.startswith('sensorispace_ros.core.')))")
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True, cwd=CORE.parents[1]).stdout.split()
+    assert "naive_agent" in loaded
+    assert not set(loaded) & GROUND_TRUTH
+
+
+def test_local_winding_is_the_analytic_one():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        path = np.cumsum(rng.normal(0, 1.0, (30, 4)), axis=0)
+        np.testing.assert_array_equal(loop_winding(path), analytic_winding(path))
+
+
+class ClosureBody:
+    """Builds a body that is nothing but a closure over the simulator's sense,
+    and remembers the last row it was sent (where the arm rests)."""
+
+    def __init__(self):
+        self.last_row = None
+
+    def __call__(self, simulator: SimulatedBody):
+        def sense(motor_states):
+            motor_states = np.asarray(motor_states, dtype=float)
+            self.last_row = motor_states[-1].copy()
+            return simulator.sense(motor_states)
+        return types.SimpleNamespace(sense=sense, n_motors=4, n_sensors=6)
+
+
+@pytest.fixture(scope="module")
+def small_run():
+    world = build_world(0, {"grid_count": 12})
+    wrapper = ClosureBody()
+    result = run_naive(world, NaiveParams(), seed=0, body_wrapper=wrapper,
+                       paper_positions=np.zeros((0, 2)))
+    return world, result, wrapper
+
+
+def test_compensations_are_true_and_never_on_state_changes(small_run):
+    world, result, _ = small_run
+    m = result.metrics
+    assert m["naive.compensations_accepted"] > 10
+    assert m["naive.wrong_poses"] == 0 and m["naive.worst_pose_error"] < 1e-6
+    assert m["naive.state_changes_accepted"] == 0
+    assert m["naive.accepted_across_redistribution"] == 0
+    assert m["exploration.state_changes"] > 0        # there were some to refuse
+    # Every POV is a spatial relative of the start: same eye orientation.
+    assert m["naive.max_orientation_error"] < 1e-6
+    assert m["pov.max_pose_drift"] < 1e-6
+    assert m["naive.duplicate_povs"] == 0
+
+
+def test_equality_sets_are_true_equal_displacements(small_run):
+    _, result, _ = small_run
+    assert result.metrics["naive.equality_sets"] > 5
+    assert result.metrics["naive.equality_set_max_deviation"] < 1e-6
+    pairs, set_ids = result.pairs, result.set_ids
+    assert pairs.shape == (len(set_ids), 2) and np.all(pairs[:, 0] != pairs[:, 1])
+    assert pairs.max() < len(result.povs)
+
+
+def test_agent_ends_every_reaction_resting_where_it_says(small_run):
+    world, _, _ = small_run
+    wrapper = ClosureBody()
+    simulator = SimulatedBody(world.receptors, world.initial_lights)
+    agent = NaiveAgent(wrapper(simulator), NaiveParams(), seed=0)
+    reaction = agent.start(world.m0)
+    np.testing.assert_array_equal(wrapper.last_row, world.m0)
+    assert reaction.new_povs.shape == (1, 100, 4) and list(reaction.new_pov_ids) == [0]
+    for event, reaction in _drive(agent, simulator, world, world.events[:30]):
+        np.testing.assert_array_equal(wrapper.last_row, reaction.rest_motor_state)
+        assert reaction.equality_rows.shape[1] == 3
+        assert reaction.queries > 0 and reaction.calls > 0
+        if event.kind == REDISTRIBUTION:
+            assert not reaction.compensated
+
+
+def test_same_seed_same_run():
+    world = build_world(1, {"grid_count": 8, "order": "tracking"})
+    first = run_naive(world, NaiveParams(), seed=1, paper_positions=np.zeros((0, 2)))
+    second = run_naive(world, NaiveParams(), seed=1, paper_positions=np.zeros((0, 2)))
+    np.testing.assert_array_equal(first.povs, second.povs)
+    np.testing.assert_array_equal(first.pairs, second.pairs)
+    assert first.metrics["naive.queries_total"] == second.metrics["naive.queries_total"]
+
+
+def test_tracking_schedule_compensates_correctly():
+    world = build_world(2, {"grid_count": 10, "order": "tracking"})
+    result = run_naive(world, NaiveParams(), seed=2, paper_positions=np.zeros((0, 2)))
+    m = result.metrics
+    assert m["exploration.compensated"] > 10
+    assert m["naive.wrong_poses"] == 0 and m["naive.state_changes_accepted"] == 0
+
+
+def _drive(agent, simulator, world, events):
+    for event in events:
+        simulator.set_lights(event.lights)
+        passive = retina.sensation(arm.forward(simulator.motor_state), event.lights,
+                                   world.receptors)
+        yield event, agent.react(passive)
+
+
+def test_equality_pass_adds_sets_and_no_points_of_view():
+    world = build_world(3, {"grid_count": 10})
+    simulator = SimulatedBody(world.receptors, world.initial_lights)
+    agent = NaiveAgent(ClosureBody()(simulator), NaiveParams(), seed=3)
+    agent.start(world.m0)
+    for _ in _drive(agent, simulator, world, world.events):
+        pass
+    n_povs, n_sets = len(agent.points_of_view), len(np.unique(agent.equality_sets()[1]))
+    assert n_povs > 5
+    simulator.set_lights(world.initial_lights)
+    agent.begin_equality_pass()
+    true_xy = arm.forward(agent.points_of_view[:, 0])[:, :2]
+    for _, reaction in _drive(agent, simulator, world, world.events):
+        assert len(reaction.new_pov_ids) == 0
+        rows = reaction.equality_rows
+        if len(rows):
+            moved = true_xy[rows[:, 2]] - true_xy[rows[:, 1]]
+            assert np.max(np.abs(moved - moved[0])) < 1e-6
+    assert len(agent.points_of_view) == n_povs
+    assert len(np.unique(agent.equality_sets()[1])) > n_sets
+
+
+@pytest.mark.parametrize("name, value", [("fd_step", 0.0), ("lm_restarts", 0),
+                                         ("match_tol", 1.0), ("pov_initial_step", 1.0),
+                                         ("max_snapshots", 2.5), ("min_singular", -1.0)])
+def test_bad_parameters_are_named(name, value):
+    with pytest.raises(ValueError, match=rf"^naive\.{name}:"):
+        NaiveParams(**{name: value})
+
+
+def test_unknown_parameter_is_named():
+    with pytest.raises(ValueError, match=r"^naive\.batch: unknown"):
+        NaiveParams.from_mapping({"batch": 3})
+    assert NaiveParams.from_mapping({"lm_restarts": 3}).lm_restarts == 3
+
+
+def test_agent_calls_out_of_order_and_bad_inputs():
+    body = types.SimpleNamespace(sense=lambda m: np.zeros((len(m), 6)), n_motors=4, n_sensors=6)
+    agent = NaiveAgent(body)
+    with pytest.raises(RuntimeError, match="before start"):
+        agent.react(np.zeros(6))
+    with pytest.raises(ValueError, match="initial_motor_state"):
+        agent.start([0.0, 1.0])
+    with pytest.raises(ValueError, match="body"):
+        NaiveAgent(types.SimpleNamespace(sense=None, n_motors=4, n_sensors=6))
+    reaction = agent.start(np.zeros(4))
+    # A blank world: no POV can be sampled, but the agent still rests somewhere.
+    assert len(reaction.new_pov_ids) == 0
+    with pytest.raises(ValueError, match="passive_sensation"):
+        agent.react(np.zeros(5))
+    assert not agent.react(np.zeros(6)).compensated
