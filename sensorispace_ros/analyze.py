@@ -68,7 +68,7 @@ def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
 def agent_data(bag_dir) -> dict:
     """POV ids, POV motor samples, equality pairs (POV positions) and set ids, as the
     representation node builds them, plus the change each POV was published for."""
-    from . import messages
+    from . import contracts, messages
     from .nodes.representation import assemble_points_of_view
 
     pov_tables = _tables(bag_dir, POVS)
@@ -76,7 +76,6 @@ def agent_data(bag_dir) -> dict:
     if not pov_tables:
         raise bags.BagError(f"bag {bag_dir} holds no {POVS} message: nothing to analyse")
     ids, povs = assemble_points_of_view(list(pov_tables.values()))
-    from . import contracts
     rows = (np.concatenate(list(row_tables.values())) if row_tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))
     pairs = np.stack([np.searchsorted(ids, rows["pov_from"]),
