@@ -116,6 +116,10 @@ class BagWriter:
             self._writer.open()
         except (WriterError, OSError) as exc:
             raise BagError(f"cannot create bag {self.path}: {_one_line(exc)}") from None
+        if not hasattr(self._writer.storage, "close_chunk"):
+            self._writer.abort()
+            raise BagError("this rosbags version has no McapWriter.close_chunk "
+                           "(BagWriter's crash-safe chunking needs rosbags 0.11, see requirements.lock)")
         self._connections = {}
         try:
             for name, msgtype in topics.items():
