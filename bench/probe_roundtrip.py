@@ -197,6 +197,10 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
                 "ratio_median": float(np.median(g) / np.median(b)),
                 "ratio_mean": float(g.mean() / b.mean()),
                 "body_compute_ms": 1e3 * compute[rows],
+                # What is left once the body's simulation (which the bare echo
+                # does not do) is taken out: the graph's messaging overhead.
+                "ratio_median_net_of_compute": float((np.median(g) - 1e3 * compute[rows])
+                                                     / np.median(b)),
             }
         return out
     finally:

@@ -96,7 +96,8 @@ def table(results: dict) -> str:
     h = results.get("hausdorff")
     if h:
         row("hausdorff matrix [s]", h["fast_s"], h["bruteforce_s"], h["ratio"],
-            f"1 thread {h['fast_1thread_s']:.3g} s (x{h['ratio_1thread']:.3g}); "
+            f"1 thread {h['fast_1thread_s']:.3g} s (x{h['ratio_1thread']:.3g}, "
+            f"CPU x{h['ratio_cpu_1thread']:.3g}); "
             f"max|diff| {h['max_abs_diff']:.3g}; P={h['povs'][0]}; load {h['load_before'][0]}")
     c = results.get("cca")
     if c:
@@ -112,7 +113,8 @@ def table(results: dict) -> str:
     if p:
         for rows_, v in p["rows"].items():
             row(f"probe round trip {rows_} row(s) [ms]", v["graph_median_ms"], v["bare_median_ms"],
-                v["ratio_median"], f"mean ratio {v['ratio_mean']:.3g}; body compute "
+                v["ratio_median"], f"mean ratio {v['ratio_mean']:.3g}; net of body compute "
+                f"{v['ratio_median_net_of_compute']:.3g}; body compute "
                 f"{v['body_compute_ms']:.3g} ms; load {p['load_before'][0]}")
     e = results.get("end_to_end")
     if e:

@@ -10,11 +10,15 @@ t = c * P**k per stage by least squares in log-log.
 from __future__ import annotations
 
 import json
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import yaml
+
+if str(Path(__file__).resolve().parent.parent) not in sys.path:
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.child import REPO, load, reproduce_command, run_measured
 
@@ -79,3 +83,43 @@ def run_scale(grid_counts=(32, 62, 124), out_root: str | Path | None = None,
     exponents["peak_rss"] = fit_exponent([r["povs"] for r in done],
                                          [r["peak_rss_mib"] for r in done])
     return {"runs": table, "exponents": exponents, "load": load()}
+
+
+def main(argv=None) -> int:
+    """``python bench/scale.py [--grids 32,62,124] [--reuse 62=DIR] [--out FILE]``;
+    ``--reuse N=DIR`` takes grid N from DIR (a run's metrics.json plus the
+    ``measured.json`` written by an earlier scale run) instead of running it."""
+    import argparse
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--grids", default="32,62,124")
+    parser.add_argument("--reuse", action="append", default=[])
+    parser.add_argument("--work", type=Path, default=None)
+    parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "scale.json")
+    args = parser.parse_args(argv)
+    grids = [int(g) for g in args.grids.split(",") if g]
+    existing = {}
+    for item in args.reuse:
+        grid, _, directory = item.partition("=")
+        directory = Path(directory)
+        existing[int(grid)] = {"run": json.loads((directory / "measured.json").read_text()),
+                               "metrics": json.loads((directory / "metrics.json").read_text())}
+    result = run_scale(grids, out_root=args.work, existing=existing)
+    if args.work:
+        for n in grids:
+            if n not in existing and (args.work / f"scale-{n}").is_dir():
+                (args.work / f"scale-{n}" / "measured.json").write_text(
+                    json.dumps(result["runs"][str(n)], default=str))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2, default=str) + "\n")
+    for n, row in result["runs"].items():
+        stages = ", ".join(f"{s} {v:.3g}" for s, v in row["stages_s"].items() if v is not None)
+        print(f"grid {n}: P={row['povs']} wall {row['wall_s']:.1f} s, peak "
+              f"{row['peak_rss_mib']:.0f} MiB, load {row['load_before']}: {stages}")
+    print("exponents (t ~ P^k):", {k: None if v is None else round(v, 2)
+                                   for k, v in result["exponents"].items()})
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
