@@ -18,22 +18,30 @@ Re-anchoring on every failure keeps one target at a time and covers only
 pool of *snapshots*: after each event it records, in the environment of that
 event, the sensation at its resting arm (the anchor) and the sensation of
 one sample of every known POV (a sweep). At the next event it sweeps the
-known POVs again and
+known POVs again (one ``sense`` call) and
 
 * matches old sweeps with the new one: POV j' now sensing what POV j sensed
   at snapshot time means pose(j') - pose(j) is the object's displacement
-  since then, so the snapshot is still valid ("confirmed"), the matched
-  changes form an equality set (simulation 2) and a known POV that matches
-  an anchor compensates it without any search;
-* compensates the anchors of confirmed snapshots (and of a few recent
-  unconfirmed ones, which is how the agent recovers after a redistribution)
-  by Levenberg-Marquardt from the remembered motor states whose current
-  sensation is most similar to the target;
-* samples the POV of every new compensating motor state.
+  since then. One such match (unique, rank 3) *confirms* the snapshot: no
+  redistribution since. The matched changes of a snapshot form an equality
+  set (simulation 2), and a known POV that matches an anchor compensates it
+  without any search;
+* searches (Levenberg-Marquardt, batched) for the anchors of confirmed
+  snapshots, and for a few anchors of recent unconfirmed ones while few POVs
+  are known (how it recovers after a redistribution: an unconfirmed
+  snapshot with many POVs is from before a redistribution or a translation
+  so long that its anchor's target is out of reach anyway);
+* searches for "frontier" rows of the most recent confirmed snapshot: POVs
+  that did not match but sensed like ones that did; their targets are the
+  unknown positions next to the known ones, moved by the displacement;
+* samples the POV of every new compensating motor state (batched walk).
 
-All anchors are recorded at a resting arm that is either the start or a
-compensating state; compensation keeps the eye's orientation, so every
-accepted POV is a spatial relative of the start's (the set {M*}_0).
+Every anchor is recorded at a resting arm that is the start or a
+compensating state, and compensation keeps the eye's orientation, so every
+accepted POV is a spatial relative of the start's (the set {M*}_0). A
+compensating state sensing what a known POV senses is that POV (dedupe).
+The passive sensation handed to ``react`` is checked but not needed: the
+sweep senses the resting POV again.
 """
 from __future__ import annotations
 
@@ -74,7 +82,9 @@ class NaiveParams:
     first) are searched per event, and only from snapshots that knew fewer
     than ``unconfirmed_max_povs`` POVs. ``frontier_attempts``: other rows of
     the most recent confirmed snapshot searched per event (see
-    ``_frontier_requests``).
+    ``_frontier_requests``). Matches of the ``equality_snapshots`` most
+    recent snapshots are all rank-tested and become equality sets; older
+    snapshots are confirmed with at most ``confirm_checks`` rank tests.
     """
 
     n_samples: int = 100
@@ -100,6 +110,8 @@ class NaiveParams:
     unconfirmed_attempts: int = 4
     unconfirmed_max_povs: int = 100
     frontier_attempts: int = 8
+    equality_snapshots: int = 2
+    confirm_checks: int = 3
 
     def __post_init__(self):
         positive_reals = ("fd_step", "pov_initial_step", "pov_min_step", "pov_max_step",
@@ -118,7 +130,7 @@ class NaiveParams:
                     "lm_max_iterations": 1, "lm_restarts": 1, "max_snapshots": 1,
                     "snapshot_patience": 1, "unconfirmed_attempts": 0,
                     "unconfirmed_max_povs": 0, "lm_stall_iterations": 1,
-                    "frontier_attempts": 0}
+                    "frontier_attempts": 0, "equality_snapshots": 0, "confirm_checks": 1}
         for name, minimum in integers.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
@@ -449,21 +461,30 @@ class NaiveAgent:
         match = dict(match_tol=p.match_tol, separation=p.match_separation, tree=tree)
 
         # 2. Match every snapshot's sweep, and its anchor, with this sweep.
-        matches, rest_hits = [], []
+        matches = []
         for snap in self._pool:
             before, after = match_sensations(snap.sensations, current, **match)
             known = snap.rank[before]
             rank_now[after[known != RANK_UNKNOWN]] = known[known != RANK_UNKNOWN]
             matches.append((before, after))
-        _, hit_snap, hit_pov = _match_each(np.stack([s.rest_sensation for s in self._pool]),
-                                           current, match)
         rest_hits = np.full(len(self._pool), -1)
-        rest_hits[hit_snap] = hit_pov
-        for k in hit_snap:
-            if self._pool[k].rest_rank != RANK_UNKNOWN:
-                rank_now[rest_hits[k]] = self._pool[k].rest_rank
-        matched = np.concatenate([after for _, after in matches] + [hit_pov]).astype(int)
-        unknown = np.unique(matched)
+        for k, snap in enumerate(self._pool):
+            _, hit = match_sensations(snap.rest_sensation[None], current, **match)
+            if len(hit):
+                rest_hits[k] = hit[0]
+                if snap.rest_rank != RANK_UNKNOWN:
+                    rank_now[hit[0]] = snap.rest_rank
+        hit_pov = rest_hits[rest_hits >= 0]
+        # Rank tests (M + 1 rows each) only where a decision needs them: every
+        # match of the snapshots that feed equality sets, a few matches of
+        # the others (one full-rank match confirms a snapshot), anchor hits.
+        needed = [hit_pov]
+        for k, (_, after) in enumerate(matches):
+            if k < p.equality_snapshots:
+                needed.append(after)
+            elif not np.any(rank_now[after] == RANK_FULL):
+                needed.append(after[rank_now[after] == RANK_UNKNOWN][:p.confirm_checks])
+        unknown = np.unique(np.concatenate(needed).astype(int))
         unknown = unknown[rank_now[unknown] == RANK_UNKNOWN]
         if len(unknown):
             self._body.stage = "rank"
@@ -715,13 +736,6 @@ class NaiveAgent:
                 indices.append(-1)
                 sensations.append(None)
         return indices, sensations
-
-
-def _match_each(rows: np.ndarray, current: np.ndarray, match: dict):
-    """``match_sensations`` of ``rows`` against ``current``; returns
-    ``(rows matched, their index, the matching current index)``."""
-    ref, cur = match_sensations(rows, current, **match)
-    return rows[ref], ref, cur
 
 
 def _group_rows(rows: np.ndarray, tol: float) -> np.ndarray:

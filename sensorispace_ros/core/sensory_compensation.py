@@ -139,7 +139,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
 
     singular = np.linalg.svd(jac, compute_uv=False)
     ratio = singular[:, 2] / np.maximum(singular[:, 0], 1e-300)
-    motor_residual = np.linalg.norm(minimum_norm_correction(jac, residual), axis=1)
+    motor_residual = _step_norm(jac, residual)
     accepted = (error <= error_tol) & (motor_residual <= motor_tol) & (ratio >= rank_ratio)
     return CompensationSearch(motor_states=point, sensory_error=error,
                               motor_residual=motor_residual, rank_ratio=ratio,
@@ -151,9 +151,17 @@ def _converged(jac, residual, error, error_tol, motor_tol):
     converged = error <= error_tol
     if converged.any():
         idx = np.flatnonzero(converged)
-        gn = np.linalg.norm(minimum_norm_correction(jac[idx], residual[idx]), axis=1)
+        gn = _step_norm(jac[idx], residual[idx])
         converged[idx] = gn <= motor_tol
     return converged
+
+
+def _step_norm(jac, residual):
+    """Norm of the Gauss-Newton step; infinite for a blank (J = 0) sensation."""
+    step = minimum_norm_correction(jac, residual)
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm = np.sqrt(np.sum(step * step, axis=1))
+    return np.where(np.isfinite(norm), norm, np.inf)
 
 
 def _check_search_parameters(**values) -> None:

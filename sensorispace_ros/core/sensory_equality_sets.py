@@ -49,13 +49,18 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
     if len(reference) == 0 or len(current) == 0:
         return empty, empty
     tree = cKDTree(current) if tree is None else tree
-    if len(current) == 1:
-        distance, index = tree.query(reference, k=1)
-        near = distance <= match_tol
-    else:
-        distance, index = tree.query(reference, k=2)
-        near = (distance[:, 0] <= match_tol) & (distance[:, 1] > separation)
-        index = index[:, 0]
+    # Most rows match nothing: a bounded nearest-neighbour query prunes them
+    # fast; only the candidates get the (k = 2) uniqueness query.
+    distance, index = tree.query(reference, k=1, distance_upper_bound=match_tol)
+    candidate = np.flatnonzero(np.isfinite(distance))
+    near = np.zeros(len(reference), dtype=bool)
+    index = np.where(np.isfinite(distance), index, 0)
+    if len(candidate):
+        if len(current) == 1:
+            near[candidate] = True
+        else:
+            second, _ = tree.query(reference[candidate], k=2, distance_upper_bound=separation)
+            near[candidate] = ~np.isfinite(second[:, 1])
     ref_idx = np.flatnonzero(near)
     cur_idx = index[near]
     # Two reference rows on one current row: neither is a trustworthy match.
@@ -119,6 +124,46 @@ class EqualitySetCollection:
     @property
     def set_ids(self) -> np.ndarray:
         return np.concatenate(self._ids) if self._ids else np.zeros(0, dtype=int)
+
+
+def merge_equality_sets(pairs: np.ndarray, set_ids: np.ndarray):
+    """Merge equality sets that share a POV change; keep each change once.
+
+    POV j is a fixed displacement away from POV i, so two sets that both
+    contain i -> j (or j -> i) compensate the same displacement (or its
+    opposite, of the same length): they are one set. This is the agent's own
+    inference, no ground truth. Returns ``(pairs, set_ids)`` with each
+    unordered pair once and set ids 0.. in order of first appearance.
+    """
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
+    if len(pairs) != len(set_ids):
+        raise ValueError(f"set_ids must have one entry per pair ({len(pairs)}), "
+                         f"got {len(set_ids)}")
+    if len(pairs) == 0:
+        return pairs, set_ids
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+    _, pair_key = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
+    pair_key = pair_key.reshape(-1)
+    _, set_key = np.unique(set_ids, return_inverse=True)
+    set_key = set_key.reshape(-1)
+    n_sets, n_keys = set_key.max() + 1, pair_key.max() + 1
+    # Bipartite graph sets <-> unordered pairs; its components are the merged sets.
+    graph = coo_matrix((np.ones(len(pairs)), (set_key, n_sets + pair_key)),
+                       shape=(n_sets + n_keys, n_sets + n_keys))
+    _, component = connected_components(graph, directed=False)
+    first = np.unique(pair_key, return_index=True)[1]
+    merged = component[set_key[first]]
+    order = np.argsort(first, kind="stable")
+    first, merged = first[order], merged[order]
+    # Number merged sets by first appearance.
+    labels, first_seen, inverse = np.unique(merged, return_index=True, return_inverse=True)
+    rank = np.empty(len(labels), dtype=int)
+    rank[np.argsort(first_seen, kind="stable")] = np.arange(len(labels))
+    return np.stack([lo[first], hi[first]], axis=1), rank[inverse.reshape(-1)]
 
 
 class EqualitySetSweep:

@@ -96,6 +96,15 @@ def minimum_norm_correction(jacobians: np.ndarray, residuals: np.ndarray,
         return -np.einsum("bk,bkm->bm", coeff, right[:, :rank, :])
 
 
+def _correction_and_null(jacobians: np.ndarray, residuals: np.ndarray):
+    """``minimum_norm_correction`` and the unit null vector of each rank-3
+    Jacobian from one SVD (the walk's inner loop)."""
+    u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coeff = np.einsum("bsk,bs->bk", u[:, :, :3], residuals) / singular[:, :3]
+    return -np.einsum("bk,bkm->bm", coeff, right[:, :3, :]), right[:, 3, :].copy()
+
+
 @dataclass
 class SensoryPointsOfView:
     """POVs sampled through the body, one row per starting motor state.
@@ -190,13 +199,11 @@ def sample_sensory_points_of_view(
         sensation, jac, _ = sensory_jacobian(body, predicted, fd_step)
         calls += 1
         queries[active] += rows_per_state
-        correction = minimum_norm_correction(jac, sensation - target[active])
+        correction, null = _correction_and_null(jac, sensation - target[active])
         size = np.linalg.norm(correction, axis=1)
         rejected = (size > 4.0 * predictor_tol) & (step > min_step)
         accepted = ~rejected
         new_point = predicted + correction
-        _, right = rank3_report(jac)
-        null = right[:, -1, :]
         null *= np.where(np.sum(null * direction, axis=1) < 0.0, -1.0, 1.0)[:, None]
         travelled = np.linalg.norm(new_point - point, axis=1)
 

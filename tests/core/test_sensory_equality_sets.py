@@ -7,7 +7,8 @@ from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.exploration import build_world
 from sensorispace_ros.core.points_of_view import project_onto_pose
 from sensorispace_ros.core.sensory_equality_sets import (EqualitySetCollection,
-                                                         EqualitySetSweep, match_sensations)
+                                                         EqualitySetSweep, match_sensations,
+                                                         merge_equality_sets)
 from sensorispace_ros.core.world import draw_light_offsets
 
 
@@ -113,3 +114,35 @@ def test_sweep_rejects_malformed_povs(lattice_povs):
     sim = SimulatedBody(world.receptors, world.initial_lights)
     with pytest.raises(ValueError, match="points_of_view"):
         EqualitySetSweep(sim, motor[:, 0])
+
+
+def test_sets_sharing_a_change_are_merged():
+    # Sets 0 and 2 share 0 -> 1 (2 lists it as 1 -> 0: the opposite
+    # displacement, the same length); sets 1 and 3 share 4 -> 5.
+    pairs = np.array([[0, 1], [2, 3], [4, 5], [1, 0], [6, 7], [5, 4], [8, 9], [10, 11]])
+    set_ids = np.array([0, 0, 1, 2, 2, 3, 3, 4])
+    merged_pairs, merged_ids = merge_equality_sets(pairs, set_ids)
+    groups = {}
+    for (i, j), s in zip(merged_pairs.tolist(), merged_ids.tolist()):
+        groups.setdefault(s, set()).add((i, j))
+    assert sorted(map(sorted, groups.values())) == [
+        [(0, 1), (2, 3), (6, 7)], [(4, 5), (8, 9)], [(10, 11)]]
+    assert len(merged_pairs) == 6            # each unordered change once
+
+
+def test_merging_agrees_with_ground_truth_displacements(lattice_povs):
+    world, motor, offsets = lattice_povs
+    sim = SimulatedBody(world.receptors, world.initial_lights)
+    sweep = EqualitySetSweep(sim, motor)
+    sweep.observe()
+    center = np.zeros(2)
+    # The same displacement twice (far apart in time) and its opposite.
+    for shift in ([0.3, 0.0], [0.0, 0.3], [0.3, 0.0], [-0.3, 0.0], [0.0, 0.3]):
+        center = center + shift
+        sim.set_lights(world.initial_lights + center)
+        sweep.observe()
+    pairs, set_ids = merge_equality_sets(sweep.pairs, sweep.set_ids)
+    assert len(np.unique(set_ids)) == 2          # |dx| = 0.3 and |dy| = 0.3
+    moved = np.abs(offsets[pairs[:, 1]] - offsets[pairs[:, 0]])
+    for s in np.unique(set_ids):
+        assert np.allclose(moved[set_ids == s], moved[set_ids == s][0])
