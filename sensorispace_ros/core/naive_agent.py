@@ -315,6 +315,7 @@ class NaiveAgent:
         self.n_motors = self._body.n_motors
         self._store = _PovStore(self.params.n_samples, self.n_motors)
         self.pov_queries: list[int] = []           # walk queries of each POV
+        self.pov_events: list[int] = []            # the agent's event that found each POV
         self.compensation_queries: list[int] = []  # per event with an accepted compensation
         self.compensations: list[CompensationRecord] = []
         self._sets = EqualitySetCollection(min_pairs=2)
@@ -731,6 +732,7 @@ class NaiveAgent:
             if walk.valid[i]:
                 indices.append(self._store.append(walk.samples[i]))
                 self.pov_queries.append(int(walk.queries[i]))
+                self.pov_events.append(self._event)
                 sensations.append(walk.target_sensations[i])
             elif keep_invalid:
                 indices.append(-1)

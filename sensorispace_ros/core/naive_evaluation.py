@@ -28,8 +28,9 @@ class NaiveRunResult:
     """Everything one naive run produced, joined with ground truth.
 
     ``povs`` ``(P, N, 4)`` the agent's POVs; ``true_poses`` ``(P, 3)`` their
-    sensor poses; ``grid_index`` ``(P,)`` the grid position whose paper
-    compensation lands on the same sensor position (-1 if none); ``pairs``/
+    sensor poses; ``grid_index`` ``(P,)`` the object's grid position when
+    the POV was found (-1 for the initial POV), as in the paper strategy;
+    ``pairs``/
     ``set_ids`` the agent's equality sets; ``metrics`` dotted keys
     (``exploration.*``, ``naive.*``); ``timings_s`` per stage.
     """
@@ -167,12 +168,10 @@ def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np
     orientation_error = (float(np.max(np.abs(arm.wrap_angle(true_poses[:, 2] - pose0[2]))))
                          if len(povs) else 0.0)
 
-    # The grid position whose paper compensation puts the sensor here.
-    grid_index = np.full(len(povs), -1)
-    if len(povs):
-        equivalent = true_poses[:, :2] - pose0[:2] + np.asarray(world.initial_center, float)
-        distance, index = cKDTree(world.grid).query(equivalent, k=1)
-        grid_index = np.where(distance <= WRONG_POSE_TOL, index, -1)
+    # The object's grid position when each POV was found (event 0: the start).
+    grid_of_event = np.asarray([-1] + [e.grid_index for e in world.events])
+    grid_index = grid_of_event[np.asarray(agent.pov_events, dtype=int)] if len(povs) \
+        else np.zeros(0, dtype=int)
 
     pairs, set_ids = agent.equality_sets()
     set_deviation = 0.0
@@ -197,7 +196,12 @@ def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np
         "naive.calls_total": int(agent.calls_total),
         "naive.queries_per_pov": float(pov_q.mean()) if len(pov_q) else 0.0,
         "naive.queries_per_pov_max": int(pov_q.max()) if len(pov_q) else 0,
+        # Every row of an event that found a compensation except its POV walks
+        # (sweep, rank tests, searches, rest command), averaged over those events.
         "naive.queries_per_compensation": float(comp_q.mean()) if len(comp_q) else 0.0,
+        # Search rows (LM) of the whole run per accepted compensation.
+        "naive.search_queries_per_compensation":
+            agent.queries_by_stage.get("compensation", 0) / max(n_comp, 1),
         "naive.coverage": distinct / max(len(paper_positions), 1),
         "naive.distinct_positions": distinct,
         "naive.duplicate_povs": int(len(povs) - distinct),

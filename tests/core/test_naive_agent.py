@@ -98,6 +98,9 @@ def test_compensations_are_true_and_never_on_state_changes(small_run):
     assert m["naive.max_orientation_error"] < 1e-6
     assert m["pov.max_pose_drift"] < 1e-6
     assert m["naive.duplicate_povs"] == 0
+    # The object's grid position when each POV was found; the start's is none.
+    assert result.grid_index[0] == -1 and np.all(result.grid_index[1:] >= 0)
+    assert len(result.grid_index) == len(result.povs) == len(result.true_poses)
 
 
 def test_equality_sets_are_true_equal_displacements(small_run):
