@@ -120,10 +120,24 @@ def create_publisher(node, topic: str):
         incompatible_qos=_incompatible_qos_warning(node, topic), use_default_callbacks=False))
 
 
+def subscription_qos(topic: str) -> QoSProfile:
+    """The contract's QoS with KEEP_ALL history.
+
+    History is not part of QoS matching: ``keep_last(1)`` on a publisher
+    bounds what it keeps for late joiners, but a depth-1 *subscription*
+    drops every message but the newest of a burst (measured: a malformed
+    message arriving just after the real /environment/lights replaced it
+    and the run stalled).
+    """
+    spec = contract(topic)
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=0, reliability=spec.qos.reliability,
+                      durability=spec.qos.durability)
+
+
 def create_subscription(node, topic: str, callback, **kwargs):
     spec = contract(topic)
     return node.create_subscription(
-        spec.msg_type, topic, callback, spec.qos,
+        spec.msg_type, topic, callback, subscription_qos(topic),
         event_callbacks=SubscriptionEventCallbacks(
             incompatible_qos=_incompatible_qos_warning(node, topic), use_default_callbacks=False),
         **kwargs)

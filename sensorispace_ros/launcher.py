@@ -290,8 +290,16 @@ def evaluate_representation(results_dir: Path, cfg: dict, stream=None) -> dict:
 
     with np.load(Path(results_dir) / RESULT_FILE) as stored:
         arrays = {key: stored[key] for key in stored.files}
-    counters = {f"agent.{key[len('agent_'):]}": int(value) for key, value in arrays.items()
-                if key.startswith("agent_")}
+    totals = {key[len("agent_"):]: int(value) for key, value in arrays.items()
+              if key.startswith("agent_")}
+    counters = {f"agent.{key}": value for key, value in totals.items()}
+    # The agent's own counters under the offline strategy's names.
+    for total, key in (("compensated", "exploration.compensated"),
+                       ("queries", "naive.queries_total"), ("calls", "naive.calls_total")):
+        if total in totals:
+            counters[key] = totals[total]
+    if "changes" in totals:
+        counters["exploration.events"] = totals["changes"] - 1
     timings = json.loads(str(arrays.pop("timings_s_json", "{}")))
     counters.update({f"timings_s.{key}": value for key, value in timings.items()})
     arrays = {key: value for key, value in arrays.items() if not key.startswith("agent_")}

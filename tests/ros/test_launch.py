@@ -98,7 +98,10 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(tmp_path, domain_id
         t.startswith("/agent/") for t in seen["representation"]), seen
     assert "/environment/lights" in seen.get("body", [])
     metrics = json.loads((tmp_path / "results" / "smoke" / "metrics.json").read_text())
-    assert metrics["pov.count"] if "pov.count" in metrics else metrics["pov"]["count"] > 0
+    # The agent's own counters made it through /agent/done to the evaluator.
+    assert metrics["pov"]["count"] == metrics["agent"]["points_of_view"] > 3
+    assert metrics["exploration"]["compensated"] == metrics["agent"]["compensated"] > 0
+    assert "after" in metrics["quality"]["2d"]
     for pid in re.findall(r"started \w+ \(pid (\d+)\)", output):
         with pytest.raises(ProcessLookupError):
             os.kill(int(pid), 0)        # every child was stopped
