@@ -34,9 +34,8 @@ def run_measured(command: list[str], log_path: Path | None = None, env: dict | N
     """Run ``command``; return wall_s, peak_rss_mib (ru_maxrss of this child,
     KiB on Linux), exit code and the load before and after.
 
-    ru_maxrss of a child counts its largest process image; a launcher child
-    that starts grandchildren reports only its own (grandchildren are
-    measured separately if needed).
+    ``os.wait4`` reports the child together with the descendants it waited
+    for: cpu_s sums them, peak_rss_mib is the largest single process.
     """
     load_before = load()
     log = open(log_path, "wb") if log_path else subprocess.DEVNULL

@@ -82,6 +82,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         start([sys.executable, "-m", "sensorispace_ros.nodes.body", "--ros-args",
                "--params-file", str(config)], "body"),
         start([sys.executable, str(HERE / "rclpy_echo.py")], "echo"),
+        start([sys.executable, str(HERE / "rclpy_echo.py"), "--simulate", str(config)], "sim_echo"),
     ]
     context = Context()
     rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
@@ -118,11 +119,20 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         node.create_subscription(PointCloud2, rclpy_echo.PONG,
                                  lambda msg: pong.__setitem__(msg.header.frame_id, msg),
                                  rclpy_echo.QOS)
+        sim_ping_pub = node.create_publisher(PointCloud2, rclpy_echo.SIM_PING, rclpy_echo.QOS)
+        sim_pong = {}
+        node.create_subscription(
+            PointCloud2, rclpy_echo.SIM_PONG,
+            lambda msg: sim_pong.__setitem__(msg.header.frame_id,
+                                             messages.cloud_to_matrix(msg, sensation_columns)),
+            rclpy_echo.QOS)
 
         deadline = time.monotonic() + 60.0
         while (command_pub.get_subscription_count() < 1 or ping_pub.get_subscription_count() < 1
+               or sim_ping_pub.get_subscription_count() < 1
                or node.count_publishers("/body/sensation") < 1
-               or node.count_publishers(rclpy_echo.PONG) < 1):
+               or node.count_publishers(rclpy_echo.PONG) < 1
+               or node.count_publishers(rclpy_echo.SIM_PONG) < 1):
             if time.monotonic() > deadline:
                 raise RuntimeError("servers not discovered within 60 s")
             if any(p.poll() is not None for p in servers):
@@ -155,6 +165,18 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
             assert pong.pop(frame_id).width == rows
             return elapsed
 
+        def sim_ping(rows):
+            counter[0] += 1
+            frame_id = f"sim/{counter[0]}"
+            started = time.perf_counter()
+            sim_ping_pub.publish(messages.matrix_to_cloud(
+                motor[rows], command_columns, messages.make_header(frame_id)))
+            while frame_id not in sim_pong:
+                spin(0.5)
+            elapsed = time.perf_counter() - started
+            assert sim_pong.pop(frame_id).shape == (rows, len(sensation_columns))
+            return elapsed
+
         def probe(rows):
             started = time.perf_counter()
             reply = body.sense(motor[rows])
@@ -166,13 +188,13 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
             for _ in range(5):
                 probe(rows)
                 ping(rows)
-        times = {(kind, rows): [] for kind in ("graph", "bare") for rows in sizes}
+                sim_ping(rows)
+        times = {(kind, rows): [] for kind in ("graph", "bare", "sim") for rows in sizes}
         load_before = load()
         for r in range(rounds):
             for rows in sizes:
-                first, second = (("graph", probe), ("bare", ping)) if r % 2 == 0 \
-                    else (("bare", ping), ("graph", probe))
-                for kind, fn in (first, second):
+                order = [("graph", probe), ("bare", ping), ("sim", sim_ping)]
+                for kind, fn in order[r % 3:] + order[:r % 3]:
                     times[(kind, rows)].extend(fn(rows) for _ in range(per_round[rows]))
         # The body's own computation for a batch, in this process, for reference.
         from sensorispace_ros.core.body import SimulatedBody
@@ -188,6 +210,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         for rows in sizes:
             g = np.asarray(times[("graph", rows)]) * 1e3
             b = np.asarray(times[("bare", rows)]) * 1e3
+            sim_t = np.asarray(times[("sim", rows)]) * 1e3
             out["rows"][str(rows)] = {
                 "probes": int(len(g)),
                 "graph_median_ms": float(np.median(g)), "graph_mean_ms": float(g.mean()),
@@ -197,6 +220,10 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
                 "ratio_median": float(np.median(g) / np.median(b)),
                 "ratio_mean": float(g.mean() / b.mean()),
                 "body_compute_ms": 1e3 * compute[rows],
+                # Diagnostic: decode + simulate + pack in a bare node (no extra
+                # publications, no graph node machinery).
+                "sim_echo_median_ms": float(np.median(sim_t)),
+                "ratio_graph_over_sim_echo": float(np.median(g) / np.median(sim_t)),
                 # What is left once the body's simulation (which the bare echo
                 # does not do) is taken out: the graph's messaging overhead.
                 "ratio_median_net_of_compute": float((np.median(g) - 1e3 * compute[rows])

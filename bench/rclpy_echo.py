@@ -4,6 +4,12 @@ float64 on ``bench/pong`` (the size of the body's sensation reply), copying
 the request header. No decoding, no computation, one publication per request.
 
     python bench/rclpy_echo.py      (ROS_DOMAIN_ID / discovery range from the environment)
+    python bench/rclpy_echo.py --simulate CONFIG
+
+``--simulate``: a diagnostic middle ground, on ``bench/sim_ping`` /
+``bench/sim_pong``: decode the request with ``messages``, simulate the arm and
+retina (``SimulatedBody.sense``), pack the reply - the body node's work
+without its two extra ground-truth publications and node machinery.
 
 Runs until SIGTERM/SIGINT.
 """
@@ -17,6 +23,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import PointCloud2, PointField
 
 PING, PONG = "bench/ping", "bench/pong"
+SIM_PING, SIM_PONG = "bench/sim_ping", "bench/sim_pong"
 # Same QoS as the contract's /body/motor_command and /body/sensation, so the
 # comparison measures the graph's work, not a QoS difference.
 QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_ALL,
@@ -35,20 +42,40 @@ def float_cloud(rows: int, columns: int, header=None) -> PointCloud2:
     return msg
 
 
-def main() -> int:
+def main(argv=None) -> int:
+    import argparse
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--simulate", default=None, metavar="CONFIG")
+    args = parser.parse_args(argv)
     rclpy.init()
     node = rclpy.create_node("bench_echo")
     replies: dict[int, PointCloud2] = {}
-    pub = node.create_publisher(PointCloud2, PONG, QOS)
+    if args.simulate is None:
+        pub = node.create_publisher(PointCloud2, PONG, QOS)
 
-    def on_ping(msg: PointCloud2) -> None:
-        reply = replies.get(msg.width)
-        if reply is None:
-            reply = replies[msg.width] = float_cloud(msg.width, 6)
-        reply.header = msg.header
-        pub.publish(reply)
+        def on_ping(msg: PointCloud2) -> None:
+            reply = replies.get(msg.width)
+            if reply is None:
+                reply = replies[msg.width] = float_cloud(msg.width, 6)
+            reply.header = msg.header
+            pub.publish(reply)
 
-    node.create_subscription(PointCloud2, PING, on_ping, QOS)
+        node.create_subscription(PointCloud2, PING, on_ping, QOS)
+    else:
+        from sensorispace_ros import config, contracts, messages
+        from sensorispace_ros.core.body import SimulatedBody
+        from sensorispace_ros.nodes import build_world
+        world = build_world(config.load_config(args.simulate))
+        body = SimulatedBody(world.receptors, world.initial_lights, world.m0.copy())
+        command = contracts.contract("/body/motor_command").columns
+        sensation = contracts.contract("/body/sensation").columns
+        pub = node.create_publisher(PointCloud2, SIM_PONG, QOS)
+
+        def on_ping(msg: PointCloud2) -> None:
+            motor = messages.cloud_to_matrix(msg, command)
+            pub.publish(messages.matrix_to_cloud(body.sense(motor), sensation, msg.header))
+
+        node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:

@@ -62,8 +62,10 @@ def end_to_end(config: Path, work: Path, graph_timeout_s: float) -> dict:
         graph["agent_summary"] = next((line.split("]: ", 1)[-1] for line in
                                        agent_log.read_text().splitlines() if "run over" in line),
                                       None)
-    graph["note"] = ("peak_rss_mib is the launcher's own; nodes are its children "
-                     "(one process per node)")
+    # wait4's rusage covers the child and the descendants it waited for: the
+    # node processes the launcher stopped and reaped.
+    graph["note"] = ("cpu_s sums the launcher and its node processes; peak_rss_mib is the "
+                     "largest of them")
     out["graph"] = graph
     naive = out["offline_naive"]
     if naive["exit_code"] == 0 and graph["exit_code"] == 0:
@@ -114,7 +116,8 @@ def table(results: dict) -> str:
         for rows_, v in p["rows"].items():
             row(f"probe round trip {rows_} row(s) [ms]", v["graph_median_ms"], v["bare_median_ms"],
                 v["ratio_median"], f"mean ratio {v['ratio_mean']:.3g}; net of body compute "
-                f"{v['ratio_median_net_of_compute']:.3g}; body compute "
+                f"{v['ratio_median_net_of_compute']:.3g}; sim echo {v['sim_echo_median_ms']:.3g} ms; "
+                f"body compute "
                 f"{v['body_compute_ms']:.3g} ms; load {p['load_before'][0]}")
     e = results.get("end_to_end")
     if e:
