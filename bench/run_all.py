@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import tempfile
@@ -162,7 +163,7 @@ def main(argv=None) -> int:
     from bench import kernels, probe_roundtrip
     config = REPO / "config" / ("smoke.yaml" if args.quick else "paper.yaml")
     results: dict = {"started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                     "quick": args.quick, "machine": {"cpus": __import__("os").cpu_count(),
+                     "quick": args.quick, "machine": {"cpus": os.cpu_count(),
                                                       "python": platform.python_version(),
                                                       "numpy": np.__version__},
                      "load_start": load()}
