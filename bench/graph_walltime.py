@@ -45,7 +45,7 @@ def main() -> int:
             result = launcher.launch_graph(args.config, "bench", record=False,
                                            results_root=tmp, stream=sys.stdout)
             graph_s = result.wall_s
-            mode = "processes (launch, start-up and evaluation included)"
+            mode = "processes (launch: start-up included, evaluation not)"
             round_trip = None
             for line in (result.results_dir / "logs" / "agent.log").read_text().splitlines():
                 if "run over" in line:

@@ -23,7 +23,7 @@ from .. import config
 GRAPH_PREFIX = "graph."
 GRAPH_DEFAULTS = {
     "graph.results_dir": "results/graph",
-    "graph.resend_period_s": 1.0,
+    "graph.resend_period_s": 0.25,
     "graph.wait_for_nodes": ["body", "agent"],
     "graph.exit_when_done": False,
 }
