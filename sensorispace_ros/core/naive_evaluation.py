@@ -177,9 +177,9 @@ def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np
     set_deviation = 0.0
     if len(pairs):
         displacement = true_poses[pairs[:, 1], :2] - true_poses[pairs[:, 0], :2]
-        for s in np.unique(set_ids):
-            d = displacement[set_ids == s]
-            set_deviation = max(set_deviation, float(np.max(np.abs(d - d[0]))))
+        _, first, inverse = np.unique(set_ids, return_index=True, return_inverse=True)
+        reference = displacement[first[inverse.reshape(-1)]]
+        set_deviation = float(np.max(np.abs(displacement - reference)))
 
     n_comp = len(agent.compensations)
     pov_q = np.asarray(agent.pov_queries, dtype=float)
