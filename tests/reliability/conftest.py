@@ -36,3 +36,19 @@ def stop_by_pid(process: subprocess.Popen, grace_s: float = 5.0) -> None:
 def domain_id():
     from sensorispace_ros.launcher import free_domain_id
     return free_domain_id()
+
+
+@pytest.fixture(scope="session")
+def single_host_result(tmp_path_factory):
+    """The smoke run with every node in this process (the reference result).
+
+    tests/ros/test_graph_in_process.py shows this equals the offline naive run.
+    """
+    from sensorispace_ros.launcher import free_domain_id, run_graph_in_process
+
+    from .node_processes import load_result
+    results = tmp_path_factory.mktemp("single_host")
+    run = run_graph_in_process(SMOKE, free_domain_id(), results, timeout_s=400)
+    reference = load_result(results)
+    reference["wall_s"] = run["wall_s"]
+    return reference

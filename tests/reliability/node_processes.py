@@ -1,0 +1,119 @@
+"""Start the graph's nodes as separate processes (optionally inside a network
+namespace), follow them, and stop every one by PID. Shared by the two-host,
+fuzz and restart tests and by fuzz_graph.py."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sensorispace_ros import launcher
+from sensorispace_ros.nodes.representation import RESULT_FILE
+
+NODES = ("environment", "body", "agent", "representation", "recorder")
+
+
+def node_parameters(name: str, results_dir: Path, bag_dir: Path, nodes=NODES) -> dict:
+    """The launcher's per-node parameters (launcher.launch_graph does the same)."""
+    if name == "recorder":
+        return {"bag_path": str(bag_dir)}
+    parameters = {"graph.results_dir": str(results_dir)}
+    if name == "environment":
+        parameters["graph.wait_for_nodes"] = [n for n in nodes if n != "environment"]
+    if name == "representation":
+        parameters["graph.exit_when_done"] = True
+    return parameters
+
+
+class NodeProcesses:
+    """Child processes by node name; ``stop()`` sends SIGTERM then SIGKILL by PID."""
+
+    def __init__(self, log_dir: Path):
+        self.log_dir = Path(log_dir)
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.children: dict[str, subprocess.Popen] = {}
+        self._logs = []
+
+    def start(self, name: str, command: list[str], env: dict, prefix=(), log_name=None) -> int:
+        log = open(self.log_dir / f"{log_name or name}.log", "ab")
+        self._logs.append(log)
+        self.children[name] = subprocess.Popen([*prefix, *command], env=env, stdout=log,
+                                               stderr=subprocess.STDOUT, start_new_session=True)
+        return self.children[name].pid
+
+    def exited(self) -> dict[str, int]:
+        return {n: p.returncode for n, p in self.children.items() if p.poll() is not None}
+
+    def rss_mb(self) -> dict[str, float]:
+        """Resident set size of each live child (VmRSS from /proc)."""
+        sizes = {}
+        for name, proc in self.children.items():
+            try:
+                for line in Path(f"/proc/{proc.pid}/status").read_text().splitlines():
+                    if line.startswith("VmRSS:"):
+                        sizes[name] = int(line.split()[1]) / 1024.0
+            except (FileNotFoundError, ProcessLookupError):
+                pass
+        return sizes
+
+    def kill9(self, name: str) -> None:
+        proc = self.children[name]
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+    def wait_for_representation(self, timeout_s: float) -> None:
+        """Until the representation exits 0; AssertionError if any node dies first."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            exited = self.exited()
+            if exited.get("representation") == 0:
+                return
+            dead = {n: c for n, c in exited.items() if n != "representation" or c != 0}
+            if dead:
+                raise AssertionError(f"node(s) died: {dead}; logs in {self.log_dir}")
+            time.sleep(0.2)
+        raise AssertionError(f"the graph did not finish within {timeout_s} s; logs in {self.log_dir}")
+
+    def stop(self, grace_s: float = 5.0) -> None:
+        order = [n for n in self.children if n != "recorder"] + \
+                [n for n in self.children if n == "recorder"]
+        for name in order:
+            proc = self.children[name]
+            if proc.poll() is None:
+                try:
+                    os.kill(proc.pid, signal.SIGTERM)
+                except ProcessLookupError:
+                    pass
+                try:
+                    proc.wait(timeout=grace_s)
+                except subprocess.TimeoutExpired:
+                    os.kill(proc.pid, signal.SIGKILL)
+                    proc.wait()
+        for log in self._logs:
+            log.close()
+        self._logs = []
+
+
+def command(name: str, config: Path, results_dir: Path, bag_dir: Path) -> list[str]:
+    return launcher.node_command(name, Path(config), node_parameters(name, results_dir, bag_dir))
+
+
+def load_result(results_dir: Path) -> dict:
+    with np.load(Path(results_dir) / RESULT_FILE) as stored:
+        return {key: stored[key] for key in stored.files}
+
+
+def assert_same_result(got: dict, reference: dict) -> None:
+    """POVs, equality rows and every embedding equal; the agent's counters equal."""
+    assert len(got["povs"]) == len(reference["povs"]) > 3
+    for key in ("pov_ids", "povs", "pairs", "set_ids"):
+        np.testing.assert_array_equal(got[key], reference[key], err_msg=key)
+    for key in sorted(k for k in reference if k.startswith("embedding_")):
+        np.testing.assert_allclose(got[key], reference[key], rtol=0, atol=1e-9, err_msg=key)
+    for key in ("agent_points_of_view", "agent_compensated", "agent_compensation_rows",
+                "agent_changes"):
+        assert int(got[key]) == int(reference[key]), key
