@@ -38,7 +38,9 @@ def frame(kind: str, number: int) -> str:
 
 def parse_frame(frame_id: str) -> tuple[str, int] | None:
     kind, _, number = frame_id.partition("/")
-    if kind not in ("change", "end", "cmd") or not number.isdigit():
+    # ASCII digits only: str.isdigit() is also true for "²" (int() raises, which
+    # killed a node on a fuzzed frame id) and for "٣" (int() reads 3).
+    if kind not in ("change", "end", "cmd") or not (number.isascii() and number.isdigit()):
         return None
     return kind, int(number)
 
