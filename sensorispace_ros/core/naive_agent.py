@@ -59,6 +59,9 @@ from .sensory_points_of_view import sample_sensory_points_of_view
 
 EXPLORING = "exploring"
 EQUALITY_PASS = "equality_pass"
+# Stages the agent counts its queries in (queries_by_stage, calls_by_stage,
+# seconds_by_stage); fixed so offline and graph runs report the same keys.
+STAGES = ("pov", "sweep", "rank", "compensation", "rest", EQUALITY_PASS)
 
 
 @dataclass(frozen=True)

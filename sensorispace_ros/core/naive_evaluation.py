@@ -17,10 +17,96 @@ from scipy.spatial import cKDTree
 
 from . import arm, retina
 from .body import SensingOnly, SimulatedBody
+from .naive_agent import STAGES as NAIVE_STAGES
 from .naive_agent import NaiveAgent, NaiveParams
 from .world import REDISTRIBUTION
 
 WRONG_POSE_TOL = 1e-3
+
+
+@dataclass
+class NaiveAgentRecords:
+    """What a naive run's agent produced, as plain data (never ground truth).
+
+    Offline it comes from the ``NaiveAgent`` object (``from_agent``); in the
+    ROS graph from the agent's topics (``/agent/points_of_view``,
+    ``/agent/pov_records``, ``/agent/compensation_records``,
+    ``/agent/compensations``, ``/agent/done``, ``/agent/stage_counters``),
+    so both runs are evaluated by the same ``evaluate_naive_records``.
+
+    ``povs`` ``(P, N, M)``; ``pov_events`` / ``pov_queries`` ``(P,)`` the
+    agent's event that found each POV and its walk queries; the
+    ``compensation_*`` columns ``(C,)`` / ``(C, M)`` are the accepted
+    ``CompensationRecord`` fields; ``compensation_queries`` the rows of all
+    compensated events except their POV walks (summed over the
+    ``compensated`` events); ``queries_by_stage`` / ``calls_by_stage``
+    stage -> count (stages of ``NAIVE_STAGES``).
+    """
+
+    povs: np.ndarray
+    pov_events: np.ndarray
+    pov_queries: np.ndarray
+    compensation_event: np.ndarray
+    compensation_anchor_event: np.ndarray
+    compensation_motor_state: np.ndarray
+    compensation_anchor_motor_state: np.ndarray
+    compensation_searched: np.ndarray
+    pairs: np.ndarray
+    set_ids: np.ndarray
+    compensated: int
+    compensation_queries: int
+    queries_total: int
+    calls_total: int
+    queries_by_stage: dict
+    calls_by_stage: dict
+
+    @classmethod
+    def from_agent(cls, agent: NaiveAgent) -> "NaiveAgentRecords":
+        records = agent.compensations
+        n_motors = agent.n_motors
+        pairs, set_ids = agent.equality_sets()
+        return cls(
+            povs=agent.points_of_view,
+            pov_events=np.asarray(agent.pov_events, dtype=np.int64),
+            pov_queries=np.asarray(agent.pov_queries, dtype=np.int64),
+            compensation_event=np.asarray([r.event for r in records], dtype=np.int64),
+            compensation_anchor_event=np.asarray([r.anchor_event for r in records], dtype=np.int64),
+            compensation_motor_state=np.asarray([r.motor_state for r in records],
+                                                dtype=float).reshape(-1, n_motors),
+            compensation_anchor_motor_state=np.asarray(
+                [r.anchor_motor_state for r in records], dtype=float).reshape(-1, n_motors),
+            compensation_searched=np.asarray([r.searched for r in records], dtype=bool),
+            pairs=np.asarray(pairs, dtype=np.int64).reshape(-1, 2),
+            set_ids=np.asarray(set_ids, dtype=np.int64),
+            compensated=int(agent.compensated),
+            compensation_queries=int(sum(agent.compensation_queries)),
+            queries_total=int(agent.queries_total), calls_total=int(agent.calls_total),
+            queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage)
+
+
+@dataclass
+class NaiveGroundTruth:
+    """The evaluator's side of a naive run, indexed by the agent's event ``t``
+    (0 = the start): ``centers`` ``(T+1, 2)`` object centre, ``layout``
+    ``(T+1,)`` light-layout version (+1 at each redistribution), ``kinds``
+    event kinds (``"initial"`` first), ``grid_index`` ``(T+1,)`` the object's
+    grid position (-1 at the start); ``true_poses`` ``(P, 3)`` the sensor
+    pose of each POV's first sample; ``initial_motor_state``;
+    ``paper_positions`` ``(Q, 2)`` the coverage denominator
+    (``paper_compensated_positions``)."""
+
+    centers: np.ndarray
+    layout: np.ndarray
+    kinds: list
+    grid_index: np.ndarray
+    true_poses: np.ndarray
+    initial_motor_state: np.ndarray
+    paper_positions: np.ndarray
+
+    @staticmethod
+    def layout_of(kinds) -> np.ndarray:
+        """Light-layout version of each event: the number of redistributions so far."""
+        return np.cumsum([kind == REDISTRIBUTION for kind in kinds]).astype(np.int64)
 
 
 @dataclass
@@ -126,28 +212,50 @@ def paper_compensated_positions(world) -> np.ndarray:
 
 def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np.ndarray,
                        kinds: list, paper_positions: np.ndarray):
-    """Ground-truth metrics of a finished run (``centers[t]``, ``layout[t]``,
-    ``kinds[t]``: object centre, light-layout version and event kind seen at
-    the agent's event ``t``; event 0 is the start)."""
-    povs = agent.points_of_view
-    pose0 = arm.forward(world.m0)
-    if len(povs):
-        true_poses = arm.forward(povs[:, 0])
-        drift = float(np.max(arm.pose_error(arm.forward(povs), true_poses[:, None, :])))
-    else:
-        true_poses, drift = np.zeros((0, 3)), 0.0
+    """Ground-truth metrics of a finished offline run (``centers[t]``,
+    ``layout[t]``, ``kinds[t]``: object centre, light-layout version and event
+    kind seen at the agent's event ``t``; event 0 is the start)."""
+    records = NaiveAgentRecords.from_agent(agent)
+    povs = records.povs
+    truth = NaiveGroundTruth(
+        centers=np.asarray(centers, dtype=float), layout=np.asarray(layout), kinds=list(kinds),
+        grid_index=np.asarray([-1] + [e.grid_index for e in world.events], dtype=np.int64),
+        true_poses=arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
+        initial_motor_state=np.asarray(world.m0, dtype=float),
+        paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2))
+    return evaluate_naive_records(records, truth)
+
+
+def evaluate_naive_records(records: NaiveAgentRecords, truth: NaiveGroundTruth):
+    """Ground-truth metrics (``exploration.*``, ``pov.*``, ``naive.*``) of what
+    a naive agent produced, offline or in the ROS graph. Returns
+    ``(metrics, true_poses (P, 3), grid_index (P,))``."""
+    povs = records.povs
+    true_poses = np.asarray(truth.true_poses, dtype=float).reshape(-1, 3)
+    if len(true_poses) != len(povs):
+        raise ValueError(f"truth.true_poses: {len(true_poses)} poses for {len(povs)} POVs")
+    unknown = (set(records.queries_by_stage) | set(records.calls_by_stage)) - set(NAIVE_STAGES)
+    if unknown:
+        raise ValueError(f"records.queries_by_stage: stages {sorted(unknown)} not in NAIVE_STAGES")
+    centers, layout, kinds = truth.centers, truth.layout, truth.kinds
+    paper_positions = truth.paper_positions
+    pose0 = arm.forward(truth.initial_motor_state)
+    drift = (float(np.max(arm.pose_error(arm.forward(povs), true_poses[:, None, :])))
+             if len(povs) else 0.0)
 
     # Each accepted compensation against the pose its anchor asks for.
-    wrong = across_layouts = on_redistribution = 0
-    worst = 0.0
-    for record in agent.compensations:
-        target = arm.forward(record.anchor_motor_state)
-        target[:2] += centers[record.event] - centers[record.anchor_event]
-        error = float(arm.pose_error(arm.forward(record.motor_state), target))
-        worst = max(worst, error)
-        wrong += error > WRONG_POSE_TOL
-        across_layouts += layout[record.event] != layout[record.anchor_event]
-        on_redistribution += kinds[record.event] == REDISTRIBUTION
+    events = records.compensation_event
+    anchors = records.compensation_anchor_event
+    n_comp = len(events)
+    worst, wrong = 0.0, 0
+    if n_comp:
+        target = arm.forward(records.compensation_anchor_motor_state)
+        target[:, :2] += centers[events] - centers[anchors]
+        error = arm.pose_error(arm.forward(records.compensation_motor_state), target)
+        worst = float(np.max(error))
+        wrong = int(np.sum(error > WRONG_POSE_TOL))
+    across_layouts = int(np.sum(layout[events] != layout[anchors]))
+    on_redistribution = int(sum(kinds[t] == REDISTRIBUTION for t in events))
 
     # Coverage (issue #3): distinct compensated sensor positions over the
     # number the paper strategy compensates. The naive agent's positions need
@@ -169,11 +277,10 @@ def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np
                          if len(povs) else 0.0)
 
     # The object's grid position when each POV was found (event 0: the start).
-    grid_of_event = np.asarray([-1] + [e.grid_index for e in world.events])
-    grid_index = grid_of_event[np.asarray(agent.pov_events, dtype=int)] if len(povs) \
-        else np.zeros(0, dtype=int)
+    grid_index = (np.asarray(truth.grid_index)[np.asarray(records.pov_events, dtype=int)]
+                  if len(povs) else np.zeros(0, dtype=int))
 
-    pairs, set_ids = agent.equality_sets()
+    pairs, set_ids = records.pairs, records.set_ids
     set_deviation = 0.0
     if len(pairs):
         displacement = true_poses[pairs[:, 1], :2] - true_poses[pairs[:, 0], :2]
@@ -181,45 +288,44 @@ def evaluate_naive_run(agent: NaiveAgent, world, centers: np.ndarray, layout: np
         reference = displacement[first[inverse.reshape(-1)]]
         set_deviation = float(np.max(np.abs(displacement - reference)))
 
-    n_comp = len(agent.compensations)
-    pov_q = np.asarray(agent.pov_queries, dtype=float)
-    comp_q = np.asarray(agent.compensation_queries, dtype=float)
+    pov_q = np.asarray(records.pov_queries, dtype=float)
     state_changes = sum(k == REDISTRIBUTION for k in kinds)
     metrics = {
         "exploration.events": len(kinds) - 1,
         "exploration.state_changes": int(state_changes),
-        "exploration.compensated": int(agent.compensated),
-        "exploration.state_changes_compensated": int(on_redistribution),
+        "exploration.compensated": int(records.compensated),
+        "exploration.state_changes_compensated": on_redistribution,
         "pov.count": int(len(povs)),
         "pov.max_pose_drift": drift,
-        "naive.queries_total": int(agent.queries_total),
-        "naive.calls_total": int(agent.calls_total),
+        "naive.queries_total": int(records.queries_total),
+        "naive.calls_total": int(records.calls_total),
         "naive.queries_per_pov": float(pov_q.mean()) if len(pov_q) else 0.0,
         "naive.queries_per_pov_max": int(pov_q.max()) if len(pov_q) else 0,
         # Every row of an event that found a compensation except its POV walks
         # (sweep, rank tests, searches, rest command), averaged over those events.
-        "naive.queries_per_compensation": float(comp_q.mean()) if len(comp_q) else 0.0,
+        "naive.queries_per_compensation":
+            records.compensation_queries / records.compensated if records.compensated else 0.0,
         # Search rows (LM) of the whole run per accepted compensation.
         "naive.search_queries_per_compensation":
-            agent.queries_by_stage.get("compensation", 0) / max(n_comp, 1),
+            records.queries_by_stage.get("compensation", 0) / max(n_comp, 1),
         "naive.coverage": distinct / max(len(paper_positions), 1),
         "naive.distinct_positions": distinct,
         "naive.duplicate_povs": int(len(povs) - distinct),
         "naive.paper_positions": int(len(paper_positions)),
         "naive.coverage_of_paper_positions": covered / max(len(paper_positions), 1),
-        "naive.wrong_poses": int(wrong),
+        "naive.wrong_poses": wrong,
         "naive.worst_pose_error": worst,
-        "naive.state_changes_accepted": int(on_redistribution),
-        "naive.accepted_across_redistribution": int(across_layouts),
+        "naive.state_changes_accepted": on_redistribution,
+        "naive.accepted_across_redistribution": across_layouts,
         "naive.compensations_accepted": int(n_comp),
-        "naive.compensations_searched": int(sum(r.searched for r in agent.compensations)),
+        "naive.compensations_searched": int(np.sum(records.compensation_searched)),
         "naive.max_orientation_error": orientation_error,
         "naive.equality_sets": int(len(np.unique(set_ids))),
         "naive.equality_pairs": int(len(pairs)),
         "naive.equality_set_max_deviation": set_deviation,
     }
-    for stage, rows in sorted(agent.queries_by_stage.items()):
-        metrics[f"naive.queries_by_stage.{stage}"] = int(rows)
-    for stage, calls in sorted(agent.calls_by_stage.items()):
-        metrics[f"naive.calls_by_stage.{stage}"] = int(calls)
+    for stage in NAIVE_STAGES:
+        metrics[f"naive.queries_by_stage.{stage}"] = int(records.queries_by_stage.get(stage, 0))
+    for stage in NAIVE_STAGES:
+        metrics[f"naive.calls_by_stage.{stage}"] = int(records.calls_by_stage.get(stage, 0))
     return metrics, true_poses, grid_index
