@@ -13,7 +13,15 @@ What the bag gives (see bags.py, nodes/recorder.py):
   whose first sample was never commanded (resampled) gets ``core.arm.forward``
   of it, the same model the body uses. ``analysis.true_positions`` says how
   many came from which. The object position of each change comes from
-  ``/environment/event``.
+  ``/environment/event``;
+- the naive run's ground-truth metrics (``exploration.*``, ``naive.*``):
+  the agent's own records (``/agent/pov_records``,
+  ``/agent/compensation_records``, ``/agent/stage_counters``, ``/agent/done``)
+  joined with the recorded changes (centre, kind, grid position; light
+  layout version = redistributions so far) and the world rebuilt from the
+  bag's configuration (initial centre, the paper strategy's compensated
+  positions for the coverage denominator) by the offline evaluator itself,
+  ``core.naive_evaluation.evaluate_naive_records``.
 
 Then ``pipeline.build_representation`` + ``pipeline.evaluate`` and the same
 ``metrics.json`` / figures as ``pipeline.reproduce``.
@@ -29,6 +37,8 @@ import numpy as np
 from . import bags
 
 POVS, ROWS, DONE = "/agent/points_of_view", "/agent/compensations", "/agent/done"
+POV_RECORDS, COMPENSATION_RECORDS = "/agent/pov_records", "/agent/compensation_records"
+STAGE_COUNTERS = "/agent/stage_counters"
 EVENT, COMMAND, POSE = "/environment/event", "/body/motor_command", "/body/sensor_pose"
 
 
@@ -134,6 +144,77 @@ def events(bag_dir) -> dict[str, np.ndarray]:
     return {frame: table[0] for frame, table in _tables(bag_dir, EVENT).items() if len(table)}
 
 
+def _concatenated(bag_dir, topic: str) -> np.ndarray:
+    from . import contracts, messages
+
+    tables = list(_tables(bag_dir, topic).values())
+    return (np.concatenate(tables) if tables
+            else np.zeros(0, dtype=messages.record_dtype(contracts.contract(topic).columns)))
+
+
+def naive_records(bag_dir, data: dict, totals: dict | None):
+    """The agent's records of the run (``core.naive_evaluation.NaiveAgentRecords``),
+    or None when the bag lacks them (recorded before they were published, or the
+    run did not end)."""
+    from .core.naive_agent import STAGES
+    from .core.naive_evaluation import NaiveAgentRecords
+
+    info = bags.bag_info(bag_dir)
+    counters = _tables(bag_dir, STAGE_COUNTERS, kinds=("end",))
+    if totals is None or not counters or POV_RECORDS not in info.topics:
+        return None
+    counters = next(iter(counters.values()))
+    ids = data["ids"]
+    pov_rows = _concatenated(bag_dir, POV_RECORDS)
+    _, first = np.unique(pov_rows["pov"], return_index=True)     # a re-send counts once
+    pov_rows = pov_rows[first]
+    if not np.array_equal(pov_rows["pov"], ids):
+        raise bags.BagError(f"bag {bag_dir}: {POV_RECORDS} names POVs {pov_rows['pov'].tolist()}, "
+                            f"{POVS} holds {ids.tolist()}")
+    comp = _concatenated(bag_dir, COMPENSATION_RECORDS)     # one copy of each change's rows
+    motor = np.stack([comp[f"m{j}"] for j in range(4)], axis=-1).astype(float)
+    anchor = np.stack([comp[f"a{j}"] for j in range(4)], axis=-1).astype(float)
+    return NaiveAgentRecords(
+        povs=data["povs"], pov_events=pov_rows["event"].astype(np.int64),
+        pov_queries=pov_rows["queries"].astype(np.int64),
+        compensation_event=comp["event"].astype(np.int64),
+        compensation_anchor_event=comp["anchor_event"].astype(np.int64),
+        compensation_motor_state=motor, compensation_anchor_motor_state=anchor,
+        compensation_searched=comp["searched"].astype(bool),
+        pairs=data["pairs"], set_ids=data["set_ids"], compensated=int(totals["compensated"]),
+        compensation_queries=int(counters["compensation_queries"][0]),
+        queries_total=int(totals["queries"]), calls_total=int(totals["calls"]),
+        queries_by_stage={stage: int(counters[f"queries_{stage}"][0]) for stage in STAGES},
+        calls_by_stage={stage: int(counters[f"calls_{stage}"][0]) for stage in STAGES})
+
+
+def naive_ground_truth(cfg: dict, change_events: dict, n_changes: int, poses: np.ndarray):
+    """``core.naive_evaluation.NaiveGroundTruth`` of the run: the recorded changes
+    (``/environment/event``; agent event t = change t), the world rebuilt from the
+    configuration for the initial centre and the coverage denominator."""
+    from . import pipeline
+    from .core import world as world_mod
+    from .core.exploration import build_world
+    from .core.naive_evaluation import NaiveGroundTruth, paper_compensated_positions
+    from .nodes.environment import KIND_CODES
+
+    world = build_world(int(cfg["seed"]), pipeline.world_params(cfg))
+    kind_of_code = {code: kind for kind, code in KIND_CODES.items()}
+    centers, kinds, grid_index = [np.asarray(world.initial_center, float)], ["initial"], [-1]
+    for k in range(1, n_changes + 1):
+        event = change_events.get(f"change/{k}")
+        if event is None:
+            raise bags.BagError(f"the bag holds no {EVENT} message for change/{k}")
+        centers.append(np.array([event["center_x"], event["center_y"]], dtype=float))
+        kinds.append(kind_of_code[int(event["kind"])])
+        grid_index.append(int(event["grid_index"]))
+    return NaiveGroundTruth(
+        centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
+        grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
+        initial_motor_state=np.asarray(world.m0, dtype=float),
+        paper_positions=paper_compensated_positions(world))
+
+
 def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dict:
     """Rebuild and evaluate the run recorded in ``bag_dir``; write ``out_dir/metrics.json``,
     ``arrays.npz`` and figures (``pipeline.evaluate_graph_run``, as for a live graph run).
@@ -167,9 +248,6 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
          for f, g in zip(data["pov_frames"], inferred)], dtype=int)
     counters = {
         "pov.max_pose_drift": pipeline._pose_drift(povs, poses),
-        "exploration.changes": int(len(change_events)),
-        "exploration.redistributions": int(sum(int(e["kind"]) == 1
-                                               for e in change_events.values())),
         "analysis.bag": str(bag_dir),
         "analysis.true_positions": f"{recorded} of {len(povs)} from recorded /body/sensor_pose, "
                                    f"{len(povs) - recorded} from core.arm.forward",
@@ -178,8 +256,25 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         **{f"timings_s.{key}": value for key, value in representation.timings_s.items()},
     }
     for name, value in (totals or {}).items():
-        # the agent's own counters (/agent/done); "compensated" is the offline key too
-        counters["exploration.compensated" if name == "compensated" else f"agent.{name}"] = value
+        counters[f"agent.{name}"] = value       # the agent's own counters (/agent/done)
+    records = naive_records(bag_dir, data, totals)
+    if records is not None:
+        from .core.naive_evaluation import evaluate_naive_records
+
+        # end/<k> closes a run of k - 1 changes (nodes/environment.py)
+        truth = naive_ground_truth(cfg, change_events, int(totals["changes"]) - 1, poses)
+        evaluated, _, grid_index = evaluate_naive_records(records, truth)
+        counters.update(evaluated)
+        arrays["grid_index"] = np.asarray(grid_index, dtype=int)
+        counters["analysis.naive_records"] = "evaluated by core.naive_evaluation"
+    else:
+        if totals is not None:
+            counters["exploration.compensated"] = totals["compensated"]
+        counters["exploration.events"] = int(len(change_events))
+        counters["exploration.state_changes"] = int(sum(int(e["kind"]) == 1
+                                                        for e in change_events.values()))
+        counters["analysis.naive_records"] = (f"absent (no {STAGE_COUNTERS} / {POV_RECORDS}): "
+                                              f"naive.* not evaluated")
     counters["timings_s.total"] = time.perf_counter() - started
     return pipeline.evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
                                        progress=progress)

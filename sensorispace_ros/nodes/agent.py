@@ -11,6 +11,13 @@ Passive sensations (``change/<k>``) are queued by the subscription callback;
 one), lets the agent react, publishes the new points of view and equality
 rows, then ``/agent/settled`` = k. ``end/<k>`` ends the run:
 ``/agent/done`` carries the totals.
+
+For the evaluator (recorded, read by ``sensorispace analyze``) it also
+publishes its own bookkeeping, never anything of the world:
+``/agent/pov_records`` (event and walk queries of each POV),
+``/agent/compensation_records`` (each accepted compensation) and, at the
+end, ``/agent/stage_counters``: together ``core.naive_evaluation.
+NaiveAgentRecords``, the data the offline run is evaluated from.
 """
 from __future__ import annotations
 
@@ -22,6 +29,8 @@ from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
 from .. import contracts, messages
+from ..core.naive_agent import STAGES as NAIVE_STAGES
+from ..core.naive_agent import NaiveAgent, NaiveParams
 from . import GraphNode, frame, parse_frame, run_node
 
 
@@ -85,12 +94,17 @@ class AgentNode(GraphNode):
         super().__init__("agent", **kwargs)
         self.columns = {topic: contracts.contract(topic).columns for topic in (
             "/body/motor_command", "/body/sensation", "/agent/points_of_view",
-            "/agent/compensations", "/agent/done")}
+            "/agent/compensations", "/agent/done", "/agent/pov_records",
+            "/agent/compensation_records", "/agent/stage_counters")}
         self.command_pub = contracts.create_publisher(self, "/body/motor_command")
         self.pov_pub = contracts.create_publisher(self, "/agent/points_of_view")
         self.compensation_pub = contracts.create_publisher(self, "/agent/compensations")
         self.settled_pub = contracts.create_publisher(self, "/agent/settled")
         self.done_pub = contracts.create_publisher(self, "/agent/done")
+        self.pov_record_pub = contracts.create_publisher(self, "/agent/pov_records")
+        self.compensation_record_pub = contracts.create_publisher(
+            self, "/agent/compensation_records")
+        self.stage_counter_pub = contracts.create_publisher(self, "/agent/stage_counters")
         contracts.create_subscription(self, "/body/sensation", self.on_sensation)
 
         self.body = BodyOverTopics(self.publish_command, lambda t: self.spin_once(t),
@@ -98,8 +112,7 @@ class AgentNode(GraphNode):
                                    n_sensors=len(self.columns["/body/sensation"]))
         # The agent knows its own initial posture (proprioception), nothing of the world.
         self.initial_motor_state = np.asarray(self.cfg["arm"]["initial_motor_state"], float)
-        from ..core import naive_agent
-        self.agent = naive_agent.NaiveAgent(self.body, naive_agent.NaiveParams(**self.cfg["naive"]),
+        self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]),
                                             self.cfg["seed"])
         self.passive: collections.deque = collections.deque()
         self.last_passive = -1
@@ -161,6 +174,7 @@ class AgentNode(GraphNode):
         header = messages.make_header(frame(kind, number), self.get_clock().now().nanoseconds)
         if kind == "end":
             self.run_over = True
+            self.publish_stage_counters(header)
             self.done_pub.publish(messages.table_to_cloud(
                 {"changes": number, "points_of_view": self.n_povs,
                  "compensation_rows": self.n_rows,
@@ -190,12 +204,40 @@ class AgentNode(GraphNode):
                  **{f"m{j}": povs[:, :, j].ravel() for j in range(n_motors)}},
                 self.columns["/agent/points_of_view"], header))
             self.n_povs += len(povs)
+            self.pov_record_pub.publish(messages.table_to_cloud(
+                {"pov": ids, "event": np.asarray(self.agent.pov_events)[ids],
+                 "queries": np.asarray(self.agent.pov_queries)[ids]},
+                self.columns["/agent/pov_records"], header))
+        if reaction.compensations:
+            records = reaction.compensations
+            motor = np.asarray([r.motor_state for r in records], dtype=float)
+            anchor = np.asarray([r.anchor_motor_state for r in records], dtype=float)
+            self.compensation_record_pub.publish(messages.table_to_cloud(
+                {"event": [r.event for r in records],
+                 "anchor_event": [r.anchor_event for r in records],
+                 "pov": [r.pov for r in records], "searched": [r.searched for r in records],
+                 **{f"m{j}": motor[:, j] for j in range(motor.shape[1])},
+                 **{f"a{j}": anchor[:, j] for j in range(anchor.shape[1])}},
+                self.columns["/agent/compensation_records"], header))
         rows = np.asarray(reaction.equality_rows, dtype=np.int64).reshape(-1, 3)
         if len(rows):
             self.compensation_pub.publish(messages.table_to_cloud(
                 {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]},
                 self.columns["/agent/compensations"], header))
             self.n_rows += len(rows)
+
+    def publish_stage_counters(self, header) -> None:
+        """Motor states probed and round trips per stage (0 for a stage never entered)."""
+        queries, calls = self.agent.queries_by_stage, self.agent.calls_by_stage
+        counters = {"compensation_queries": int(sum(self.agent.compensation_queries))}
+        for stage in NAIVE_STAGES:
+            counters[f"queries_{stage}"] = queries.get(stage, 0)
+            counters[f"calls_{stage}"] = calls.get(stage, 0)
+        unknown = (set(queries) | set(calls)) - set(NAIVE_STAGES)
+        if unknown:
+            self.get_logger().error(f"stages {sorted(unknown)} have no /agent/stage_counters column")
+        self.stage_counter_pub.publish(messages.table_to_cloud(
+            counters, self.columns["/agent/stage_counters"], header))
 
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
         self.command_pub.publish(messages.matrix_to_cloud(

@@ -2,7 +2,9 @@
 
 Also (c) on the multi-process graph: the live graph, read from another
 participant, shows the agent subscribing only to /body/sensation and the
-representation only to /agent/*.
+representation only to /agent/*. And issue #4's parity: the launched smoke
+run's metrics.json (evaluated from its bag by ``sensorispace analyze``) has
+every key of ``sensorispace reproduce --strategy naive`` and the same numbers.
 """
 import json
 import os
@@ -23,10 +25,12 @@ from .conftest import REPO, SMOKE
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 
-def _launch(tmp_path, domain_id, run, env):
+def _launch(tmp_path, domain_id, run, env, record=False):
     command = [sys.executable, "-m", "sensorispace_ros.cli", "launch", "--config", str(SMOKE),
-               "--run", run, "--domain-id", str(domain_id), "--no-record",
+               "--run", run, "--domain-id", str(domain_id),
                "--results", str(tmp_path / "results"), "--timeout", "400"]
+    if not record:
+        command.append("--no-record")
     return subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
 
@@ -80,9 +84,14 @@ def _subscriptions_of(domain_id: int, names, deadline_s: float = 60.0) -> dict:
         context.try_shutdown()
 
 
-def test_launch_runs_the_smoke_config_and_the_agent_is_naive(tmp_path, domain_id):
+@pytest.fixture(scope="module")
+def smoke_launch(tmp_path_factory):
+    """One recorded `sensorispace launch` of the smoke config for the module."""
+    from sensorispace_ros.launcher import free_domain_id
+
+    tmp_path, domain_id = tmp_path_factory.mktemp("launch"), free_domain_id()
     lines: list = []
-    proc = _launch(tmp_path, domain_id, "smoke", _launcher_env())
+    proc = _launch(tmp_path, domain_id, "smoke", _launcher_env(), record=True)
     try:
         pump = _read_lines(proc, lines)
         seen = _subscriptions_of(domain_id, ("agent", "representation", "body"))
@@ -90,14 +99,19 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(tmp_path, domain_id
         pump.join(timeout=5)
     finally:
         _stop(proc)
-    output = "".join(lines)
-    assert proc.returncode == 0, output
+    return {"output": "".join(lines), "returncode": proc.returncode, "seen": seen,
+            "domain_id": domain_id, "results": tmp_path / "results" / "smoke"}
+
+
+def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
+    output, seen, domain_id = (smoke_launch[k] for k in ("output", "seen", "domain_id"))
+    assert smoke_launch["returncode"] == 0, output
     assert f"ROS_DOMAIN_ID={domain_id}" in output and "LOCALHOST" in output
     assert seen.get("agent") == ["/body/sensation"], seen
     assert seen.get("representation") and all(
         t.startswith("/agent/") for t in seen["representation"]), seen
     assert "/environment/lights" in seen.get("body", [])
-    metrics = json.loads((tmp_path / "results" / "smoke" / "metrics.json").read_text())
+    metrics = json.loads((smoke_launch["results"] / "metrics.json").read_text())
     # The agent's own counters made it through /agent/done to the evaluator.
     assert metrics["pov"]["count"] == metrics["agent"]["points_of_view"] > 3
     assert metrics["exploration"]["compensated"] == metrics["agent"]["compensated"] > 0
@@ -105,6 +119,44 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(tmp_path, domain_id
     for pid in re.findall(r"started \w+ \(pid (\d+)\)", output):
         with pytest.raises(ProcessLookupError):
             os.kill(int(pid), 0)        # every child was stopped
+
+
+# Issue #4: equal for the same seed and config (counts exactly, numbers within 1e-6).
+PARITY_PREFIXES = ("exploration.", "quality.")
+PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
+
+
+def test_launched_metrics_have_the_offline_naive_keys_and_numbers(smoke_launch, tmp_path):
+    from sensorispace_ros import config, pipeline
+
+    assert smoke_launch["returncode"] == 0, smoke_launch["output"]
+    graph = pipeline.flatten_metrics(
+        json.loads((smoke_launch["results"] / "metrics.json").read_text()))
+    assert graph["analysis.naive_records"].startswith("evaluated"), "not evaluated from the bag"
+    pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
+                       out_dir=tmp_path / "offline")
+    offline = pipeline.flatten_metrics(
+        json.loads((tmp_path / "offline" / "metrics.json").read_text()))
+
+    def compared(key):
+        return not (key.startswith(("timings_s.", "config.", "analysis."))
+                    or ".timings_s." in key or ".seconds_by_stage." in key)
+
+    missing = sorted(k for k in offline if compared(k) and k not in graph)
+    assert not missing, f"keys of the offline naive metrics.json missing in the graph's: {missing}"
+    checked = [k for k in offline if k in PARITY_KEYS or k.startswith(PARITY_PREFIXES)]
+    assert {"exploration.compensated", "exploration.events", "exploration.state_changes",
+            "quality.2d.after.affine_residual", *PARITY_KEYS} <= set(checked)
+    for key in checked:
+        if isinstance(offline[key], (int, float)) and not isinstance(offline[key], bool):
+            assert graph[key] == pytest.approx(offline[key], abs=1e-6, rel=0), key
+        else:
+            assert graph[key] == offline[key], key
+    assert offline["exploration.compensated"] > 0 and offline["pov.count"] > 3
+    # The agent's own counters, reported both ways from the same records.
+    for key in ("naive.queries_total", "naive.calls_total", "naive.queries_per_pov",
+                "naive.queries_per_compensation", "naive.compensations_accepted"):
+        assert graph[key] == offline[key], key
 
 
 def test_launch_names_a_node_that_dies(tmp_path, domain_id):
