@@ -45,6 +45,11 @@ class SimulatedBody:
         self.lights_world = np.asarray(lights_world, dtype=float)
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
+        return self.sense_with_poses(motor_states)[0]
+
+    def sense_with_poses(self, motor_states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``sense`` and the eye poses ``(B, 3)`` it computed on the way (ground
+        truth, for the evaluator): the forward model runs once per row."""
         if self.lights_world is None:
             raise RuntimeError("SimulatedBody.sense called before any lights were set")
         motor_states = np.asarray(motor_states, dtype=float)
@@ -56,7 +61,7 @@ class SimulatedBody:
         if len(motor_states):
             self.motor_state = motor_states[-1].copy()
         pose = arm.forward(motor_states)
-        return retina.sensation(pose, self.lights_world, self.receptor_positions)
+        return retina.sensation(pose, self.lights_world, self.receptor_positions), pose
 
     def sensor_pose(self, motor_states: np.ndarray) -> np.ndarray:
         """Ground truth pose of the eye (evaluation only)."""

@@ -82,11 +82,13 @@ class BodyNode(GraphNode):
         self.answer(motor, msg.header)
 
     def answer(self, motor: np.ndarray, header) -> None:
-        sensations = self.body.sense(motor)
+        # One forward model per row for both replies (it was run twice: sense + sensor_pose);
+        # the sensation goes first so the waiting agent proceeds while the ground truth is sent.
+        sensations, poses = self.body.sense_with_poses(motor)
         self.sensation_pub.publish(messages.matrix_to_cloud(
             sensations, self.columns["/body/sensation"], header))
         self.pose_pub.publish(messages.matrix_to_cloud(
-            self.body.sensor_pose(motor).reshape(-1, 3), self.columns["/body/sensor_pose"], header))
+            poses.reshape(-1, 3), self.columns["/body/sensor_pose"], header))
         self.joint_pub.publish(messages.motor_to_joint_state(self.body.motor_state, header))
 
 
