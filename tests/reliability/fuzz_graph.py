@@ -51,6 +51,8 @@ CLOUD_TOPICS = ("/environment/lights", "/body/motor_command", "/body/sensation",
                 "/agent/points_of_view", "/agent/compensations", "/agent/done")
 DUPLICATED = ("/body/sensation", "/agent/settled", "/agent/points_of_view",
               "/agent/compensations")
+# --duplicate-all adds these (the body re-applies an old lights or command message).
+DUPLICATED_TOO = ("/environment/lights", "/body/motor_command")
 BAD_FRAMES = ("cmd/²", "change/", "end/x", "cmd/-1", "", "bogus/1", "change/1/2",
               "cmd/" + "9" * 400, "\u202ecmd/1", "change/ 1", "end")
 
@@ -66,7 +68,8 @@ class Fuzzer:
     """A participant of its own that publishes malformed messages on a timer."""
 
     def __init__(self, domain_id: int, rate_hz: float, seed: int, huge_rows: int,
-                 huge_period_s: float = 2.0, duplicate_delay_s: float = 1.0):
+                 huge_period_s: float = 2.0, duplicate_delay_s: float = 1.0,
+                 duplicated=DUPLICATED):
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -86,9 +89,9 @@ class Fuzzer:
         self.publishers = {t: contracts.create_publisher(self.node, t) for t in self.topics}
         self.sent: Counter = Counter()
         self.kinds: Counter = Counter()
-        self.seen: dict[str, deque] = {t: deque(maxlen=50) for t in DUPLICATED}
+        self.seen: dict[str, deque] = {t: deque(maxlen=50) for t in duplicated}
         self.real_seen: Counter = Counter()
-        for topic in DUPLICATED:
+        for topic in duplicated:
             contracts.create_subscription(self.node, topic,
                                           lambda msg, t=topic: self.remember(t, msg))
         self._last_huge = {t: 0.0 for t in self.topics}
@@ -217,7 +220,8 @@ class Fuzzer:
 
 
 def run_fuzz(seconds: float, rate_hz: float, work_dir: Path, huge_rows: int = 20000,
-             seed: int = 7, finish_timeout_s: float = 400.0, stream=sys.stderr) -> dict:
+             seed: int = 7, finish_timeout_s: float = 400.0, stream=sys.stderr,
+             duplicated=DUPLICATED) -> dict:
     """Start the smoke graph, fuzz it for ``seconds`` (starting once every node is up),
     keep fuzzing the nodes still alive until ``seconds`` have passed even if the run
     finished earlier. Returns counts, RSS and the run's result arrays."""
@@ -228,7 +232,7 @@ def run_fuzz(seconds: float, rate_hz: float, work_dir: Path, huge_rows: int = 20
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     results, bag = Path(work_dir) / "results", Path(work_dir) / "bag"
     processes = np_mod.NodeProcesses(Path(work_dir) / "logs")
-    fuzzer = Fuzzer(domain_id, rate_hz, seed, huge_rows)
+    fuzzer = Fuzzer(domain_id, rate_hz, seed, huge_rows, duplicated=duplicated)
     report = {"domain_id": domain_id, "rate_hz_per_topic": rate_hz}
     try:
         for name in np_mod.NODES:
@@ -298,6 +302,8 @@ def main(argv=None) -> int:
                         help="malformed messages per second per topic (default 5)")
     parser.add_argument("--huge-rows", type=int, default=20000)
     parser.add_argument("--work", type=Path, default=Path("results/fuzz"))
+    parser.add_argument("--duplicate-all", action="store_true",
+                        help="also re-publish old lights and motor commands (see the docstring)")
     parser.add_argument("--reference", type=Path, default=None,
                         help="a results dir holding representation.npz of an undisturbed run "
                              "(default: run one in-process first)")
@@ -310,7 +316,8 @@ def main(argv=None) -> int:
                                       timeout_s=400)
         print(f"reference run: {time.monotonic() - t0:.1f} s", file=sys.stderr)
     reference = np_mod.load_result(args.reference)
-    report = run_fuzz(args.seconds, args.rate, args.work / "fuzzed", args.huge_rows)
+    report = run_fuzz(args.seconds, args.rate, args.work / "fuzzed", args.huge_rows,
+                      duplicated=DUPLICATED + (DUPLICATED_TOO if args.duplicate_all else ()))
     verdicts = {"no_node_died": not report["died"],
                 "rss_bounded": not rss_bounded(report),
                 "finished": report["result"] is not None}

@@ -24,6 +24,7 @@ from .node_processes import NodeProcesses, assert_same_result, command, load_res
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 ADDRESSES = {"a": "10.231.0.1", "b": "10.231.0.2"}
+TWO_HOST_DOMAIN_ID = 231
 PLACEMENT = {"environment": "a", "body": "a", "agent": "b", "representation": "b",
              "recorder": "b"}
 
@@ -89,7 +90,10 @@ def test_graph_split_over_two_namespaces_equals_the_single_host_run(
         assert ADDRESSES[side] not in _must("addr", "show")
 
     results, bag = tmp_path / "results", tmp_path / "bag"
-    env = launcher.graph_environment(17)    # alone on its own network: any domain id is free
+    # The namespaces have networks of their own, but /dev/shm is shared with the
+    # host: a domain id no host-side test uses (free_domain_id: 1..100,
+    # tests/bags: 150..229), with ports above the ephemeral range.
+    env = launcher.graph_environment(TWO_HOST_DOMAIN_ID)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     env["ROS_STATIC_PEERS"] = ";".join(ADDRESSES.values())
     processes = NodeProcesses(tmp_path / "logs")

@@ -1,0 +1,138 @@
+"""kill -9 one node of a running smoke graph, restart it, and see whether the
+run completes with the undisturbed result:
+``python tests/reliability/restart_nodes.py [--nodes agent body ...]``.
+
+For each node: start the five nodes as processes (localhost discovery, a
+free domain id), wait until the agent has settled ``--kill-at`` changes, SIGKILL
+the node, start it again with the same command line, and wait up to
+``--stall-s`` for the representation to finish. Prints one JSON line per node:
+completed / stalled / died, equal to the reference or not, and for the
+recorder the messages in the bag before the kill that survived.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import node_processes as np_mod                       # noqa: E402
+else:
+    from . import node_processes as np_mod
+
+from sensorispace_ros import launcher   # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+SMOKE = REPO / "config" / "smoke.yaml"
+
+
+class SettledWatcher:
+    def __init__(self, domain_id: int):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        from sensorispace_ros import contracts
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("restart_watcher", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.settled = -1
+        contracts.create_subscription(self.node, "/agent/settled",
+                                      lambda m: setattr(self, "settled", max(self.settled, m.data)))
+
+    def spin(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference: dict | None):
+    domain_id = launcher.free_domain_id()
+    env = launcher.graph_environment(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.pop("ROS_STATIC_PEERS", None)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    results, bag = work / "results", work / "bag"
+    processes = np_mod.NodeProcesses(work / "logs")
+    watcher = SettledWatcher(domain_id)
+    outcome = {"node": victim, "kill_at_settled": kill_at}
+    started = time.monotonic()
+    try:
+        for name in np_mod.NODES:
+            processes.start(name, np_mod.command(name, SMOKE, results, bag), env)
+        while watcher.settled < kill_at:
+            watcher.spin(0.1)
+            if processes.exited() or time.monotonic() - started > 200:
+                outcome["state"] = f"did not reach settled {kill_at}: {processes.exited()}"
+                return outcome
+        processes.kill9(victim)
+        outcome["killed_after_s"] = round(time.monotonic() - started, 1)
+        outcome["settled_at_kill"] = int(watcher.settled)
+        processes.start(victim, np_mod.command(victim, SMOKE, results, bag), env,
+                        log_name=f"{victim}.restarted")
+        deadline = time.monotonic() + stall_s
+        last_progress, last_settled = time.monotonic(), watcher.settled
+        state = "stalled"
+        while time.monotonic() < deadline:
+            watcher.spin(0.2)
+            if watcher.settled != last_settled:
+                last_settled, last_progress = watcher.settled, time.monotonic()
+            exited = processes.exited()
+            if exited.get("representation") == 0:
+                state = "completed"
+                break
+            dead = {n: c for n, c in exited.items() if n != "representation" or c != 0}
+            if dead:
+                state = f"died {dead}"
+                break
+            if time.monotonic() - last_progress > 30 and "representation" not in exited:
+                state = f"stalled at settled {watcher.settled} (no progress for 30 s)"
+                break
+        outcome["state"] = state
+        outcome["settled_at_end"] = int(watcher.settled)
+    finally:
+        processes.stop()
+        watcher.close()
+    outcome["wall_s"] = round(time.monotonic() - started, 1)
+    if outcome["state"] == "completed" and reference is not None:
+        try:
+            np_mod.assert_same_result(np_mod.load_result(results), reference)
+            outcome["equals_reference"] = True
+        except AssertionError as exc:
+            outcome["equals_reference"] = False
+            outcome["difference"] = " ".join(str(exc).split())[:200]
+    outcome["logs"] = str(processes.log_dir)
+    return outcome
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--nodes", nargs="+", default=list(np_mod.NODES))
+    parser.add_argument("--kill-at", type=int, default=60, help="agent settled change to kill at")
+    parser.add_argument("--stall-s", type=float, default=150.0)
+    parser.add_argument("--work", type=Path, default=Path("results/restart"))
+    parser.add_argument("--reference", type=Path, default=None)
+    args = parser.parse_args(argv)
+    reference = np_mod.load_result(args.reference) if args.reference else None
+    for victim in args.nodes:
+        outcome = restart_run(victim, args.work / victim, args.kill_at, args.stall_s, reference)
+        print(json.dumps(outcome), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
