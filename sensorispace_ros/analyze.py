@@ -147,7 +147,8 @@ def events(bag_dir) -> dict[str, np.ndarray]:
 def _concatenated(bag_dir, topic: str) -> np.ndarray:
     from . import contracts, messages
 
-    tables = list(_tables(bag_dir, topic).values())
+    present = topic in bags.bag_info(bag_dir).topics
+    tables = list(_tables(bag_dir, topic).values()) if present else []
     return (np.concatenate(tables) if tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(topic).columns)))
 
@@ -160,8 +161,10 @@ def naive_records(bag_dir, data: dict, totals: dict | None):
     from .core.naive_evaluation import NaiveAgentRecords
 
     info = bags.bag_info(bag_dir)
+    if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
+        return None
     counters = _tables(bag_dir, STAGE_COUNTERS, kinds=("end",))
-    if totals is None or not counters or POV_RECORDS not in info.topics:
+    if not counters:
         return None
     counters = next(iter(counters.values()))
     ids = data["ids"]

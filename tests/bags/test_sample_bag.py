@@ -58,3 +58,12 @@ def test_sample_rebuilds_the_recorded_embeddings():
         assert np.array_equal(table["pov"], data["ids"])
         got = np.stack([table[c] for c in ("x", "y", "z")[:n]], axis=1)
         np.testing.assert_allclose(got, stages[int(k)], rtol=0, atol=1e-9, err_msg=frame_id)
+
+
+def test_a_bag_without_the_agent_records_is_analysed_without_naive_metrics():
+    # The sample was recorded before /agent/pov_records, /agent/compensation_records and
+    # /agent/stage_counters existed: analyze must say so, not fail on the missing topics.
+    info = bags.bag_info(SAMPLE)
+    assert analyze.STAGE_COUNTERS not in info.topics and analyze.POV_RECORDS not in info.topics
+    data = analyze.agent_data(SAMPLE)
+    assert analyze.naive_records(SAMPLE, data, analyze.agent_totals(SAMPLE)) is None
