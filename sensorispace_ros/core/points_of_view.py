@@ -13,21 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import arm
+from .motor_loops import loop_winding  # noqa: F401  (re-exported: part of this API)
 
 TWO_PI = 2.0 * np.pi
-
-
-def loop_winding(path: np.ndarray) -> np.ndarray:
-    """Per-joint number of 2 pi turns between the start and the end of a
-    closed loop, ``(4,)`` int.
-
-    ``path`` is an unwrapped motor path ``(n, J)`` whose end returns to its
-    start modulo 2 pi per joint. A POV whose tip lies at ``|tip| < 1`` is split
-    into two loops and the traced one winds around a joint circle (nonzero
-    entry); a whole POV comes back with zero winding in every joint.
-    """
-    path = _as_path(path)
-    return np.rint((path[-1] - path[0]) / TWO_PI).astype(int)
 
 
 def resample_closed_path(path: np.ndarray, n_samples: int = 100) -> np.ndarray:

@@ -21,9 +21,8 @@ at such steps is off by ~h^2 kappa^2 / 24 relative, enough to shift samples
 by ~1e-3 rad), and the samples are projected back onto the level set.
 
 Nothing here knows the arm, the retina or the world: ``body`` only needs
-``sense``, ``n_motors`` and ``n_sensors``. (``loop_winding`` repeats
-``points_of_view.loop_winding`` so that the naive modules do not even load
-the analytic one, which imports the arm; a test checks they agree.)
+``sense``, ``n_motors`` and ``n_sensors``; ``loop_winding`` comes from
+``motor_loops``, which knows no arm either.
 """
 from __future__ import annotations
 
@@ -31,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+
+from .motor_loops import loop_winding
 
 TWO_PI = 2.0 * np.pi
 
@@ -318,14 +319,6 @@ def resample_loop_spline(path: np.ndarray, n_samples: int = 100) -> np.ndarray:
         u = u - (arc_at_knot[interval] + partial - wanted) / speed(u)
     u[0] = 0.0
     return spline(u) + u[:, None] * drift
-
-
-def loop_winding(path: np.ndarray) -> np.ndarray:
-    """Per-joint number of 2 pi turns from the start to the end of a closed
-    unwrapped motor path ``(n, M)`` (nonzero: a split POV's loop, paper
-    Fig. 5b)."""
-    path = np.asarray(path, dtype=float)
-    return np.rint((path[-1] - path[0]) / TWO_PI).astype(int)
 
 
 def _nearest_rows(points: np.ndarray, path: np.ndarray) -> np.ndarray:

@@ -13,8 +13,6 @@ from sensorispace_ros.core.body import SimulatedBody
 from sensorispace_ros.core.exploration import build_world
 from sensorispace_ros.core.naive_agent import NaiveAgent, NaiveParams
 from sensorispace_ros.core.naive_evaluation import run_naive
-from sensorispace_ros.core.points_of_view import loop_winding as analytic_winding
-from sensorispace_ros.core.sensory_points_of_view import loop_winding
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 CORE = Path(__file__).resolve().parents[2] / "sensorispace_ros" / "core"
@@ -53,13 +51,6 @@ def test_loading_the_agent_loads_no_ground_truth_module():
                             check=True, cwd=CORE.parents[1]).stdout.split()
     assert "naive_agent" in loaded
     assert not set(loaded) & GROUND_TRUTH
-
-
-def test_local_winding_is_the_analytic_one():
-    rng = np.random.default_rng(0)
-    for _ in range(20):
-        path = np.cumsum(rng.normal(0, 1.0, (30, 4)), axis=0)
-        np.testing.assert_array_equal(loop_winding(path), analytic_winding(path))
 
 
 class ClosureBody:

@@ -1,0 +1,25 @@
+"""Geometry of closed paths in the motor torus, shared by the analytic and the
+sensory point-of-view samplers. Knows nothing of the arm, so the naive
+modules can use it without loading the forward model.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+TWO_PI = 2.0 * np.pi
+
+
+def loop_winding(path: np.ndarray) -> np.ndarray:
+    """Per-joint number of 2 pi turns between the start and the end of a
+    closed loop, ``(J,)`` int.
+
+    ``path`` is an unwrapped motor path ``(n, J)`` whose end returns to its
+    start modulo 2 pi per joint. A POV whose tip lies at ``|tip| < 1`` is split
+    into two loops and the traced one winds around a joint circle (nonzero
+    entry, paper Fig. 5b); a whole POV comes back with zero winding in every
+    joint.
+    """
+    path = np.asarray(path, dtype=float)
+    if path.ndim != 2 or len(path) < 2:
+        raise ValueError(f"path must have shape (n >= 2, joints), got {path.shape}")
+    return np.rint((path[-1] - path[0]) / TWO_PI).astype(int)
