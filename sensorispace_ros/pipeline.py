@@ -618,15 +618,8 @@ def nest(flat: dict) -> dict:
 
 
 def flatten_metrics(metrics: dict, prefix: str = "") -> dict:
-    """Nested metrics -> dotted keys; the ``config`` block stays one entry per parameter."""
-    out = {}
-    for key, value in metrics.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, dict):
-            out.update(flatten_metrics(value, name + "."))
-        else:
-            out[name] = value
-    return out
+    """Nested metrics -> dotted keys (the same rule as the config's parameter names)."""
+    return config_mod.flatten(metrics, prefix)
 
 
 def _jsonable(value):
