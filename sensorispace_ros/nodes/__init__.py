@@ -16,7 +16,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from .. import config
+from .. import config, contracts, messages
 
 # Parameters of the graph itself (not of the science): results directory,
 # start-up handshake. Kept apart from the validated run configuration.
@@ -84,6 +84,24 @@ class GraphNode(Node):
 
     def step(self) -> None:
         """Work to do between callbacks (never inside one); called after every spin."""
+
+    def decode(self, topic: str, msg, kinds: tuple[str, ...],
+               as_table: bool = False):
+        """``(kind, number), data`` of a message on ``topic`` whose frame id is
+        one of ``kinds`` (topics.yaml), or None once it has been dropped. The
+        data is a float matrix, or a structured copy with ``as_table``."""
+        parsed = parse_frame(msg.header.frame_id)
+        if parsed is None or parsed[0] not in kinds:
+            self.drop(topic, f"frame id {msg.header.frame_id!r}")
+            return None
+        columns = contracts.contract(topic).columns
+        try:
+            data = (messages.cloud_to_table(msg, columns).copy() if as_table
+                    else messages.cloud_to_matrix(msg, columns))
+        except messages.MessageError as exc:
+            self.drop(topic, str(exc))
+            return None
+        return parsed, data
 
     def drop(self, topic: str, reason: str) -> None:
         """Log (throttled) and count a message that breaks its contract."""

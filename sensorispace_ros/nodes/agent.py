@@ -31,7 +31,7 @@ from std_msgs.msg import UInt64
 from .. import contracts, messages
 from ..core.naive_agent import STAGES as NAIVE_STAGES
 from ..core.naive_agent import NaiveAgent, NaiveParams
-from . import GraphNode, frame, parse_frame, run_node
+from . import GraphNode, frame, run_node
 
 
 class RunAborted(RuntimeError):
@@ -127,16 +127,10 @@ class AgentNode(GraphNode):
         self.body.aborted = True
 
     def on_sensation(self, msg) -> None:
-        parsed = parse_frame(msg.header.frame_id)
-        if parsed is None:
-            self.drop("/body/sensation", f"frame id {msg.header.frame_id!r}")
+        decoded = self.decode("/body/sensation", msg, kinds=("cmd", "change", "end"))
+        if decoded is None:
             return
-        try:
-            sensations = messages.cloud_to_matrix(msg, self.columns["/body/sensation"])
-        except messages.MessageError as exc:
-            self.drop("/body/sensation", str(exc))
-            return
-        kind, number = parsed
+        (kind, number), sensations = decoded
         if kind == "cmd":
             if not self.body.deliver(msg.header.frame_id, sensations):
                 self.drop("/body/sensation", f"{msg.header.frame_id} answers no pending "

@@ -13,7 +13,7 @@ import numpy as np
 from .. import contracts, messages
 from ..core import arm, retina
 from ..core.body import SimulatedBody
-from . import GraphNode, build_world, parse_frame, run_node
+from . import GraphNode, build_world, run_node
 
 
 class BodyNode(GraphNode):
@@ -31,16 +31,11 @@ class BodyNode(GraphNode):
         contracts.create_subscription(self, "/body/motor_command", self.on_command)
 
     def on_lights(self, msg) -> None:
-        parsed = parse_frame(msg.header.frame_id)
-        if parsed is None or parsed[0] == "cmd":
-            self.drop("/environment/lights", f"frame id {msg.header.frame_id!r}")
+        decoded = self.decode("/environment/lights", msg, kinds=("change", "end"))
+        if decoded is None:
             return
-        try:
-            lights = messages.cloud_to_matrix(msg, self.columns["/environment/lights"])
-        except messages.MessageError as exc:
-            self.drop("/environment/lights", str(exc))
-            return
-        if parsed[0] == "change":
+        (kind, _), lights = decoded
+        if kind == "change":
             if len(lights) == 0:
                 self.drop("/environment/lights", "no lights")
                 return
@@ -64,15 +59,10 @@ class BodyNode(GraphNode):
         self.joint_pub.publish(messages.motor_to_joint_state(rest, header))
 
     def on_command(self, msg) -> None:
-        parsed = parse_frame(msg.header.frame_id)
-        if parsed is None or parsed[0] != "cmd":
-            self.drop("/body/motor_command", f"frame id {msg.header.frame_id!r}")
+        decoded = self.decode("/body/motor_command", msg, kinds=("cmd",))
+        if decoded is None:
             return
-        try:
-            motor = messages.cloud_to_matrix(msg, self.columns["/body/motor_command"])
-        except messages.MessageError as exc:
-            self.drop("/body/motor_command", str(exc))
-            return
+        _, motor = decoded
         if self.body.lights_world is None:
             self.drop("/body/motor_command", "no lights received yet")
             return

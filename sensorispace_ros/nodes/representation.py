@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import contracts, messages
-from . import GraphNode, parse_frame, run_node
+from . import GraphNode, run_node
 
 RESULT_FILE = "representation.npz"
 
@@ -60,15 +60,8 @@ class RepresentationNode(GraphNode):
         self.results_dir = Path(self.graph["results_dir"])
 
     def _decode(self, topic: str, msg, kinds=("change",)):
-        parsed = parse_frame(msg.header.frame_id)
-        if parsed is None or parsed[0] not in kinds:
-            self.drop(topic, f"frame id {msg.header.frame_id!r}")
-            return None
-        try:
-            return messages.cloud_to_table(msg, self.columns[topic]).copy()
-        except messages.MessageError as exc:
-            self.drop(topic, str(exc))
-            return None
+        decoded = self.decode(topic, msg, kinds, as_table=True)
+        return None if decoded is None else decoded[1]
 
     def on_points_of_view(self, msg) -> None:
         table = self._decode("/agent/points_of_view", msg)
