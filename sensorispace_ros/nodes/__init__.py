@@ -26,6 +26,12 @@ GRAPH_DEFAULTS = {
     "graph.resend_period_s": 0.25,
     "graph.wait_for_nodes": ["body", "agent"],
     "graph.exit_when_done": False,
+    # Where a node persists what it needs to resume after a kill -9
+    # (<dir>/<node>.*); "" = no persistence (issue #7).
+    "graph.checkpoint_dir": "",
+    # The agent re-sends a motor command the body has not answered within this
+    # time (a restarted body lost it); a late duplicate answer is dropped.
+    "graph.command_timeout_s": 2.0,
 }
 # Parameters every rclpy node has; not part of the run configuration.
 _ROS_OWN = {"use_sim_time", "start_type_description_service"}
