@@ -60,10 +60,59 @@ def free_domain_id(start: int | None = None) -> int:
     raise RuntimeError("no free ROS_DOMAIN_ID in 1..100")
 
 
-def graph_environment(domain_id: int, base: dict | None = None) -> dict:
+# Participant liveliness of the graph's Fast DDS participants (issue #7). With
+# Fast DDS's default 20 s lease a kill -9'd reader stays matched for 20 s and
+# never acknowledges, so a RELIABLE + KEEP_ALL writer to it fills its history and
+# publish() fails (measured: the body died ~10 s after the recorder was killed).
+# A 3 s lease unmatches the dead reader first.
+LEASE_DURATION_S = 3
+LEASE_ANNOUNCEMENT_S = 1
+FASTDDS_PROFILE_XML = f"""<?xml version="1.0" encoding="UTF-8" ?>
+<!-- written by sensorispace_ros.launcher: short participant lease (issue #7) -->
+<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <profiles>
+    <participant profile_name="sensorispace_graph" is_default_profile="true">
+      <rtps>
+        <builtin>
+          <discovery_config>
+            <leaseDuration><sec>{LEASE_DURATION_S}</sec></leaseDuration>
+            <leaseAnnouncement><sec>{LEASE_ANNOUNCEMENT_S}</sec></leaseAnnouncement>
+          </discovery_config>
+        </builtin>
+      </rtps>
+    </participant>
+  </profiles>
+</dds>
+"""
+
+
+def fastdds_profile_file(directory: str | Path | None = None) -> Path:
+    """The graph's Fast DDS XML profile (a default participant profile with a short
+    lease), written atomically once per content; Jazzy's Fast DDS 2.14 loads the
+    file named by FASTRTPS_DEFAULT_PROFILES_FILE (not FASTDDS_...) and rmw_fastrtps
+    creates every participant from the default participant profile."""
+    import hashlib
+    import tempfile
+    directory = Path(directory or tempfile.gettempdir())
+    digest = hashlib.sha256(FASTDDS_PROFILE_XML.encode()).hexdigest()[:12]
+    path = directory / f"sensorispace_fastdds_{digest}.xml"
+    if not path.is_file():
+        directory.mkdir(parents=True, exist_ok=True)
+        staging = path.with_name(f".{path.name}.{os.getpid()}")
+        staging.write_text(FASTDDS_PROFILE_XML)
+        os.replace(staging, path)
+    return path
+
+
+def graph_environment(domain_id: int, base: dict | None = None,
+                      profile_dir: str | Path | None = None) -> dict:
+    """The children's environment: private domain, localhost discovery unless the user
+    chose a range, and the short-lease Fast DDS profile unless the user set one."""
     env = dict(os.environ if base is None else base)
     # Localhost-only discovery unless the user chose a range explicitly.
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    if not env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(fastdds_profile_file(profile_dir))
     env["ROS_DOMAIN_ID"] = str(domain_id)
     package_root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)

@@ -9,12 +9,16 @@ with the parameter's name (no traceback) on an invalid configuration.
 from __future__ import annotations
 
 import array
+import functools
 import sys
+import time
 from typing import Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 
 from .. import config, contracts, messages
 
@@ -35,6 +39,12 @@ GRAPH_DEFAULTS = {
 }
 # Parameters every rclpy node has; not part of the run configuration.
 _ROS_OWN = {"use_sim_time", "start_type_description_service"}
+# How long publish() keeps retrying after "cannot publish data" (RCLError): a
+# RELIABLE + KEEP_ALL writer whose history is full of samples a kill -9'd reader
+# never acknowledges frees it when the reader's participant lease expires
+# (launcher.LEASE_DURATION_S = 3 s; Fast DDS's default is 20 s).
+PUBLISH_RETRY_S = 25.0
+PUBLISH_RETRY_PAUSE_S = 0.05
 
 
 def frame(kind: str, number: int) -> str:
@@ -87,6 +97,42 @@ class GraphNode(Node):
         # Set by whoever spins the node (run_node, tests): lets a node that
         # waits for an answer keep the executor turning (see nodes.agent).
         self.spin_once: Callable[[float], None] | None = None
+        self.publish_failures = 0
+
+    def create_publisher(self, *args, **kwargs) -> Publisher:
+        """rclpy's publisher whose ``publish`` survives a full writer history
+        (see ``publish_retrying``); every node's publishers are made here."""
+        publisher = super().create_publisher(*args, **kwargs)
+        publisher.publish = functools.partial(self.publish_retrying, publisher,
+                                              Publisher.publish.__get__(publisher))
+        return publisher
+
+    def publish_retrying(self, publisher: Publisher, publish: Callable, msg) -> bool:
+        """``publish(msg)``; on RCLError ("cannot publish data": the history is full
+        of samples a dead reader will never acknowledge) wait and retry for up to
+        PUBLISH_RETRY_S, logging (throttled), instead of letting the error end the
+        node. Only the middleware's threads free the history (lease expiry, acks),
+        so the retry sleeps rather than spinning the executor (no re-entrant
+        callbacks). False if the message was given up (logged as an error)."""
+        deadline = None
+        while True:
+            try:
+                publish(msg)
+                if deadline is not None:
+                    self.get_logger().warning(f"published on {publisher.topic_name} again")
+                return True
+            except _rclpy.RCLError as exc:
+                now = time.monotonic()
+                if deadline is None:
+                    deadline = now + PUBLISH_RETRY_S
+                self.publish_failures += 1
+                if now >= deadline:
+                    self.get_logger().error(f"gave up publishing on {publisher.topic_name} "
+                                            f"after {PUBLISH_RETRY_S:.0f} s: {exc}")
+                    return False
+                self.get_logger().warning(f"publish on {publisher.topic_name} failed, "
+                                          f"retrying: {exc}", throttle_duration_sec=2.0)
+                time.sleep(PUBLISH_RETRY_PAUSE_S)
 
     def step(self) -> None:
         """Work to do between callbacks (never inside one); called after every spin."""
