@@ -374,6 +374,39 @@ class NaiveAgent:
         then the equality pass if one ran), for ``core.regularize``."""
         return self._sets.pairs, self._sets.set_ids
 
+    # ------------------------------------------------ persistence (issue #7)
+
+    def state(self) -> dict:
+        """Everything the agent knows, without its body: picklable, for a
+        checkpoint between ``start``/``react`` calls. Shares the agent's
+        arrays: serialise it before the next call."""
+        if self._body.stage is not None:
+            raise RuntimeError("state() inside start()/react()")
+        attributes = {name: value for name, value in vars(self).items() if name != "_body"}
+        sweep = attributes.get("_sweep")
+        if sweep is not None:           # its body is the counting body: rebound on restore
+            attributes["_sweep"] = {name: value for name, value in vars(sweep).items()
+                                    if name != "body"}
+        counters = {"rows": dict(self._body.rows), "calls": dict(self._body.calls),
+                    "seconds": dict(self._body.seconds)}
+        return {"attributes": attributes, "counters": counters}
+
+    @classmethod
+    def from_state(cls, body, state: dict) -> "NaiveAgent":
+        """The agent that ``state()`` described, sensing through ``body``;
+        it continues exactly as the original would have."""
+        attributes = dict(state["attributes"])
+        agent = cls(body, attributes["params"], attributes["seed"])
+        sweep = attributes.pop("_sweep", None)
+        vars(agent).update(attributes)
+        for name, value in state["counters"].items():
+            setattr(agent._body, name, dict(value))
+        if sweep is not None:
+            agent._sweep = EqualitySetSweep.__new__(EqualitySetSweep)
+            vars(agent._sweep).update(sweep, body=agent._body)
+            agent._sweep.sets = agent._sets
+        return agent
+
     def start(self, initial_motor_state) -> Reaction:
         """Move to ``initial_motor_state``, sample its POV, record the first anchor."""
         if self._event >= 0:

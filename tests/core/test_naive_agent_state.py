@@ -1,0 +1,107 @@
+"""NaiveAgent.state() / from_state(): a pickled agent restored on a fresh body
+continues exactly as the uninterrupted agent (what the agent node's restart,
+issue #7, relies on)."""
+import pickle
+
+import numpy as np
+import pytest
+
+from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core.body import SensingOnly, SimulatedBody
+from sensorispace_ros.core.exploration import build_world
+from sensorispace_ros.core.naive_agent import NaiveAgent, NaiveParams
+
+
+def _passive(simulator, lights, world):
+    return retina.sensation(arm.forward(simulator.motor_state), lights, world.receptors)
+
+
+def _drive(agent, simulator, world, events):
+    reactions = []
+    for event in events:
+        simulator.set_lights(event.lights)
+        reactions.append(agent.react(_passive(simulator, event.lights, world)))
+    return reactions
+
+
+def _same_reactions(first, second):
+    assert len(first) == len(second)
+    for a, b in zip(first, second):
+        np.testing.assert_array_equal(a.new_pov_ids, b.new_pov_ids)
+        np.testing.assert_array_equal(a.new_povs, b.new_povs)
+        np.testing.assert_array_equal(a.equality_rows, b.equality_rows)
+        np.testing.assert_array_equal(a.rest_motor_state, b.rest_motor_state)
+        assert (a.queries, a.calls, a.compensated) == (b.queries, b.calls, b.compensated)
+        assert len(a.compensations) == len(b.compensations)
+        for ra, rb in zip(a.compensations, b.compensations):
+            np.testing.assert_array_equal(ra.motor_state, rb.motor_state)
+            assert (ra.event, ra.anchor_event, ra.pov) == (rb.event, rb.anchor_event, rb.pov)
+
+
+def _same_agent(a, b):
+    np.testing.assert_array_equal(a.points_of_view, b.points_of_view)
+    for got, want in zip(a.equality_sets(), b.equality_sets()):
+        np.testing.assert_array_equal(got, want)
+    assert a.queries_by_stage == b.queries_by_stage and a.calls_by_stage == b.calls_by_stage
+    assert (a.pov_queries, a.pov_events, a.compensation_queries, a.compensated) == \
+        (b.pov_queries, b.pov_events, b.compensation_queries, b.compensated)
+
+
+@pytest.fixture(scope="module")
+def world():
+    return build_world(4, {"grid_count": 8})
+
+
+def test_restored_agent_continues_like_the_uninterrupted_one(world):
+    cut = len(world.events) // 2
+    reference_sim = SimulatedBody(world.receptors, world.initial_lights)
+    reference = NaiveAgent(SensingOnly(reference_sim), NaiveParams(), seed=4)
+    reference.start(world.m0)
+    _drive(reference, reference_sim, world, world.events[:cut])
+    reference_rest = _drive(reference, reference_sim, world, world.events[cut:])
+
+    simulator = SimulatedBody(world.receptors, world.initial_lights)
+    agent = NaiveAgent(SensingOnly(simulator), NaiveParams(), seed=4)
+    agent.start(world.m0)
+    _drive(agent, simulator, world, world.events[:cut])
+    assert agent.compensated > 0 and len(agent.equality_sets()[1]) > 0, "nothing to restore"
+    blob = pickle.dumps(agent.state())
+    del agent                               # the process dies; the simulator lives on
+    restored = NaiveAgent.from_state(SensingOnly(simulator), pickle.loads(blob))
+    _same_reactions(_drive(restored, simulator, world, world.events[cut:]), reference_rest)
+    _same_agent(restored, reference)
+
+
+def test_restored_agent_in_the_equality_pass_continues_identically(world):
+    def explored():
+        simulator = SimulatedBody(world.receptors, world.initial_lights)
+        agent = NaiveAgent(SensingOnly(simulator), NaiveParams(), seed=4)
+        agent.start(world.m0)
+        _drive(agent, simulator, world, world.events)
+        simulator.set_lights(world.initial_lights)
+        agent.begin_equality_pass()
+        _drive(agent, simulator, world, world.events[:5])
+        return agent, simulator
+
+    reference, reference_sim = explored()
+    reference_rest = _drive(reference, reference_sim, world, world.events[5:])
+    agent, simulator = explored()
+    restored = NaiveAgent.from_state(SensingOnly(simulator), pickle.loads(pickle.dumps(
+        agent.state())))
+    rest = _drive(restored, simulator, world, world.events[5:])
+    assert sum(len(r.equality_rows) for r in rest) > 0, "the pass found no set to compare"
+    _same_reactions(rest, reference_rest)
+    _same_agent(restored, reference)
+
+
+def test_state_is_refused_inside_a_reaction(world):
+    simulator = SimulatedBody(world.receptors, world.initial_lights)
+
+    class Peeking(SensingOnly):
+        def sense(self, motor_states):
+            with pytest.raises(RuntimeError, match="inside"):
+                agent.state()
+            return super().sense(motor_states)
+
+    agent = NaiveAgent(Peeking(simulator), NaiveParams(), seed=4)
+    agent.start(world.m0)
