@@ -5,8 +5,19 @@ carrying the same header (the request id), and after each lights message a
 one-row passive sensation of the resting arm (frame ``change/<k>`` or
 ``end/<k>``). Ground truth for the evaluator goes to ``/body/sensor_pose``
 and ``/body/joint_states``; the agent never subscribes to those.
+
+Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor
+state is written on every command into ``<dir>/body.state`` (a memory-mapped
+file: survives kill -9 in the page cache, no fsync) and read back at start,
+so a restarted body computes passive sensations at the right pose. The lights
+come back by themselves (``/environment/lights`` keeps 100 changes for late
+joiners; each re-delivered one is answered with a passive sensation, which the
+agent ignores when old). Every well-formed command is answered, duplicates too
+(the answer depends only on the commanded rows and the lights).
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -16,12 +27,59 @@ from ..core.body import SimulatedBody
 from . import GraphNode, build_world, run_node
 
 
+class RestingStateFile:
+    """The arm's resting motor state in a small memory-mapped file.
+
+    Two slots written alternately, each ``[seq, m0..m3, seq]``: a kill -9 in the
+    middle of a write leaves the slot's two sequence numbers unequal, and
+    ``load`` takes the newest slot whose numbers agree (seqlock). No fsync, no
+    rename: the page cache keeps what a killed process wrote (a machine crash
+    is out of scope).
+    """
+
+    def __init__(self, path: Path, n_motors: int):
+        self.path = Path(path)
+        self.n_motors = n_motors
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        shape = (2, n_motors + 2)
+        fresh = not self.path.is_file() or self.path.stat().st_size != 8 * shape[0] * shape[1]
+        self.slots = np.memmap(self.path, dtype=np.float64, mode="w+" if fresh else "r+",
+                               shape=shape)
+        self.seq = int(max((row[0] for row in self._valid_slots()), default=0))
+
+    def _valid_slots(self) -> list[np.ndarray]:
+        return [row for row in self.slots if row[0] > 0 and row[0] == row[-1]]
+
+    def load(self) -> np.ndarray | None:
+        """The last resting state written, or None (no file, nothing valid)."""
+        valid = self._valid_slots()
+        if not valid:
+            return None
+        return np.array(max(valid, key=lambda row: row[0])[1:-1])
+
+    def save(self, motor_state: np.ndarray) -> None:
+        self.seq += 1
+        slot = self.slots[self.seq % 2]
+        slot[0] = self.seq
+        slot[1:-1] = motor_state
+        slot[-1] = self.seq
+
+
 class BodyNode(GraphNode):
 
     def __init__(self, **kwargs):
         super().__init__("body", **kwargs)
         world = build_world(self.cfg)
         self.body = SimulatedBody(world.receptors, None, world.m0.copy())
+        self.resting_file = None
+        if self.graph["checkpoint_dir"]:
+            self.resting_file = RestingStateFile(
+                Path(self.graph["checkpoint_dir"]) / "body.state", len(world.m0))
+            resting = self.resting_file.load()
+            if resting is not None:
+                self.body.motor_state = resting
+                self.get_logger().warning(f"restarted: resting motor state {resting.tolist()} "
+                                          f"restored from {self.resting_file.path}")
         self.columns = {topic: contracts.contract(topic).columns for topic in (
             "/environment/lights", "/body/motor_command", "/body/sensation", "/body/sensor_pose")}
         self.sensation_pub = contracts.create_publisher(self, "/body/sensation")
@@ -75,6 +133,9 @@ class BodyNode(GraphNode):
         # One forward model per row for both replies (it was run twice: sense + sensor_pose);
         # the sensation goes first so the waiting agent proceeds while the ground truth is sent.
         sensations, poses = self.body.sense_with_poses(motor)
+        if self.resting_file is not None:
+            # before the answer: once the agent has it, a restart rests where it did
+            self.resting_file.save(self.body.motor_state)
         self.sensation_pub.publish(messages.matrix_to_cloud(
             sensations, self.columns["/body/sensation"], header))
         self.pose_pub.publish(messages.matrix_to_cloud(

@@ -21,7 +21,8 @@ def node_parameters(name: str, results_dir: Path, bag_dir: Path, nodes=NODES) ->
     """The launcher's per-node parameters (launcher.launch_graph does the same)."""
     if name == "recorder":
         return {"bag_path": str(bag_dir)}
-    parameters = {"graph.results_dir": str(results_dir)}
+    parameters = {"graph.results_dir": str(results_dir),
+                  "graph.checkpoint_dir": str(Path(results_dir) / "checkpoints")}
     if name == "environment":
         parameters["graph.wait_for_nodes"] = [n for n in nodes if n != "environment"]
     if name == "representation":
