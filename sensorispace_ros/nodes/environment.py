@@ -6,8 +6,23 @@ agent's ``/agent/settled`` = k before the next change (the paper's static
 environment during compensation). The end of the run is one more lights
 message, ``end/<k>``, with unchanged lights: the body turns it into a passive
 sensation, so the agent learns of the end only through its body.
+
+Restart (issue #7): with ``graph.checkpoint_dir`` set, ``{current, settled}``
+is written atomically (tmp + os.replace) to ``<dir>/environment.json`` at
+every change and every settle. A restarted environment does not rewind: it
+resumes at ``current`` (re-publishes its event and lights; the world and its
+schedule are rebuilt from the seed), or goes on to the next change if
+``current`` was already settled, and re-sends the current lights every
+``graph.resend_period_s`` until the agent settles it (a settle sent while the
+environment was dead is lost; the agent answers a re-sent change it already
+settled with its settle again). Bag and analysis see the re-sent messages as
+duplicates (first occurrence wins).
 """
 from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -32,19 +47,91 @@ class EnvironmentNode(GraphNode):
         self.lights = self.world.initial_lights
         self.finished = False
         self.run_complete = False
+        self.progress_file = (Path(self.graph["checkpoint_dir"]) / "environment.json"
+                              if self.graph["checkpoint_dir"] else None)
+        self.resuming = self._load_progress()
+        # after a restart: the change whose lights are re-sent until it is settled
+        self.resent_until_settled = self.current if self.resuming else None
         # Until the agent settles on the initial layout its subscription may
         # not be matched yet; volatile messages sent before are lost, so the
         # start is re-sent (the agent ignores duplicates).
         self.timer = self.create_timer(float(self.graph["resend_period_s"]), self.on_timer)
         self.get_logger().info(f"{self.n_changes} environmental changes scheduled")
 
+    def _load_progress(self) -> bool:
+        """``current`` and ``settled`` of a killed predecessor; True if there were any."""
+        if self.progress_file is None or not self.progress_file.is_file():
+            return False
+        try:
+            progress = json.loads(self.progress_file.read_text())
+            current, settled = int(progress["current"]), int(progress["settled"])
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            self.get_logger().error(f"{self.progress_file}: unreadable ({exc}); starting afresh")
+            return False
+        if not (0 <= current <= self.n_changes + 1 and -1 <= settled <= current):
+            self.get_logger().error(f"{self.progress_file}: current {current}, settled "
+                                    f"{settled} do not fit {self.n_changes} changes; "
+                                    "starting afresh")
+            return False
+        self.current, self.settled = current, settled
+        self.lights = self._lights_of(current)
+        self.get_logger().warning(f"restarted: resuming at change {current} "
+                                  f"(settled {settled}) from {self.progress_file}")
+        return True
+
+    def _lights_of(self, k: int) -> np.ndarray:
+        """The layout after change k (the end, n + 1, keeps change n's)."""
+        k = min(k, self.n_changes)
+        return self.world.initial_lights if k == 0 else self.world.events[k - 1].lights
+
+    def _save_progress(self) -> None:
+        if self.progress_file is None:
+            return
+        self.progress_file.parent.mkdir(parents=True, exist_ok=True)
+        staging = self.progress_file.with_name(f".{self.progress_file.name}.tmp")
+        staging.write_text(json.dumps({"current": self.current, "settled": self.settled}))
+        os.replace(staging, self.progress_file)    # a kill leaves the old or the new file
+
+    def _peers_ready(self) -> bool:
+        present = set(self.get_node_names())
+        missing = [n for n in self.graph["wait_for_nodes"] if n not in present]
+        if missing:
+            self.get_logger().info(f"waiting for {', '.join(missing)}", throttle_duration_sec=5.0)
+            return False
+        # /environment/event is volatile: a restarted environment would lose the
+        # re-sent event if it published before the recorder's reader matched.
+        if "recorder" in self.graph["wait_for_nodes"] and \
+                self.event_pub.get_subscription_count() == 0:
+            return False
+        return True
+
+    def resume(self) -> None:
+        """Carry on where the killed environment stopped (never rewinds)."""
+        self.resuming = False
+        k = self.current
+        if self.settled < k:
+            if k <= self.n_changes:
+                self.publish_change(k)
+            else:
+                self.publish_lights(frame("end", k))
+        else:                      # killed between the settle and the next change
+            self.settled = k - 1
+            self.on_settled_number(k)
+
     def on_timer(self) -> None:
+        if self.resuming:
+            if self._peers_ready():
+                self.resume()
+            return
+        if self.resent_until_settled is not None:
+            if self.settled >= self.resent_until_settled:
+                self.resent_until_settled = None
+            else:
+                self.publish_lights(frame("end" if self.current > self.n_changes else "change",
+                                          self.current))
+            return
         if self.current < 0:
-            present = set(self.get_node_names())
-            missing = [n for n in self.graph["wait_for_nodes"] if n not in present]
-            if missing:
-                self.get_logger().info(f"waiting for {', '.join(missing)}",
-                                       throttle_duration_sec=5.0)
+            if not self._peers_ready():
                 return
             self.publish_change(0)
         elif self.settled < 0:
@@ -55,13 +142,19 @@ class EnvironmentNode(GraphNode):
         if k != self.current or k <= self.settled:
             self.drop("/agent/settled", f"settled {k} while waiting for {self.current}")
             return
+        self.on_settled_number(k)
+
+    def on_settled_number(self, k: int) -> None:
+        self.resuming = False
         self.settled = k
         if k < self.n_changes:
-            self.publish_change(k + 1)
+            self.publish_change(k + 1)              # saves {k + 1, k}
         elif k == self.n_changes:
             self.current = k + 1
+            self._save_progress()
             self.publish_lights(frame("end", k + 1))
         else:
+            self._save_progress()
             self.run_complete = True
             self.timer.cancel()
             self.get_logger().info(f"run complete: {self.n_changes} changes")
@@ -71,6 +164,7 @@ class EnvironmentNode(GraphNode):
 
     def publish_change(self, k: int) -> None:
         self.current = k
+        self._save_progress()
         header = messages.make_header(frame("change", k), self.get_clock().now().nanoseconds)
         if k > 0:
             event = self.world.events[k - 1]
