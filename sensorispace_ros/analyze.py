@@ -23,6 +23,14 @@ What the bag gives (see bags.py, nodes/recorder.py):
   positions for the coverage denominator) by the offline evaluator itself,
   ``core.naive_evaluation.evaluate_naive_records``.
 
+Duplicates (issue #7): a restarted node re-sends (the environment its current
+change, the agent a reaction, the body passive sensations of re-delivered
+lights, a restarted recorder receives every TRANSIENT_LOCAL history again), so
+every topic is read with "the first message of a frame id wins". A change
+whose volatile ``/environment/event`` was sent while the recorder was down is
+taken from the world rebuilt from the bag's configuration (the environment
+plays the same seeded schedule); ``analysis.events`` says how many.
+
 Then ``pipeline.build_representation`` + ``pipeline.evaluate`` and the same
 ``metrics.json`` / figures as ``pipeline.reproduce``.
 """
@@ -58,7 +66,8 @@ def config_from_bag(bag_dir) -> dict:
 
 
 def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
-    """frame id -> decoded table for every message of ``topic`` (last copy of a re-send)."""
+    """frame id -> decoded table of the first message of ``topic`` with that frame id
+    (a re-send after a restart is a duplicate, see the module docstring)."""
     from . import contracts, messages
     from .nodes import parse_frame
 
@@ -66,7 +75,7 @@ def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
     tables = {}
     for _, _, _, msg in bags.read_bag_messages(bag_dir, [topic]):
         parsed = parse_frame(msg.header.frame_id)
-        if parsed is None or parsed[0] not in kinds:
+        if parsed is None or parsed[0] not in kinds or msg.header.frame_id in tables:
             continue
         try:
             tables[msg.header.frame_id] = messages.cloud_to_table(msg, columns).copy()
@@ -124,7 +133,8 @@ def true_poses(bag_dir, povs: np.ndarray) -> tuple[np.ndarray, int]:
         commands = {}
         for topic, _, _, msg in bags.read_bag_messages(bag_dir, [COMMAND, POSE]):
             if topic == COMMAND:
-                commands[msg.header.frame_id] = messages.cloud_to_matrix(msg, command_columns)
+                commands.setdefault(msg.header.frame_id,
+                                    messages.cloud_to_matrix(msg, command_columns))
                 continue
             motor = commands.get(msg.header.frame_id)
             if motor is None:
@@ -204,10 +214,17 @@ def naive_ground_truth(cfg: dict, change_events: dict, n_changes: int, poses: np
     world = build_world(int(cfg["seed"]), pipeline.world_params(cfg))
     kind_of_code = {code: kind for kind, code in KIND_CODES.items()}
     centers, kinds, grid_index = [np.asarray(world.initial_center, float)], ["initial"], [-1]
+    if n_changes > len(world.events):
+        raise bags.BagError(f"the run ended after {n_changes} changes; its configuration "
+                            f"schedules {len(world.events)}")
     for k in range(1, n_changes + 1):
         event = change_events.get(f"change/{k}")
-        if event is None:
-            raise bags.BagError(f"the bag holds no {EVENT} message for change/{k}")
+        if event is None:       # sent while the recorder was down: the seeded schedule
+            scheduled = world.events[k - 1]
+            centers.append(np.asarray(scheduled.center, dtype=float))
+            kinds.append(scheduled.kind)
+            grid_index.append(int(scheduled.grid_index))
+            continue
         centers.append(np.array([event["center_x"], event["center_y"]], dtype=float))
         kinds.append(kind_of_code[int(event["kind"])])
         grid_index.append(int(event["grid_index"]))
@@ -265,7 +282,12 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         from .core.naive_evaluation import evaluate_naive_records
 
         # end/<k> closes a run of k - 1 changes (nodes/environment.py)
-        truth = naive_ground_truth(cfg, change_events, int(totals["changes"]) - 1, poses)
+        n_changes = int(totals["changes"]) - 1
+        truth = naive_ground_truth(cfg, change_events, n_changes, poses)
+        recorded_events = sum(f"change/{k}" in change_events for k in range(1, n_changes + 1))
+        counters["analysis.events"] = (f"{recorded_events} of {n_changes} from recorded "
+                                       f"{EVENT}, {n_changes - recorded_events} from the "
+                                       f"seeded schedule")
         evaluated, _, grid_index = evaluate_naive_records(records, truth)
         counters.update(evaluated)
         arrays["grid_index"] = np.asarray(grid_index, dtype=int)
