@@ -17,6 +17,7 @@ import argparse
 import importlib.util
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -154,8 +155,8 @@ class Graph:
         self.children: dict[str, subprocess.Popen] = {}
         self._logs = []
 
-    def start(self, name: str, command: list[str]) -> None:
-        log = open(self.log_dir / f"{name}.log", "wb")
+    def start(self, name: str, command: list[str], log_name: str | None = None) -> None:
+        log = open(self.log_dir / f"{log_name or name}.log", "wb")
         self._logs.append(log)
         self.children[name] = subprocess.Popen(command, env=self.env, stdout=log,
                                                stderr=subprocess.STDOUT, start_new_session=True)
@@ -228,13 +229,19 @@ class Monitor:
 def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                  domain_id: int | None = None, record: bool = True,
                  results_root: str | Path = "results", bags_root: str | Path = "bags",
-                 timeout_s: float | None = None, stream=None, on_started=None) -> LaunchResult:
+                 timeout_s: float | None = None, stream=None, on_started=None,
+                 respawn: int = 0) -> LaunchResult:
     """Start every node as a process, follow the run, stop the children, evaluate.
 
     ``on_started(graph)`` is called once every child runs (tests use it to
     kill one). Returns a LaunchResult; ``exit_code`` is non-zero and
-    ``failed_node`` names the node if one dies.
+    ``failed_node`` names the node if one dies. ``respawn``: how many times a
+    node killed by a signal is started again (same command line; it resumes
+    from ``<results>/checkpoints``, issue #7) before the run fails; a node
+    that exits with an error code is never respawned.
     """
+    if respawn < 0:
+        raise ValueError(f"respawn must be >= 0, got {respawn}")
     from . import config
     from .nodes import build_world
     stream = sys.stderr if stream is None else stream
@@ -244,6 +251,9 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     results_dir = Path(results_root) / run
     log_dir = results_dir / "logs"
     log_dir.mkdir(parents=True, exist_ok=True)
+    # a fresh run: what an earlier run of the same name persisted must not be resumed
+    checkpoint_dir = results_dir / "checkpoints"
+    shutil.rmtree(checkpoint_dir, ignore_errors=True)
     domain_id = free_domain_id() if domain_id is None else int(domain_id)
     env = graph_environment(domain_id)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
@@ -264,15 +274,18 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     started = time.monotonic()
     try:
+        commands, respawned = {}, {}
         for name in nodes:
-            parameters = {"graph.results_dir": str(results_dir)}
+            parameters = {"graph.results_dir": str(results_dir),
+                          "graph.checkpoint_dir": str(checkpoint_dir)}
             if name == "environment":
                 parameters["graph.wait_for_nodes"] = [n for n in nodes if n != "environment"]
             if name == "representation":
                 parameters["graph.exit_when_done"] = True
             if name == RECORDER:
                 parameters = {"bag_path": str(bag_dir)}
-            graph.start(name, node_command(name, config_path, parameters))
+            commands[name] = node_command(name, config_path, parameters)
+            graph.start(name, commands[name])
             print(f"[launch] started {name} (pid {graph.children[name].pid})", file=stream,
                   flush=True)
         result.pids = {name: p.pid for name, p in graph.children.items()}
@@ -288,6 +301,15 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                 result.exit_code = 0
                 break
             dead = {n: c for n, c in exited.items() if not (n == "representation" and c == 0)}
+            for name, code in list(dead.items()):
+                if code < 0 and respawned.get(name, 0) < respawn:
+                    respawned[name] = respawned.get(name, 0) + 1
+                    graph.start(name, commands[name],
+                                log_name=f"{name}.respawn-{respawned[name]}")
+                    del dead[name]
+                    print(f"[launch] {name} was killed by signal {-code}; respawned "
+                          f"({respawned[name]}/{respawn}, pid {graph.children[name].pid})",
+                          file=stream, flush=True)
             if dead:
                 name, code = next(iter(dead.items()))
                 result.failed_node = name
@@ -389,15 +411,23 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--results", type=Path, default=Path("results"),
                         help="results root (default: results)")
     parser.add_argument("--timeout", type=float, default=None, help="give up after this many s")
+    parser.add_argument("--respawn", type=int, nargs="?", const=3, default=0, metavar="N",
+                        help="start a node killed by a signal again, up to N times per node "
+                             "(N = 3 if omitted; default 0: the run fails at once); it "
+                             "resumes from results/<run>/checkpoints")
     parser.set_defaults(func=run, handler=run)
     return parser
 
 
 def run(args) -> int:
     from .config import ConfigError
+    if args.respawn < 0:
+        print(f"sensorispace launch: --respawn must be >= 0, got {args.respawn}", file=sys.stderr)
+        return 2
     try:
         result = launch_graph(args.config, args.run, args.domain_id, record=not args.no_record,
-                              results_root=args.results, timeout_s=args.timeout)
+                              results_root=args.results, timeout_s=args.timeout,
+                              respawn=args.respawn)
     except ConfigError as exc:
         print(f"sensorispace launch: invalid configuration: {exc}", file=sys.stderr)
         return 2
