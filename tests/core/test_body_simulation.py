@@ -1,0 +1,140 @@
+"""The arm's forward model and the retina, as computed for the body, against
+straightforward references: the dense broadcast evaluation they replaced
+(same floating-point operations, so the bits must be equal) and a scalar
+loop over rows, lights and receptors written from the paper's formulas."""
+import math
+
+import numpy as np
+import pytest
+
+from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core.body import SimulatedBody
+
+
+def dense_forward(motor, lengths=(1.0, 1.0, 1.0)):
+    motor = np.asarray(motor, dtype=float)
+    theta = np.cumsum(motor[..., :3], axis=-1)
+    lengths = np.asarray(lengths, dtype=float)
+    return np.stack([np.sum(lengths * np.cos(theta), axis=-1),
+                     np.sum(lengths * np.sin(theta), axis=-1),
+                     np.sum(motor, axis=-1)], axis=-1)
+
+
+def dense_sensation(pose, lights, receptors):
+    """Every (pose, light, receptor) term evaluated, hidden lights masked out."""
+    pose, lights = np.asarray(pose, float), np.asarray(lights, float)
+    rel = lights - pose[..., None, :2]
+    cos_a = np.cos(pose[..., 2])[..., None]
+    sin_a = np.sin(pose[..., 2])[..., None]
+    depth = rel[..., 0] * cos_a + rel[..., 1] * sin_a
+    lateral = -rel[..., 0] * sin_a + rel[..., 1] * cos_a
+    visible = depth > 0.0
+    projection = np.where(visible, lateral / np.where(visible, depth, 1.0), np.inf)
+    distance = np.where(visible, np.hypot(rel[..., 0], rel[..., 1]), 1.0)
+    with np.errstate(invalid="ignore", over="ignore"):
+        gap = receptors - projection[..., :, None]
+        response = np.where(visible[..., :, None], np.exp(-gap * gap), 0.0)
+    return np.sum(response / distance[..., :, None], axis=-2)
+
+
+def scalar_sensation(pose, lights, receptors):
+    x, y, alpha = (float(v) for v in pose)
+    out = [0.0] * len(receptors)
+    for lx, ly in lights:
+        u = (lx - x) * math.cos(alpha) + (ly - y) * math.sin(alpha)    # depth
+        v = -(lx - x) * math.sin(alpha) + (ly - y) * math.cos(alpha)   # lateral
+        if u <= 0:
+            continue
+        for r, position in enumerate(receptors):
+            out[r] += math.exp(-(position - v / u) ** 2) / math.hypot(lx - x, ly - y)
+    return np.array(out)
+
+
+def random_scene(rng, n):
+    # Motor states all over the torus plus a cluster near the paper's m0 (lights in view).
+    motor = np.concatenate([rng.uniform(-7, 7, (n, 4)),
+                            [0.1, -1.5, 2.2, -3.0] + 0.05 * rng.standard_normal((n, 4))])
+    lights = arm.forward([0.1, -1.5, 2.2, -3.0])[:2] + rng.uniform(-1, 1, 2) \
+        + rng.uniform(-4, 4, (10, 2))
+    return motor, lights, np.sort(rng.uniform(-1, 1, 6))
+
+
+@pytest.mark.parametrize("shape", [(4,), (1, 4), (7, 4), (649, 4), (3, 5, 4), (0, 4)])
+def test_forward_is_bit_identical_to_the_dense_evaluation(shape):
+    motor = np.random.default_rng(1).uniform(-9, 9, shape)
+    pose = arm.forward(motor)
+    assert pose.shape == shape[:-1] + (3,)
+    np.testing.assert_array_equal(pose, dense_forward(motor))
+    lengths = (0.5, 1.3, 2.1)
+    np.testing.assert_array_equal(arm.forward(motor, lengths), dense_forward(motor, lengths))
+
+
+def test_forward_known_postures():
+    np.testing.assert_allclose(arm.forward([0.0, 0.0, 0.0, 0.0]), [3.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(arm.forward([np.pi / 2, 0.0, 0.0, 1.0]),
+                               [0.0, 3.0, np.pi / 2 + 1.0], atol=1e-15)
+    np.testing.assert_allclose(arm.forward([0.0, np.pi / 2, np.pi / 2, 0.0]),
+                               [0.0, 1.0, np.pi], atol=1e-15)
+    with pytest.raises(ValueError, match="motor"):
+        arm.forward([0.0, 1.0])
+
+
+@pytest.mark.parametrize("n", [1, 3, 40, 649])
+def test_sensation_is_bit_identical_to_the_dense_evaluation(n):
+    rng = np.random.default_rng(n)
+    motor, lights, receptors = random_scene(rng, n)
+    pose = arm.forward(motor)
+    got = retina.sensation(pose, lights, receptors)
+    assert got.shape == (2 * n, 6)
+    np.testing.assert_array_equal(got, dense_sensation(pose, lights, receptors))
+    # Lights in front of and behind the lens: both branches are exercised.
+    visible = retina.project(pose, lights)[2]
+    assert visible.any() and not visible.all()
+
+
+def test_sensation_matches_the_scalar_formula():
+    rng = np.random.default_rng(7)
+    motor, lights, receptors = random_scene(rng, 30)
+    pose = arm.forward(motor)
+    got = retina.sensation(pose, lights, receptors)
+    expected = np.array([scalar_sensation(p, lights, receptors) for p in pose])
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-300)
+
+
+def test_sensation_broadcasts_like_the_dense_evaluation():
+    rng = np.random.default_rng(3)
+    motor, lights, receptors = random_scene(rng, 6)
+    pose = arm.forward(motor.reshape(3, 4, 4))
+    np.testing.assert_array_equal(retina.sensation(pose, lights, receptors),
+                                  dense_sensation(pose, lights, receptors))
+    per_pose_lights = lights + rng.uniform(-1, 1, (3, 4, 1, 2))     # one scene per pose
+    np.testing.assert_array_equal(retina.sensation(pose, per_pose_lights, receptors),
+                                  dense_sensation(pose, per_pose_lights, receptors))
+    single = retina.sensation(pose[1, 2], lights, receptors)
+    assert single.shape == (6,)
+    np.testing.assert_array_equal(single, dense_sensation(pose[1, 2], lights, receptors))
+    with pytest.raises(ValueError, match="receptor_positions"):
+        retina.sensation(pose, lights, receptors[None])
+
+
+def test_far_projections_add_exact_zeros():
+    # A light almost in the lens plane projects ~1e6 away: exp underflows to 0 exactly,
+    # and the sum equals the other light's term alone.
+    receptors = np.array([-0.5, 0.0, 0.5])
+    pose = np.array([0.0, 0.0, 0.0])
+    near = np.array([[2.0, 0.1]])
+    edge = np.array([[1e-6, 1.0]])
+    both = retina.sensation(pose, np.concatenate([edge, near]), receptors)
+    np.testing.assert_array_equal(both, retina.sensation(pose, near, receptors))
+    assert np.all(both > 0)
+
+
+def test_simulated_body_returns_the_dense_sensations_and_poses():
+    rng = np.random.default_rng(5)
+    motor, lights, receptors = random_scene(rng, 100)
+    body = SimulatedBody(receptors, lights, motor[0])
+    sensations, poses = body.sense_with_poses(motor)
+    np.testing.assert_array_equal(poses, dense_forward(motor))
+    np.testing.assert_array_equal(sensations, dense_sensation(dense_forward(motor), lights,
+                                                              receptors))
+    np.testing.assert_array_equal(body.motor_state, motor[-1])
