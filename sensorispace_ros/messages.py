@@ -14,7 +14,8 @@ names) raises ``MessageError``; nodes log and drop such messages.
 from __future__ import annotations
 
 import array
-from typing import Mapping, Sequence
+import functools
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -36,13 +37,28 @@ class MessageError(ValueError):
     """A message that does not match its topic's contract."""
 
 
-def record_dtype(columns: Mapping[str, str]) -> np.dtype:
-    """Packed structured dtype of a table with ``columns`` ({name: type name})."""
+class _Layout(NamedTuple):
+    """What a table's columns fix about its cloud, computed once per contract."""
+    dtype: np.dtype
+    fields: tuple            # (name, offset, datatype, count) of each PointField
+    float_only: bool         # every column float64: the data is a (rows, columns) matrix
+
+
+@functools.lru_cache(maxsize=None)
+def _layout(items: tuple) -> _Layout:
     try:
-        return np.dtype([(name, _FIELD_DTYPES[kind][1]) for name, kind in columns.items()])
+        dtype = np.dtype([(name, _FIELD_DTYPES[kind][1]) for name, kind in items])
     except KeyError as exc:
         raise ValueError(f"unsupported column type {exc.args[0]!r}; "
                          f"use one of {sorted(_FIELD_DTYPES)}") from None
+    fields = tuple((name, dtype.fields[name][1], _FIELD_DTYPES[kind][0], 1)
+                   for name, kind in items)
+    return _Layout(dtype, fields, all(kind == "float64" for _, kind in items))
+
+
+def record_dtype(columns: Mapping[str, str]) -> np.dtype:
+    """Packed structured dtype of a table with ``columns`` ({name: type name})."""
+    return _layout(tuple(columns.items())).dtype
 
 
 def make_header(frame_id: str, stamp_ns: int = 0) -> Header:
@@ -57,10 +73,21 @@ def stamp_ns(header: Header) -> int:
 
 # ---------------------------------------------------------------- tables
 
+def _cloud(layout: _Layout, n_rows: int, data: bytes, header: Header) -> PointCloud2:
+    # Fresh PointField objects each time: a caller may edit a message it built.
+    fields = [PointField(name=name, offset=offset, datatype=datatype, count=count)
+              for name, offset, datatype, count in layout.fields]
+    return PointCloud2(header=header, height=1, width=n_rows, fields=fields,
+                       is_bigendian=False, point_step=layout.dtype.itemsize,
+                       row_step=layout.dtype.itemsize * n_rows,
+                       data=array.array("B", data), is_dense=True)
+
+
 def table_to_cloud(table: np.ndarray | Mapping[str, np.ndarray], columns: Mapping[str, str],
                    header: Header) -> PointCloud2:
     """Pack a table (structured array, or {column: 1-D array}) as a PointCloud2."""
-    dtype = record_dtype(columns)
+    layout = _layout(tuple(columns.items()))
+    dtype = layout.dtype
     if isinstance(table, np.ndarray) and table.dtype.names is not None:
         if tuple(table.dtype.names) != tuple(columns):
             raise ValueError(f"table columns {table.dtype.names} != contract {tuple(columns)}")
@@ -73,62 +100,79 @@ def table_to_cloud(table: np.ndarray | Mapping[str, np.ndarray], columns: Mappin
         for name in columns:
             records[name] = np.atleast_1d(table[name])
     records = np.ascontiguousarray(records).reshape(-1)
-    fields = [PointField(name=name, offset=dtype.fields[name][1],
-                         datatype=_FIELD_DTYPES[kind][0], count=1)
-              for name, kind in columns.items()]
-    return PointCloud2(header=header, height=1, width=len(records), fields=fields,
-                       is_bigendian=False, point_step=dtype.itemsize,
-                       row_step=dtype.itemsize * len(records),
-                       data=array.array("B", records.tobytes()), is_dense=True)
+    return _cloud(layout, len(records), records.tobytes(), header)
+
+
+def _checked_rows(msg: PointCloud2, columns: Mapping[str, str], layout: _Layout) -> int:
+    """Number of rows of a cloud whose layout is exactly ``layout``; else MessageError."""
+    if tuple((f.name, f.offset, f.datatype, f.count) for f in msg.fields) != layout.fields:
+        names = [f.name for f in msg.fields]
+        if names != list(columns):
+            raise MessageError(f"fields {names} != expected {list(columns)}")
+        for field, expected in zip(msg.fields, layout.fields):
+            got = (field.offset, field.datatype, field.count)
+            if got != expected[1:]:
+                raise MessageError(f"field {expected[0]!r}: (offset, datatype, count) = "
+                                   f"{got}, expected {expected[1:]}")
+    itemsize = layout.dtype.itemsize
+    if msg.is_bigendian:
+        raise MessageError("big-endian data is not accepted")
+    if msg.point_step != itemsize:
+        raise MessageError(f"point_step {msg.point_step} != {itemsize}")
+    height, width = msg.height, msg.width
+    if height != 1 and width * height != 0:
+        raise MessageError(f"height must be 1, got {height}")
+    if msg.row_step != width * msg.point_step:
+        raise MessageError(f"row_step {msg.row_step} != width {width} * point_step {msg.point_step}")
+    n_rows = width if height else 0
+    if len(msg.data) != n_rows * itemsize:
+        raise MessageError(f"data holds {len(msg.data)} bytes, expected {n_rows * itemsize}")
+    return n_rows
+
+
+def _non_finite_column(records: np.ndarray, columns: Mapping[str, str]) -> str | None:
+    for name, kind in columns.items():
+        if kind == "float64" and not np.all(np.isfinite(records[name])):
+            return name
+    return None
 
 
 def cloud_to_table(msg: PointCloud2, columns: Mapping[str, str]) -> np.ndarray:
     """Unpack a PointCloud2 into a structured array, checking it against ``columns``."""
-    dtype = record_dtype(columns)
-    names = [f.name for f in msg.fields]
-    if names != list(columns):
-        raise MessageError(f"fields {names} != expected {list(columns)}")
-    for field, (name, kind) in zip(msg.fields, columns.items()):
-        expected = (dtype.fields[name][1], _FIELD_DTYPES[kind][0], 1)
-        if (field.offset, field.datatype, field.count) != expected:
-            raise MessageError(f"field {name!r}: (offset, datatype, count) = "
-                               f"{(field.offset, field.datatype, field.count)}, expected {expected}")
-    if msg.is_bigendian:
-        raise MessageError("big-endian data is not accepted")
-    if msg.point_step != dtype.itemsize:
-        raise MessageError(f"point_step {msg.point_step} != {dtype.itemsize}")
-    if msg.height != 1 and msg.width * msg.height != 0:
-        raise MessageError(f"height must be 1, got {msg.height}")
-    if msg.row_step != msg.width * msg.point_step:
-        raise MessageError(f"row_step {msg.row_step} != width {msg.width} * point_step {msg.point_step}")
-    n_rows = msg.width if msg.height else 0
-    if len(msg.data) != n_rows * dtype.itemsize:
-        raise MessageError(f"data holds {len(msg.data)} bytes, expected {n_rows * dtype.itemsize}")
-    records = np.frombuffer(msg.data, dtype=dtype, count=n_rows)
-    for name, kind in columns.items():
-        if kind == "float64" and not np.all(np.isfinite(records[name])):
-            raise MessageError(f"column {name!r} holds NaN or inf")
+    layout = _layout(tuple(columns.items()))
+    records = np.frombuffer(msg.data, dtype=layout.dtype,
+                            count=_checked_rows(msg, columns, layout))
+    bad = _non_finite_column(records, columns)
+    if bad is not None:
+        raise MessageError(f"column {bad!r} holds NaN or inf")
     return records
 
 
 def matrix_to_cloud(matrix: np.ndarray, columns: Mapping[str, str], header: Header) -> PointCloud2:
     """A float64 matrix ``(rows, len(columns))`` as a cloud of all-float64 columns."""
     matrix = np.asarray(matrix, dtype=float)
+    layout = _layout(tuple(columns.items()))
     if matrix.ndim != 2 or matrix.shape[1] != len(columns):
         raise ValueError(f"matrix must have shape (rows, {len(columns)}), got {matrix.shape}")
-    if any(kind != "float64" for kind in columns.values()):
+    if not layout.float_only:
         raise ValueError("matrix_to_cloud needs float64 columns only")
-    # A C-contiguous float64 matrix has exactly the packed record layout.
-    return table_to_cloud(np.ascontiguousarray(matrix, dtype="<f8").view(record_dtype(columns))
-                          .reshape(-1), columns, header)
+    # A C-contiguous little-endian float64 matrix has exactly the packed record layout.
+    return _cloud(layout, len(matrix), np.ascontiguousarray(matrix, dtype="<f8").tobytes(),
+                  header)
 
 
 def cloud_to_matrix(msg: PointCloud2, columns: Mapping[str, str]) -> np.ndarray:
     """Inverse of ``matrix_to_cloud``: a read-write float64 ``(rows, len(columns))`` array."""
-    if any(kind != "float64" for kind in columns.values()):
+    layout = _layout(tuple(columns.items()))
+    if not layout.float_only:
         raise ValueError("cloud_to_matrix needs float64 columns only")
-    records = cloud_to_table(msg, columns)
-    return records.view("<f8").reshape(len(records), len(columns)).astype(float)
+    n_rows = _checked_rows(msg, columns, layout)
+    matrix = np.frombuffer(msg.data, dtype="<f8", count=n_rows * len(columns)).reshape(
+        n_rows, len(columns))
+    if not np.isfinite(matrix).all():
+        bad = _non_finite_column(matrix.view(layout.dtype).reshape(-1), columns)
+        raise MessageError(f"column {bad!r} holds NaN or inf")
+    return matrix.astype(float)
 
 
 # ---------------------------------------------------------------- joint states
