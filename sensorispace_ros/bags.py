@@ -11,10 +11,18 @@ Crash safety (kill -9): MCAP messages live in chunks. rosbags closes a chunk
 when it exceeds 1 MiB; ``BagWriter`` additionally closes the open chunk once it
 is ``chunk_interval_s`` old (default 1 s, checked on every write and by
 ``flush_if_due``, which the recorder calls from a timer) and hands every
-closed chunk to the operating system (``flush``). A process killed with -9
-therefore loses at most the open chunk: <= 1 s or <= 1 MiB of messages.
-(No fsync: a power cut may lose more; a killed process does not.)
-``recover_bag`` rebuilds a normal bag from every complete chunk.
+closed chunk to the operating system (``flush``). Without more, a process
+killed with -9 loses the open chunk: <= 1 s or <= 1 MiB of messages.
+
+Write-ahead log (``write_ahead=True``, the recorder's default, issue #7): every
+message of the open chunk is also appended to ``<bag>/recording.wal`` by
+``commit()`` (one unbuffered ``os.write`` per batch; the recorder commits after
+each subscription callback), and the log is emptied whenever a chunk reaches
+the OS. A kill -9 then loses nothing the recorder has committed: the page cache
+keeps both files. (No fsync: a power cut may lose more; a killed process does
+not.) ``recover_bag`` rebuilds a normal bag from every complete chunk plus the
+log's complete records (a record also found in the last chunk, killed between
+the chunk flush and the log truncation, is kept once).
 
 The session configuration travels inside the bag as the first message of
 ``SESSION_CONFIG_TOPIC`` (std_msgs/msg/String holding the ROS params-file
@@ -25,6 +33,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import struct
 import tempfile
 import time
 from collections import Counter
@@ -36,6 +45,10 @@ from typing import Iterator, Mapping
 SESSION_CONFIG_TOPIC = "/session/config"
 SESSION_CONFIG_TYPE = "std_msgs/msg/String"
 DEFAULT_CHUNK_INTERVAL_S = 1.0
+WAL_NAME = "recording.wal"
+# one log record: topic length (u16), log time (i64 ns), data length (u32), then
+# the topic name and the CDR bytes
+_WAL_HEADER = struct.Struct("<HqI")
 
 
 class BagError(Exception):
@@ -100,6 +113,7 @@ class BagWriter:
         topics: Mapping[str, str],
         qos: Mapping[str, Mapping[str, object]] | None = None,
         chunk_interval_s: float = DEFAULT_CHUNK_INTERVAL_S,
+        write_ahead: bool = False,
     ) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.rosbag2.errors import WriterError
@@ -137,6 +151,11 @@ class BagWriter:
         self.counts: Counter[str] = Counter({name: 0 for name in topics})
         self._chunk_opened = time.monotonic()
         self._chunks_flushed = 0
+        self._wal_fd: int | None = None
+        self._wal_pending: list[bytes] = []
+        if write_ahead:
+            self._wal_fd = os.open(self.path / WAL_NAME,
+                                   os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
         # The schema and channel records sit in the first chunk: close it now so
         # that even a bag killed in its first second can be recovered.
         self.flush_chunk()
@@ -151,16 +170,35 @@ class BagWriter:
             raise BagError(f"topic {topic} was not declared when the bag was opened")
         if self.closed:
             raise BagError(f"bag {self.path} is closed")
-        self._writer.write(connection, int(timestamp_ns), bytes(cdr))
+        data = bytes(cdr)
+        self._writer.write(connection, int(timestamp_ns), data)
         self.counts[topic] += 1
+        if self._wal_fd is not None:
+            name = topic.encode()
+            self._wal_pending.append(_WAL_HEADER.pack(len(name), int(timestamp_ns), len(data))
+                                     + name + data)
         storage = self._writer.storage
         if len(storage.chunks) != self._chunks_flushed:
             # rosbags closed a full (1 MiB) chunk inside write(): hand it to the OS.
             storage.bio.flush()
             self._chunks_flushed = len(storage.chunks)
             self._chunk_opened = time.monotonic()
+            self._empty_wal()
         else:
             self.flush_if_due()
+
+    def commit(self) -> None:
+        """Append the messages written since the last commit to the write-ahead log
+        (one unbuffered write; survives kill -9). No-op without ``write_ahead``."""
+        if self._wal_fd is not None and self._wal_pending:
+            os.write(self._wal_fd, b"".join(self._wal_pending))
+            self._wal_pending.clear()
+
+    def _empty_wal(self) -> None:
+        """Every message written so far is in a chunk the OS holds: the log restarts."""
+        if self._wal_fd is not None:
+            self._wal_pending.clear()
+            os.ftruncate(self._wal_fd, 0)
 
     def flush_if_due(self) -> bool:
         """Close the open chunk if it is older than ``chunk_interval_s``."""
@@ -181,12 +219,17 @@ class BagWriter:
         storage.bio.flush()
         self._chunks_flushed = len(storage.chunks)
         self._chunk_opened = time.monotonic()
+        self._empty_wal()
 
     def close(self) -> None:
         """Write the summary (with Statistics) and metadata.yaml; idempotent."""
         if self.closed:
             return
         self._writer.close()
+        if self._wal_fd is not None:
+            os.close(self._wal_fd)
+            self._wal_fd = None
+            (self.path / WAL_NAME).unlink(missing_ok=True)
 
     def __enter__(self) -> "BagWriter":
         return self
@@ -433,13 +476,33 @@ def _scan_truncated_mcap(path: Path):
     return schemas, channels, messages
 
 
+def _read_wal(path: Path) -> list[tuple[str, int, bytes]]:
+    """(topic, log time, data) of every complete record of a write-ahead log."""
+    if not path.is_file():
+        return []
+    raw = path.read_bytes()
+    records, offset = [], 0
+    while offset + _WAL_HEADER.size <= len(raw):
+        name_len, log_time, data_len = _WAL_HEADER.unpack_from(raw, offset)
+        start = offset + _WAL_HEADER.size
+        end = start + name_len + data_len
+        if end > len(raw):
+            break                     # cut short by the kill
+        records.append((raw[start:start + name_len].decode(), log_time,
+                        raw[start + name_len:end]))
+        offset = end
+    return records
+
+
 def recover_bag(bag_dir: str | os.PathLike) -> RecoveryReport:
     """Rebuild a readable bag from the MCAP a killed recorder left behind.
 
     Every message of every complete chunk is kept (re-written with its original
     timestamp and bytes into a fresh MCAP with summary + Statistics and a
-    matching metadata.yaml); the damaged original stays beside it as
-    ``<name>.mcap.truncated``. A bag that is already complete is left alone.
+    matching metadata.yaml), and every complete record of the write-ahead log
+    (``WAL_NAME``) not already in a chunk; the damaged original stays beside it
+    as ``<name>.mcap.truncated``. A bag that is already complete is left alone
+    (a stale log in it is removed).
     """
     from mcap.exceptions import McapError
     from rosbags.rosbag2.metadata import parse_qos
@@ -451,13 +514,23 @@ def recover_bag(bag_dir: str | os.PathLike) -> RecoveryReport:
     if len(files) != 1:
         raise BagError(f"bag {path} must hold exactly one .mcap file, found {len(files)}")
     original = files[0]
+    wal = path / WAL_NAME
     if _bag_is_complete(path):
+        wal.unlink(missing_ok=True)
         info = bag_info(path)
         return RecoveryReport(path, info.counts, None, truncated=False)
     try:
         schemas, channels, messages = _scan_truncated_mcap(original)
     except McapError as exc:
         raise BagError(f"{original} cannot be recovered: {_one_line(exc)}") from None
+    channel_of_topic = {channel.topic: cid for cid, channel in channels.items()}
+    in_chunks = set(messages)
+    for topic, log_time, data in _read_wal(wal):
+        cid = channel_of_topic.get(topic)
+        if cid is None:
+            raise BagError(f"{wal} names topic {topic}, which {original} does not declare")
+        if (log_time, cid, data) not in in_chunks:
+            messages.append((log_time, cid, data))
     store = _typestore()
     topics, qos = {}, {}
     for channel in channels.values():
@@ -480,6 +553,8 @@ def recover_bag(bag_dir: str | os.PathLike) -> RecoveryReport:
         writer.close()
         kept = original.with_name(original.name + ".truncated")
         original.replace(kept)
+        if wal.is_file():
+            wal.replace(path / (WAL_NAME + ".recovered"))
         # the rebuilt file is <dir>.mcap (rosbags' name), metadata.yaml lists it
         for produced in staged.iterdir():
             shutil.move(str(produced), str(path / produced.name))

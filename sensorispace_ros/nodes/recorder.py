@@ -10,8 +10,12 @@ every node and declares every parameter it is given, so the bag holds the
 whole configuration (seed included) without help from the launcher.
 
 SIGTERM / Ctrl-C: stop, drain what is already queued, close the bag (summary
-+ metadata.yaml). kill -9 loses at most the open chunk (<= chunk_interval_s);
-``sensorispace bag recover`` restores the rest.
++ metadata.yaml). kill -9: every message a subscription callback has stored is
+kept, because each callback ends with one unbuffered write of what it stored to
+the bag's write-ahead log (bags.BagWriter, ``recorder.write_ahead``, default
+true; false: the open chunk, <= ``recorder.chunk_interval_s``, is lost). What
+the middleware had received but the recorder not yet taken is lost.
+``sensorispace bag recover`` (or the restarted recorder) rebuilds the bag.
 """
 from __future__ import annotations
 
@@ -109,6 +113,9 @@ class Recorder(Node):
         chunk_interval_s = float(self._own("recorder.chunk_interval_s",
                                            bags.DEFAULT_CHUNK_INTERVAL_S))
         self.stats_period_s = float(self._own("recorder.stats_period_s", 5.0))
+        write_ahead = self._own("recorder.write_ahead", True)
+        if not isinstance(write_ahead, bool):
+            raise ValueError(f"recorder.write_ahead must be true or false, got {write_ahead!r}")
         wanted = [t for t in self._own("recorder.topics", [""]) if t]
         if chunk_interval_s <= 0:
             raise ValueError(f"recorder.chunk_interval_s must be > 0, got {chunk_interval_s}")
@@ -135,7 +142,8 @@ class Recorder(Node):
             self.get_logger().warning(
                 f"{bag_path} exists (recorder restarted): recovered it; it is merged with "
                 f"this recording when the bag is closed")
-        self.writer = bags.BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s)
+        self.writer = bags.BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s,
+                                     write_ahead=write_ahead)
         if run_config:
             self.writer.write(bags.SESSION_CONFIG_TOPIC, time.time_ns(),
                               bags.session_config_cdr(config_yaml(run_config)))
@@ -174,8 +182,9 @@ class Recorder(Node):
                 with subscription.handle:
                     taken = subscription.handle.take_message(subscription.msg_type, True)
                 if taken is None:
-                    return
+                    break
                 self._store(topic, *taken)
+            self.writer.commit()         # the batch survives a kill -9 from here on
         return record
 
     def _store(self, topic: str, cdr: bytes, info: dict) -> None:
