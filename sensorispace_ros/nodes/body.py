@@ -82,6 +82,11 @@ class BodyNode(GraphNode):
                                           f"restored from {self.resting_file.path}")
         self.columns = {topic: contracts.contract(topic).columns for topic in (
             "/environment/lights", "/body/motor_command", "/body/sensation", "/body/sensor_pose")}
+        # One message object per topic, re-filled for each reply (messages.CloudPacker):
+        # the body answers ~100 000 commands in a paper run.
+        self.sensation_packer = messages.CloudPacker(self.columns["/body/sensation"])
+        self.pose_packer = messages.CloudPacker(self.columns["/body/sensor_pose"])
+        self.joint_packer = messages.JointStatePacker()
         self.sensation_pub = contracts.create_publisher(self, "/body/sensation")
         self.pose_pub = contracts.create_publisher(self, "/body/sensor_pose")
         self.joint_pub = contracts.create_publisher(self, "/body/joint_states")
@@ -110,11 +115,8 @@ class BodyNode(GraphNode):
         rest = self.body.motor_state
         pose = arm.forward(rest)
         sensation = retina.sensation(pose, self.body.lights_world, self.body.receptor_positions)
-        self.sensation_pub.publish(messages.matrix_to_cloud(
-            np.reshape(sensation, (1, -1)), self.columns["/body/sensation"], header))
-        self.pose_pub.publish(messages.matrix_to_cloud(
-            np.reshape(pose, (1, 3)), self.columns["/body/sensor_pose"], header))
-        self.joint_pub.publish(messages.motor_to_joint_state(rest, header))
+        self.publish_answer(np.reshape(sensation, (1, -1)), np.reshape(pose, (1, 3)), rest,
+                            header)
 
     def on_command(self, msg) -> None:
         decoded = self.decode("/body/motor_command", msg, kinds=("cmd",))
@@ -136,11 +138,14 @@ class BodyNode(GraphNode):
         if self.resting_file is not None:
             # before the answer: once the agent has it, a restart rests where it did
             self.resting_file.save(self.body.motor_state)
-        self.sensation_pub.publish(messages.matrix_to_cloud(
-            sensations, self.columns["/body/sensation"], header))
-        self.pose_pub.publish(messages.matrix_to_cloud(
-            poses.reshape(-1, 3), self.columns["/body/sensor_pose"], header))
-        self.joint_pub.publish(messages.motor_to_joint_state(self.body.motor_state, header))
+        self.publish_answer(sensations, poses, self.body.motor_state, header)
+
+    def publish_answer(self, sensations: np.ndarray, poses: np.ndarray, rest: np.ndarray,
+                       header) -> None:
+        """The sensation first (the agent waits for it), then the ground truth."""
+        self.sensation_pub.publish(self.sensation_packer.pack(sensations, header))
+        self.pose_pub.publish(self.pose_packer.pack(poses, header))
+        self.joint_pub.publish(self.joint_packer.pack(rest, header))
 
 
 def main(args=None) -> int:
