@@ -59,27 +59,66 @@ def _check_sets(pairs, set_ids, P: int):
     return pairs.astype(np.intp), compact.reshape(-1)
 
 
-def _set_statistics(distance, pairs, compact):
-    values = distance[pairs[:, 0], pairs[:, 1]]
-    count = np.bincount(compact)
-    mean = np.bincount(compact, weights=values) / count
-    return values, count, mean
+@dataclass
+class _SetIndex:
+    """Equality sets checked and indexed once (np.unique over millions of
+    pairs is the costly part; the iterations reuse it).
+
+    compact : (K,) set of each pair, 0..S-1.
+    count : (S,) pairs per set.
+    i, j : (U,) the distinct unordered POV pairs (i < j) that are constrained.
+    slot : (K,) which of them each pair is.
+    """
+
+    pairs: np.ndarray
+    compact: np.ndarray
+    count: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+    slot: np.ndarray
+    slot_count: np.ndarray
+
+    @classmethod
+    def build(cls, pairs, set_ids, P: int) -> "_SetIndex":
+        pairs, compact = _check_sets(pairs, set_ids, P)
+        lo = np.minimum(pairs[:, 0], pairs[:, 1])
+        hi = np.maximum(pairs[:, 0], pairs[:, 1])
+        keys, slot = np.unique(lo * P + hi, return_inverse=True)
+        i, j = np.divmod(keys, P)
+        return cls(pairs=pairs, compact=compact, count=np.bincount(compact), i=i, j=j,
+                   slot=slot.reshape(-1), slot_count=np.bincount(slot.reshape(-1)))
+
+    def means(self, distance):
+        values = distance[self.pairs[:, 0], self.pairs[:, 1]]
+        return values, np.bincount(self.compact, weights=values) / self.count
+
+    def spread(self, distance) -> float:
+        if self.pairs.shape[0] == 0:
+            return 0.0
+        values, mean = self.means(distance)
+        sq = np.bincount(self.compact, weights=(values - mean[self.compact]) ** 2)
+        std = np.sqrt(sq / self.count)
+        usable = (self.count >= 2) & (mean > 0)
+        if not np.any(usable):
+            return 0.0
+        return float(np.mean(std[usable] / mean[usable]))
+
+    def regularized(self, distance) -> np.ndarray:
+        out = distance.copy()
+        if self.pairs.shape[0] == 0:
+            return out
+        _, mean = self.means(distance)
+        target = np.bincount(self.slot, weights=mean[self.compact]) / self.slot_count
+        out[self.i, self.j] = target
+        out[self.j, self.i] = target
+        return out
 
 
 def set_spread(distance, pairs, set_ids) -> float:
     """Mean over equality sets (of >= 2 pairs) of the coefficient of variation
     of their distances: 0 when every set is already equal."""
     D = np.asarray(distance, dtype=float)
-    pairs, compact = _check_sets(pairs, set_ids, D.shape[0])
-    if pairs.shape[0] == 0:
-        return 0.0
-    values, count, mean = _set_statistics(D, pairs, compact)
-    sq = np.bincount(compact, weights=(values - mean[compact]) ** 2)
-    std = np.sqrt(sq / count)
-    usable = (count >= 2) & (mean > 0)
-    if not np.any(usable):
-        return 0.0
-    return float(np.mean(std[usable] / mean[usable]))
+    return _SetIndex.build(pairs, set_ids, D.shape[0]).spread(D)
 
 
 def regularize_metric(distance, pairs, set_ids) -> np.ndarray:
@@ -91,20 +130,7 @@ def regularize_metric(distance, pairs, set_ids) -> np.ndarray:
     the mean of those sets' means.
     """
     D = check_distance_matrix(distance, "distance")
-    P = D.shape[0]
-    pairs, compact = _check_sets(pairs, set_ids, P)
-    out = D.copy()
-    if pairs.shape[0] == 0:
-        return out
-    _, _, mean = _set_statistics(D, pairs, compact)
-    lo = np.minimum(pairs[:, 0], pairs[:, 1])
-    hi = np.maximum(pairs[:, 0], pairs[:, 1])
-    keys, slot = np.unique(lo * P + hi, return_inverse=True)
-    target = np.bincount(slot, weights=mean[compact]) / np.bincount(slot)
-    i, j = np.divmod(keys, P)
-    out[i, j] = target
-    out[j, i] = target
-    return out
+    return _SetIndex.build(pairs, set_ids, D.shape[0]).regularized(D)
 
 
 def iterate_regularization(distance, pairs, set_ids, *, n_components, n_iterations=10,
@@ -118,7 +144,7 @@ def iterate_regularization(distance, pairs, set_ids, *, n_components, n_iteratio
     (1-based). ``random_state`` (int or Generator) drives every CCA in turn.
     """
     current = check_distance_matrix(distance, "distance")
-    _check_sets(pairs, set_ids, current.shape[0])
+    sets = _SetIndex.build(pairs, set_ids, current.shape[0])
     if not isinstance(n_iterations, (int, np.integer)) or n_iterations < 1:
         raise ValueError(f"n_iterations must be a positive integer, got {n_iterations!r}")
     cca_params = dict(cca_params or {})
@@ -132,8 +158,8 @@ def iterate_regularization(distance, pairs, set_ids, *, n_components, n_iteratio
     start = init
     for iteration in range(1, n_iterations + 1):
         began = time.perf_counter()
-        result.set_spread.append(set_spread(current, pairs, set_ids))
-        target = regularize_metric(current, pairs, set_ids)
+        result.set_spread.append(sets.spread(current))
+        target = sets.regularized(current)
         estimator = CCA(n_components, random_state=rng, **cca_params)
         embedding = estimator.fit_transform(target, init=start)
         current = squareform(pdist(embedding))

@@ -6,6 +6,7 @@ from scipy.spatial.distance import pdist, squareform
 from sklearn.base import clone
 from sklearn.manifold import trustworthiness
 
+from sensorispace_ros.core import cca as cca_module
 from sensorispace_ros.core.cca import CCA, cca_stress, classical_mds
 
 
@@ -116,8 +117,45 @@ def test_bad_distance_matrices_raise(X, word):
     ({"init": "pca"}, "init"),
     ({"init": np.zeros((3, 2))}, "init array"),
     ({"random_state": "seed"}, "random_state"),
+    ({"kernel": "cython"}, "kernel"),
 ])
 def test_bad_parameters_raise(params, word):
     D = squareform(pdist(np.random.default_rng(0).random((5, 2))))
     with pytest.raises(ValueError, match=word):
         CCA(**params).fit(D)
+
+
+@pytest.mark.parametrize("n_components", [1, 2, 3])
+def test_step_loop_transcription_equals_the_numpy_loop(curled_sheet, monkeypatch, n_components):
+    """The compiled kernel's source, run as plain Python, gives the NumPy
+    loop's bits: same operations in the same order (checked without numba)."""
+    X = curled_sheet[0][:40]
+    reference = CCA(n_components, metric="euclidean", n_epochs=3, random_state=4,
+                    kernel="numpy").fit_transform(X)
+    monkeypatch.setattr(cca_module, "_cca_steps_compiled", cca_module._cca_steps)
+    transcribed = CCA(n_components, metric="euclidean", n_epochs=3, random_state=4,
+                      kernel="numba").fit_transform(X)
+    assert np.array_equal(transcribed, reference)
+    # and the steps moved the points (a kernel doing nothing would fail here)
+    shorter = CCA(n_components, metric="euclidean", n_epochs=1, random_state=4,
+                  kernel="numba").fit_transform(X)
+    assert not np.array_equal(transcribed, shorter)
+
+
+@pytest.mark.skipif(not cca_module.numba_available(), reason="numba is not installed")
+@pytest.mark.parametrize("n_components", [2, 3])
+def test_compiled_kernel_is_bitwise_the_numpy_loop(curled_sheet, n_components):
+    X = curled_sheet[0]
+    numpy_loop = CCA(n_components, metric="euclidean", n_epochs=5, random_state=2,
+                     kernel="numpy").fit_transform(X)
+    compiled = CCA(n_components, metric="euclidean", n_epochs=5, random_state=2,
+                   kernel="numba").fit_transform(X)
+    assert np.array_equal(compiled, numpy_loop)
+
+
+def test_numba_kernel_without_numba_raises(monkeypatch):
+    monkeypatch.setattr(cca_module, "_cca_steps_compiled", None)
+    D = squareform(pdist(np.random.default_rng(0).random((5, 2))))
+    with pytest.raises(ValueError, match="numba"):
+        CCA(kernel="numba").fit(D)
+    assert CCA(kernel="auto", n_epochs=2, random_state=0).fit_transform(D).shape == (5, 2)
