@@ -255,12 +255,16 @@ def cca_params(cfg: dict) -> dict:
 
 
 def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray, cfg: dict,
-                         seed: int, progress=None) -> Representation:
+                         seed: int, progress=None, processes: int | None = None
+                         ) -> Representation:
     """Hausdorff metric, CCA before regularisation and the regularisation
-    iterations, in 2-D and 3-D, from the agent's data only."""
-    from .core.cca import CCA
+    iterations, in 2-D and 3-D, from the agent's data only.
+
+    ``processes``: how many processes run the 2-D and 3-D chains (default:
+    2 on a multi-core machine, when the caller can fork safely: see
+    ``_can_fork``); the result does not depend on it.
+    """
     from .core.hausdorff import hausdorff_matrix
-    from .core.regularize import iterate_regularization, set_spread
 
     povs = np.asarray(povs, dtype=float)
     if povs.ndim != 3 or povs.shape[2] != 4 or len(povs) < 4:
@@ -269,34 +273,95 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
     with _stage(progress, "hausdorff", timings):
         distance = hausdorff_matrix(povs, progress=progress)
 
-    before = {}
-    with _stage(progress, "cca", timings):
-        for name, n_components in DIMENSIONS.items():
-            estimator = CCA(n_components=n_components, metric="precomputed", init="mds",
-                            random_state=_random_state(seed, f"cca.{name}"), **cca_params(cfg))
-            before[name] = np.asarray(estimator.fit_transform(distance))
-            if progress is not None:
-                progress(len(before), len(DIMENSIONS))
+    # The 2-D and 3-D chains (CCA, then regularise -> CCA) are independent and
+    # each draws from its own seeded streams, so two processes give the same
+    # bits as one (issue #6: x1.3 at load 3, up to x2 on an idle 2-core machine).
+    chains, block = {}, {}
+    with _stage(progress, "cca_regularization", block, total=len(DIMENSIONS)):
+        if processes is None:
+            workers = min(len(DIMENSIONS), os.cpu_count() or 1) if _can_fork() else 1
+        else:
+            workers = int(processes)
+            if workers < 1:
+                raise ValueError(f"processes must be >= 1, got {processes!r}")
+        if workers > 1:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
 
-    iterations, spread = {}, {}
-    n_iterations = cfg["representation"]["regularization"]["iterations"]
-    with _stage(progress, "regularization", timings):
-        for k, (name, n_components) in enumerate(DIMENSIONS.items()):
-            def callback(iteration, _embedding, _k=k):
+            context = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(max_workers=min(workers, len(DIMENSIONS)),
+                                     mp_context=context) as pool:
+                futures = {name: pool.submit(_dimension_chain, distance, pairs, set_ids, cfg,
+                                             seed, name, n_components)
+                           for name, n_components in DIMENSIONS.items()}
+                for name, future in futures.items():
+                    chains[name] = future.result()
+                    if progress is not None:
+                        progress(len(chains), len(DIMENSIONS))
+        else:
+            for name, n_components in DIMENSIONS.items():
+                chains[name] = _dimension_chain(distance, pairs, set_ids, cfg, seed, name,
+                                                n_components)
                 if progress is not None:
-                    progress(_k * n_iterations + iteration, len(DIMENSIONS) * n_iterations)
-            result = iterate_regularization(
-                distance, pairs, set_ids, n_components=n_components, n_iterations=n_iterations,
-                cca_params=cca_params(cfg),
-                random_state=_random_state(seed, f"regularization.{name}"),
-                init=None, callback=callback)
-            iterations[name] = np.stack([np.asarray(e) for e in result.embeddings])
-            # result.set_spread[k] is measured before iteration k's averaging
-            # (k = 0: the Hausdorff metric); add the spread after the last one.
-            spread[name] = np.asarray([*result.set_spread,
-                                       set_spread(result.distances, pairs, set_ids)], dtype=float)
+                    progress(len(chains), len(DIMENSIONS))
+    before = {name: chain["before"] for name, chain in chains.items()}
+    iterations = {name: chain["iterations"] for name, chain in chains.items()}
+    spread = {name: chain["spread"] for name, chain in chains.items()}
+    # Wall times that add up to the block's: "cca" the CCA before
+    # regularisation (in parallel: until every chain had it), "regularization"
+    # the rest. Each chain's own times are "cca_<dim>", "regularization_<dim>".
+    cca_times = [chain["timings_s"]["cca"] for chain in chains.values()]
+    timings["cca"] = max(cca_times) if workers > 1 else sum(cca_times)
+    timings["regularization"] = block["cca_regularization"] - timings["cca"]
+    for name, chain in chains.items():
+        for step in ("cca", "regularization"):
+            timings[f"{step}_{name}"] = chain["timings_s"][step]
     return Representation(distance=distance, before=before, iterations=iterations,
                           set_spread=spread, timings_s=timings)
+
+
+def _can_fork() -> bool:
+    """Whether worker processes may be forked from this one.
+
+    fork, because spawn and forkserver re-import the caller's main script
+    (a script without a ``__main__`` guard would fail). A forked child
+    inherits every lock held by another thread at that moment, so only a
+    process with one Python thread and without rclpy (DDS threads) forks;
+    the ROS representation node runs the chains in turn.
+    """
+    import sys
+    import threading
+
+    return (hasattr(os, "fork") and threading.active_count() == 1
+            and "rclpy" not in sys.modules)
+
+
+def _dimension_chain(distance: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray, cfg: dict,
+                     seed: int, name: str, n_components: int) -> dict:
+    """CCA of the Hausdorff metric, then the regularisation iterations, in
+    ``n_components`` dimensions (a process of its own in build_representation)."""
+    from .core.cca import CCA
+    from .core.regularize import iterate_regularization, set_spread
+
+    started = time.perf_counter()
+    estimator = CCA(n_components=n_components, metric="precomputed", init="mds",
+                    random_state=_random_state(seed, f"cca.{name}"), **cca_params(cfg))
+    before = np.asarray(estimator.fit_transform(distance))
+    cca_s = time.perf_counter() - started
+    result = iterate_regularization(
+        distance, pairs, set_ids, n_components=n_components,
+        n_iterations=cfg["representation"]["regularization"]["iterations"],
+        cca_params=cca_params(cfg), random_state=_random_state(seed, f"regularization.{name}"),
+        init=None)
+    # result.set_spread[k] is measured before iteration k's averaging
+    # (k = 0: the Hausdorff metric); add the spread after the last one.
+    spread = np.asarray([*result.set_spread, set_spread(result.distances, pairs, set_ids)],
+                        dtype=float)
+    return {"before": before,
+            "iterations": np.stack([np.asarray(e) for e in result.embeddings]),
+            "spread": spread,
+            "timings_s": {"cca": cca_s,
+                          "regularization": time.perf_counter() - started - cca_s}}
 
 
 # ---------------------------------------------------------------------------

@@ -121,6 +121,28 @@ def test_same_seed_gives_the_same_metrics(smoke_run, tmp_path):
     assert first == second
 
 
+def test_chains_in_two_processes_equal_one_process(smoke_run):
+    """The 2-D and 3-D chains have their own seeded streams: running them in
+    two processes changes no bit."""
+    out, _ = smoke_run
+    arrays = dict(np.load(out / pipeline.ARRAYS_FILE))
+    cfg = json.loads(str(arrays["config_json"]))
+    cfg["representation"]["regularization"]["iterations"] = 2
+    runs = [pipeline.build_representation(arrays["povs"], arrays["pairs"], arrays["set_ids"],
+                                          cfg, int(arrays["seed"]), processes=processes)
+            for processes in (1, 2)]
+    for dim in pipeline.DIMENSIONS:
+        assert np.array_equal(runs[0].before[dim], runs[1].before[dim])
+        assert np.array_equal(runs[0].iterations[dim], runs[1].iterations[dim])
+        assert np.array_equal(runs[0].set_spread[dim], runs[1].set_spread[dim])
+        assert runs[0].iterations[dim].shape[0] == 2
+    # the smoke run itself (default processes) gave the same first iteration
+    assert np.array_equal(runs[0].before["2d"], arrays["embedding_2d_before"])
+    with pytest.raises(ValueError, match="processes"):
+        pipeline.build_representation(arrays["povs"], arrays["pairs"], arrays["set_ids"], cfg,
+                                       0, processes=0)
+
+
 def test_run_arrays_reproduce_the_evaluation(smoke_run):
     """arrays.npz alone gives back the representation's numbers."""
     out, metrics = smoke_run
