@@ -20,15 +20,47 @@ threads by default.
 Pruning by bounding balls of consecutive samples (dual-tree style) was tried
 and dropped: POV loops are long (~15 rad) next to the distances between
 POVs, so ball radii exceed the Hausdorff values until ~3 samples per ball.
+
+With numba installed (``kernel="auto"``), a compiled kernel does the exact
+float64 arithmetic on far fewer sample pairs, and the NumPy path above stays
+as fallback and reference (tests compare both, to the bit):
+
+* early break (Taha & Hanbury 2015): the scan for sample a's nearest b stops
+  at the first b within the pair's running maximum, since a can no longer
+  raise it; the scan starts at the previous a's nearest b (POVs are ordered
+  loops, so it moves little);
+* a POV is a 1-D loop: with s_j = d(b_j, b_j+1), d(a, b_j+m) >=
+  d(a, b_j) - (s_j + ... + s_j+m-1), so the scan jumps over samples that
+  cannot beat the best so far, and an a within the running maximum of the
+  previous a plus their step is skipped;
+* landmarks: H(p, q) >= |H(r, p) - H(r, q)| for the first rows r, computed
+  first, starts the running maximum high.
+
+Every skip needs a bound that exceeds the value it discards by a relative
+1e-9, far above float64 rounding, so the sup-inf is still the brute force's
+float64 number. Measured on 649 POVs: 3.9 s of one thread vs 6.8 s for the
+NumPy path (~600 instead of 20,000 sample pairs per POV pair).
 """
 from __future__ import annotations
 
+import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+try:
+    import numba
+except ImportError:             # optional: the NumPy path is the fallback
+    numba = None
+
 TWO_PI = 2.0 * np.pi
+KERNELS = ("auto", "numpy", "numba")
+# Compiled kernel: relative and absolute slack of every pruning bound (far
+# above the ~1e-15 rounding of the bounds themselves), and landmark rows.
+_BOUND_REL = 1e-9
+_BOUND_ABS = 1e-10
+_LANDMARKS = 16
 
 # Fixed-point screen: 2 pi <-> 2**16, so int16 subtraction is the periodic wrap.
 _SCREEN_BITS = 16
@@ -204,18 +236,161 @@ def _block_row(i0, i1, P, N, RT, Q, block, H2):
         H2[i0:i1, j0:j1] = exact
 
 
+def _squared_pair(R, p, i, q, j):
+    """Squared periodic distance of sample i of POV p and sample j of POV q,
+    with ``_squared_periodic``'s operations in its order (same float64)."""
+    acc = 0.0
+    for k in range(R.shape[2]):
+        d = abs(R[p, i, k] - R[q, j, k])
+        w = TWO_PI - d
+        if w < d:
+            d = w
+        acc += d * d
+    return acc
+
+
+def _loop_steps(R):
+    """(P, N) distance from each sample to the next one of its loop (cyclic)."""
+    P, N, _ = R.shape
+    steps = np.empty((P, N))
+    for p in range(P):
+        for j in range(N):
+            steps[p, j] = math.sqrt(_squared_pair(R, p, j, p, (j + 1) % N))
+    return steps
+
+
+def _nearest_within(R, steps, a_pov, i, b_pov, start, cmax):
+    """(squared distance, index) of the nearest sample of ``b_pov`` to sample
+    ``i`` of ``a_pov``, or of the first one found within ``cmax``; the scan
+    goes round the loop from ``start``, jumping over samples that the loop
+    steps prove farther than the best so far."""
+    N = R.shape[1]
+    cmin = np.inf
+    best = start
+    reach = np.inf
+    j = start
+    covered = 0
+    while covered < N:
+        d = _squared_pair(R, a_pov, i, b_pov, j)
+        if d < cmin:
+            cmin = d
+            best = j
+            if cmin <= cmax:
+                break
+            reach = math.sqrt(cmin) * (1.0 + _BOUND_REL) + _BOUND_ABS
+        budget = math.sqrt(d) - reach
+        j = j + 1 if j + 1 < N else 0
+        covered += 1
+        while covered < N:
+            budget -= steps[b_pov, j - 1 if j > 0 else N - 1]
+            if budget <= 0.0:
+                break
+            j = j + 1 if j + 1 < N else 0
+            covered += 1
+    return cmin, best
+
+
+def _pruned_rows(R, steps, rows, landmarks, H2):
+    """Squared Hausdorff distances H2[p, q], q > p, for p in ``rows``;
+    H2[r, :] of rows r < ``landmarks`` must be done before any row > r."""
+    P, N, _ = R.shape
+    for r in range(rows.shape[0]):
+        p = rows[r]
+        for q in range(p + 1, P):
+            lower = 0.0
+            for m in range(min(landmarks, p)):
+                gap = abs(math.sqrt(H2[m, p]) - math.sqrt(H2[m, q]))
+                if gap > lower:
+                    lower = gap
+            lower = lower * (1.0 - _BOUND_REL) - _BOUND_ABS
+            cmax = lower * lower if lower > 0.0 else 0.0
+            for side in range(2):
+                a_pov = p if side == 0 else q
+                b_pov = q if side == 0 else p
+                nearest = 0
+                upper = np.inf          # bound on the current a's distance to b_pov
+                below = math.sqrt(cmax) * (1.0 - _BOUND_REL) - _BOUND_ABS
+                for i in range(N):
+                    if i > 0:
+                        upper += steps[a_pov, i - 1]
+                        if upper < below:
+                            continue
+                    cmin, nearest = _nearest_within(R, steps, a_pov, i, b_pov, nearest, cmax)
+                    upper = math.sqrt(cmin) * (1.0 + _BOUND_REL) + _BOUND_ABS
+                    if cmin > cmax:
+                        cmax = cmin
+                        below = math.sqrt(cmax) * (1.0 - _BOUND_REL) - _BOUND_ABS
+            H2[p, q] = cmax
+
+
+# Compiled in place (callees are looked up by name at compile time); without
+# numba they stay Python: exact, but only usable on tiny inputs (tests).
+if numba is not None:
+    _jit = numba.njit(nogil=True, cache=True)
+    _squared_pair = _jit(_squared_pair)
+    _loop_steps = _jit(_loop_steps)
+    _nearest_within = _jit(_nearest_within)
+    _pruned_rows = _jit(_pruned_rows)
+
+
+def numba_available() -> bool:
+    """True when the compiled kernel can be used."""
+    return numba is not None
+
+
+def _pruned_matrix(R, n_jobs=1, progress=None, rows_per_task=8):
+    """Hausdorff matrix of reduced angles ``R`` (P, N, K) by ``_pruned_rows``."""
+    P = R.shape[0]
+    kernel_rows = _pruned_rows
+    steps = _loop_steps(R)
+    H2 = np.zeros((P, P))
+    landmarks = min(_LANDMARKS, P)
+    tasks = [np.arange(r0, min(r0 + rows_per_task, P)) for r0 in range(0, P, rows_per_task)]
+    head = [np.arange(landmarks)]
+    tasks = head + [np.arange(max(landmarks, t[0]), t[-1] + 1) for t in tasks
+                    if t[-1] >= landmarks]
+    done = 0
+    total = len(tasks)
+    kernel_rows(R, steps, tasks[0], landmarks, H2)
+    done += 1
+    if progress is not None:
+        progress(done, total)
+    if n_jobs == 1:
+        for rows in tasks[1:]:
+            kernel_rows(R, steps, rows, landmarks, H2)
+            done += 1
+            if progress is not None:
+                progress(done, total)
+    else:
+        with ThreadPoolExecutor(max_workers=n_jobs) as pool:
+            futures = [pool.submit(kernel_rows, R, steps, rows, landmarks, H2)
+                       for rows in tasks[1:]]
+            for fut in futures:
+                fut.result()
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+    H2 = np.triu(H2, 1)
+    return np.sqrt(H2 + H2.T)
+
+
 def hausdorff_matrix(povs, *, block: int | None = None, progress=None,
-                     n_jobs: int | None = None) -> np.ndarray:
+                     n_jobs: int | None = None, kernel: str = "auto") -> np.ndarray:
     """Symmetric (P, P) Hausdorff matrix of POVs ``(P, N, K)`` under the
     periodic motor metric, zero diagonal; equal to the brute force to the bit.
 
     ``block`` POVs per tile (memory ~ 10 * (block * N)**2 bytes per worker,
     independent of P), ``progress(done, total)`` is called after each block
     row, ``n_jobs`` threads (default: 2, or 1 on a single core) share the
-    rows; NumPy releases the GIL in its loops.
+    rows; NumPy and the compiled kernel release the GIL. ``kernel``: "auto"
+    (numba if installed, else NumPy), "numpy" or "numba"; the same bits.
     """
     povs = _check_povs(povs)
     P, N, K = povs.shape
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    if kernel == "numba" and not numba_available():
+        raise ValueError("kernel 'numba' needs the numba package, which is not installed")
     if block is None:
         block = max(1, min(P, 800 // N if N <= 800 else 1))
     if block < 1:
@@ -224,6 +399,8 @@ def hausdorff_matrix(povs, *, block: int | None = None, progress=None,
     if n_jobs < 1:
         raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
     R = _reduced(povs)
+    if kernel != "numpy" and numba_available():
+        return _pruned_matrix(np.ascontiguousarray(R), n_jobs, progress)
     Q = _quantised(R)
     RT = np.ascontiguousarray(np.moveaxis(R, -1, 0))
     H2 = np.zeros((P, P))

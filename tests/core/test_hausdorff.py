@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import directed_hausdorff
 
+from sensorispace_ros.core import hausdorff as hausdorff_module
 from sensorispace_ros.core.hausdorff import (
     directed_hausdorff_pair,
     hausdorff_matrix,
@@ -34,6 +35,13 @@ def closed_curves(rng, P, N, K=4, spread=20.0):
     phase = rng.uniform(0, TWO_PI, size=(P, 1, K))
     return (centre + amp[:, :1] * np.cos(t[None, :, None] + phase)
             + amp[:, 1:] * np.sin(2 * t[None, :, None] + phase))
+
+
+KERNELS = [
+    "numpy",
+    pytest.param("numba", marks=pytest.mark.skipif(not hausdorff_module.numba_available(),
+                                                   reason="numba is not installed")),
+]
 
 
 @pytest.fixture(scope="module")
@@ -69,26 +77,63 @@ def test_pair_functions_match_literal(random_sets):
     assert hausdorff_pair(A, B) == max(directed_hausdorff_pair(A, B), directed_hausdorff_pair(B, A))
 
 
-def test_fast_path_is_bitwise_the_brute_force():
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_fast_path_is_bitwise_the_brute_force(kernel):
     rng = np.random.default_rng(3)
     povs = closed_curves(rng, P=23, N=37)
     # Identical and nearly identical POVs make many exact ties for the screen.
     povs[5] = povs[4]
     povs[6] = povs[4] + 1e-7
     povs[7] = np.roll(povs[8], 5, axis=0) + TWO_PI
-    fast = hausdorff_matrix(povs, block=4)
+    fast = hausdorff_matrix(povs, block=4, kernel=kernel)
     brute = hausdorff_matrix_bruteforce(povs, block=5)
     assert np.array_equal(fast, brute)
     assert fast[4, 5] == 0.0
-    assert np.array_equal(hausdorff_matrix(povs, block=7, n_jobs=2), brute)
+    assert np.array_equal(hausdorff_matrix(povs, block=7, n_jobs=2, kernel=kernel), brute)
 
 
-def test_near_ties_below_the_screen_resolution_are_resolved_exactly():
+def paper_like_loops(rng, P, N):
+    """Translated, slightly deformed copies of one loop, sampled from random
+    start points, with near-duplicates: most POV pairs are close relative to
+    the loop length, as in the paper's POVs (where pruning matters)."""
+    t = TWO_PI * np.arange(N) / N
+    base = np.stack([np.cos(t), np.sin(t), np.cos(2 * t), np.sin(3 * t)], axis=-1) * 1.5
+    shift = rng.uniform(-0.6, 0.6, size=(P, 1, 4))
+    warp = 1.0 + rng.uniform(-0.05, 0.05, size=(P, 1, 4))
+    povs = np.stack([np.roll(base, rng.integers(N), axis=0) for _ in range(P)]) * warp + shift
+    povs[3] = povs[2] + 1e-9
+    povs[4] = povs[2][::-1]                      # same set, other direction: H = 0
+    povs[5] = povs[6] + TWO_PI * rng.integers(-2, 3, size=(1, 4))
+    return povs
+
+
+@pytest.mark.skipif(not hausdorff_module.numba_available(), reason="numba is not installed")
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_compiled_kernel_is_bitwise_the_numpy_path_on_loops(n_jobs):
+    povs = paper_like_loops(np.random.default_rng(12), P=70, N=60)
+    compiled = hausdorff_matrix(povs, kernel="numba", n_jobs=n_jobs)
+    reference = hausdorff_matrix(povs, kernel="numpy")
+    assert np.max(np.abs(compiled - reference)) <= 1e-12      # the issue's bar
+    assert np.array_equal(compiled, reference)                # and in fact to the bit
+    assert np.array_equal(reference, hausdorff_matrix_bruteforce(povs))
+    assert compiled[2, 4] == 0.0 and compiled[2, 3] > 0.0
+
+
+def test_pruned_rows_without_numba_equal_the_brute_force():
+    """The kernel's algorithm itself (compiled or not): tiny input, every
+    landmark/early-break/jump path taken."""
+    povs = paper_like_loops(np.random.default_rng(4), P=20, N=12)
+    R = np.ascontiguousarray(np.mod(povs, TWO_PI))
+    assert np.array_equal(hausdorff_module._pruned_matrix(R), hausdorff_matrix_bruteforce(povs))
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_near_ties_below_the_screen_resolution_are_resolved_exactly(kernel):
     # The 16-bit screen cannot tell 1e-7 apart; the exact pass must.
     base = np.zeros((1, 4))
     A = np.array([[1.0, 0, 0, 0], [1.0 + 1e-7, 0, 0, 0], [1.0 - 1e-7, 0, 0, 0]])
     B = np.vstack([base, base, base])
-    H = hausdorff_matrix(np.stack([A, B]))
+    H = hausdorff_matrix(np.stack([A, B]), kernel=kernel)
     assert H[0, 1] == 1.0 + 1e-7
 
 
@@ -124,9 +169,13 @@ def test_matches_scipy_when_no_difference_wraps():
 def test_other_shapes_and_progress():
     povs = closed_curves(np.random.default_rng(9), P=5, N=1, K=3)
     calls = []
-    H = hausdorff_matrix(povs, block=2, progress=lambda done, total: calls.append((done, total)))
+    H = hausdorff_matrix(povs, block=2, kernel="numpy",
+                         progress=lambda done, total: calls.append((done, total)))
     np.testing.assert_allclose(H, literal_matrix(povs), atol=1e-12)
     assert calls == [(1, 3), (2, 3), (3, 3)]
+    calls.clear()
+    assert np.array_equal(hausdorff_matrix(povs, progress=lambda *a: calls.append(a)), H)
+    assert calls and calls[-1][0] == calls[-1][1]
     assert np.array_equal(hausdorff_matrix(povs[:1]), np.zeros((1, 1)))
     many_joints = closed_curves(np.random.default_rng(10), P=7, N=9, K=9)
     assert np.array_equal(hausdorff_matrix(many_joints), hausdorff_matrix_bruteforce(many_joints))
@@ -142,3 +191,11 @@ def test_bad_input_raises(bad, word):
         hausdorff_matrix(bad)
     with pytest.raises(ValueError, match="block"):
         hausdorff_matrix(np.zeros((2, 3, 4)), block=0)
+
+
+def test_unknown_kernel_raises(monkeypatch):
+    with pytest.raises(ValueError, match="kernel"):
+        hausdorff_matrix(np.zeros((2, 3, 4)), kernel="cuda")
+    monkeypatch.setattr(hausdorff_module, "numba", None)
+    with pytest.raises(ValueError, match="numba"):
+        hausdorff_matrix(np.zeros((2, 3, 4)), kernel="numba")
