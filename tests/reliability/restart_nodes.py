@@ -6,8 +6,12 @@ For each node: start the five nodes as processes (localhost discovery, a
 free domain id), wait until the agent has settled ``--kill-at`` changes, SIGKILL
 the node, start it again with the same command line, and wait up to
 ``--stall-s`` for the representation to finish. Prints one JSON line per node:
-completed / stalled / died, equal to the reference or not, and for the
-recorder the messages in the bag before the kill that survived.
+completed / stalled / died, equal to the reference or not, and what the bag
+(merged by the recorder at SIGTERM) lost of the messages before the kill (see
+``bag_losses``).
+
+Every node gets ``graph.checkpoint_dir`` (node_processes.node_parameters) and
+the launcher's short-lease Fast DDS profile (launcher.graph_environment).
 """
 from __future__ import annotations
 
@@ -46,8 +50,12 @@ class SettledWatcher:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.settled = -1
-        contracts.create_subscription(self.node, "/agent/settled",
-                                      lambda m: setattr(self, "settled", max(self.settled, m.data)))
+        self.received_at: dict[int, float] = {}    # settled k -> monotonic time first seen
+        contracts.create_subscription(self.node, "/agent/settled", self.on_settled)
+
+    def on_settled(self, msg) -> None:
+        self.settled = max(self.settled, int(msg.data))
+        self.received_at.setdefault(int(msg.data), time.monotonic())
 
     def spin(self, seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -58,6 +66,29 @@ class SettledWatcher:
         self.executor.shutdown()
         self.node.destroy_node()
         self.context.try_shutdown()
+
+
+# Messages the watcher received at least this long before the kill must be in the
+# bag when the recorder is the victim: the recorder stores a message within
+# milliseconds of its arrival (write-ahead log), this margin covers a recorder
+# lagging behind the watcher on a loaded machine.
+RECORDER_MARGIN_S = 0.2
+
+
+def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]) -> dict:
+    """What the (merged) bag lacks: /agent/settled values and /environment/event
+    changes expected in it; duplicates are fine."""
+    from sensorispace_ros import bags
+
+    settled, changes = set(), set()
+    for topic, _, _, msg in bags.read_bag_messages(bag, ["/agent/settled", "/environment/event"]):
+        if topic == "/agent/settled":
+            settled.add(int(msg.data))
+        else:
+            changes.add(int(msg.header.frame_id.partition("/")[2]))
+    return {"settled_missing": sorted(expected_settled - settled),
+            "events_missing": sorted(expected_changes - changes),
+            "parts_left": sorted(p.name for p in bag.parent.glob(f"{bag.name}.part-*"))}
 
 
 def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference: dict | None):
@@ -80,7 +111,8 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
                 outcome["state"] = f"did not reach settled {kill_at}: {processes.exited()}"
                 return outcome
         processes.kill9(victim)
-        outcome["killed_after_s"] = round(time.monotonic() - started, 1)
+        killed_at = time.monotonic()
+        outcome["killed_after_s"] = round(killed_at - started, 1)
         outcome["settled_at_kill"] = int(watcher.settled)
         processes.start(victim, np_mod.command(victim, SMOKE, results, bag), env,
                         log_name=f"{victim}.restarted")
@@ -108,6 +140,21 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
         processes.stop()
         watcher.close()
     outcome["wall_s"] = round(time.monotonic() - started, 1)
+    if outcome["state"] == "completed" and "killed_after_s" in outcome:
+        if victim == "recorder":    # what it had been sent more than the margin before the kill
+            expected = {k for k, t in watcher.received_at.items()
+                        if t < killed_at - RECORDER_MARGIN_S}
+        else:                       # the recorder lived through: everything
+            expected = set(range(outcome["settled_at_end"] + 1))
+        outcome["bag_expected_settled"] = max(expected, default=-1)
+        if victim == "recorder":    # measured, not asserted: the loss window itself
+            before_kill = {k: killed_at - t for k, t in watcher.received_at.items()
+                           if t < killed_at}
+            missing = bag_losses(bag, set(before_kill), set())["settled_missing"]
+            outcome["lost_before_kill_ms"] = {k: round(1e3 * before_kill[k], 1) for k in missing}
+        # change k's event precedes settle k; the end (settle n + 1) has no event
+        outcome["bag"] = bag_losses(bag, expected,
+                                    {k for k in expected if 1 <= k < outcome["settled_at_end"]})
     if outcome["state"] == "completed" and reference is not None:
         try:
             np_mod.assert_same_result(np_mod.load_result(results), reference)
