@@ -113,6 +113,8 @@ def test_sensation_broadcasts_like_the_dense_evaluation():
     single = retina.sensation(pose[1, 2], lights, receptors)
     assert single.shape == (6,)
     np.testing.assert_array_equal(single, dense_sensation(pose[1, 2], lights, receptors))
+    empty = retina.sensation(np.zeros((0, 3)), lights, receptors)
+    assert empty.shape == (0, 6)
     with pytest.raises(ValueError, match="receptor_positions"):
         retina.sensation(pose, lights, receptors[None])
 
