@@ -143,7 +143,6 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 with the paper's analytic shortcuts."""
     from .core.equality_sets import equality_sets_from_poses
     from .core.exploration import build_world, explore_paper
-    from .core.points_of_view import sample_points_of_view
 
     timings: dict = {}
     with _stage(progress, "exploration", timings):
@@ -154,8 +153,7 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
             compensation_options={"initial_simplex_size": cfg["compensation"]["initial_simplex"]},
             progress=progress)
     with _stage(progress, "points_of_view", timings):
-        sampled = sample_points_of_view(explored.motor_states, progress=progress,
-                                        **pov_params(cfg))
+        sampled = _sample_points_of_view(explored.motor_states, cfg, progress)
     valid = np.asarray(sampled.valid, dtype=bool)
     povs = sampled.samples[valid]
     true_poses = explored.true_poses[valid]
@@ -193,6 +191,44 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
                           set_ids=np.asarray(set_ids, dtype=int),
                           true_positions=true_poses[:, :2].copy(), metrics=metrics,
                           arrays=arrays, timings_s=timings)
+
+
+def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
+                           processes: int | None = None):
+    """``sample_points_of_view`` of every motor state, in two forked
+    processes (halves of the batch) when ``_can_fork``.
+
+    Every operation of the walk is per POV, so the halves give the same bits
+    as one batch (tests check it). Measured on the paper's 649 POVs: 6.0 s of
+    one process, 4.4 s per half (each half walks until its longest loop closes).
+    """
+    from .core.points_of_view import PointsOfViewResult, sample_points_of_view
+
+    if processes is None:
+        processes = min(2, os.cpu_count() or 1) if _can_fork() else 1
+    motor_states = np.asarray(motor_states, dtype=float)
+    if processes < 2 or len(motor_states) < 64:
+        return sample_points_of_view(motor_states, progress=progress, **pov_params(cfg))
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    chunks = np.array_split(motor_states, processes)
+    with ProcessPoolExecutor(max_workers=processes,
+                             mp_context=multiprocessing.get_context("fork")) as pool:
+        futures = [pool.submit(sample_points_of_view, chunk, **pov_params(cfg))
+                   for chunk in chunks]
+        parts = []
+        for future in futures:
+            parts.append(future.result())
+            if progress is not None:
+                progress(sum(len(part.samples) for part in parts), len(motor_states))
+    return PointsOfViewResult(
+        samples=np.concatenate([part.samples for part in parts]),
+        valid=np.concatenate([np.asarray(part.valid) for part in parts]),
+        reason=[reason for part in parts for reason in part.reason],
+        steps=np.concatenate([part.steps for part in parts]),
+        max_pose_drift=max(part.max_pose_drift for part in parts),
+        winding=np.concatenate([part.winding for part in parts]))
 
 
 def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:

@@ -143,6 +143,21 @@ def test_chains_in_two_processes_equal_one_process(smoke_run):
                                        0, processes=0)
 
 
+def test_points_of_view_in_two_processes_equal_one_batch():
+    """The kernel walk is per POV: halves of the batch in two processes give
+    the same bits as one batch."""
+    cfg = load_config(SMOKE)
+    rng = np.random.default_rng(3)
+    motor = np.array(cfg["arm"]["initial_motor_state"]) + rng.uniform(-1.0, 1.0, (64, 4))
+    one = pipeline._sample_points_of_view(motor, cfg, processes=1)
+    two = pipeline._sample_points_of_view(motor, cfg, processes=2)
+    assert np.array_equal(one.samples, two.samples)
+    assert np.array_equal(one.valid, two.valid) and one.reason == two.reason
+    assert np.array_equal(one.steps, two.steps) and np.array_equal(one.winding, two.winding)
+    assert one.max_pose_drift == two.max_pose_drift
+    assert one.samples.shape == (64, cfg["pov"]["n_samples"], 4) and one.valid.sum() > 32
+
+
 def test_run_arrays_reproduce_the_evaluation(smoke_run):
     """arrays.npz alone gives back the representation's numbers."""
     out, metrics = smoke_run
