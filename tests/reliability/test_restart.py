@@ -16,24 +16,54 @@ with the same command line. Asserted:
   holds every /agent/settled value the test's own subscriber received more
   than RECORDER_MARGIN_S (0.2 s) before it sent SIGKILL, and the event of each
   of those changes (messages sent while no recorder ran are not in it; the
-  analysis takes those events from the seeded schedule).
+  analysis takes those events from the seeded schedule);
+- ``sensorispace analyze`` of that bag (duplicates included: restarted nodes
+  re-send) gives the undisturbed run's numbers: the parity keys of
+  tests/ros/test_launch.py (exploration.*, quality.*, pov.count,
+  naive.coverage, naive.wrong_poses, naive.state_changes_accepted) equal the
+  offline naive run's.
 
 How each node resumes is in the README ("Node restarts").
 """
 from __future__ import annotations
 
+import json
+
 import pytest
 
+from .conftest import SMOKE
 from .node_processes import NODES, assert_same_result, load_result
 from .restart_nodes import restart_run
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
+PARITY_PREFIXES = ("exploration.", "quality.")
+PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
+
+
+@pytest.fixture(scope="module")
+def offline_naive_metrics(tmp_path_factory) -> dict:
+    from sensorispace_ros import config, pipeline
+
+    out = tmp_path_factory.mktemp("offline_naive")
+    pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
+                       out_dir=out)
+    return pipeline.flatten_metrics(json.loads((out / "metrics.json").read_text()))
+
+
+def analysed_metrics(bag, out) -> dict:
+    from sensorispace_ros import analyze, pipeline
+
+    cfg = analyze.config_from_bag(bag)
+    cfg["output"]["figures"] = False
+    return pipeline.flatten_metrics(analyze.analyze_bag(bag, out, cfg=cfg))
+
 
 @pytest.mark.timeout(240)
 @pytest.mark.parametrize("victim", NODES)
 def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_path,
-                                                                 single_host_result):
+                                                                 single_host_result,
+                                                                 offline_naive_metrics):
     outcome = restart_run(victim, tmp_path, kill_at=60, stall_s=150, reference=None)
     assert outcome.get("settled_at_kill", 10**6) < 200, str(outcome)     # killed mid-run
     assert outcome["state"] == "completed", str(outcome)
@@ -41,3 +71,9 @@ def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_pat
     assert outcome["bag"] == {"settled_missing": [], "events_missing": [], "parts_left": []}, \
         str(outcome)
     assert outcome["bag_expected_settled"] >= (50 if victim == "recorder" else 285), str(outcome)
+    analysed = analysed_metrics(tmp_path / "bag", tmp_path / "analysed")
+    checked = [k for k in offline_naive_metrics
+               if k in PARITY_KEYS or k.startswith(PARITY_PREFIXES)]
+    assert len(checked) > 20 and analysed["pov.count"] > 3
+    for key in checked:
+        assert analysed[key] == pytest.approx(offline_naive_metrics[key], abs=1e-6, rel=0), key
