@@ -99,14 +99,18 @@ def table(results: dict) -> str:
     h = results.get("hausdorff")
     if h:
         row("hausdorff matrix [s]", h["fast_s"], h["bruteforce_s"], h["ratio"],
-            f"1 thread {h['fast_1thread_s']:.3g} s (x{h['ratio_1thread']:.3g}, "
-            f"CPU x{h['ratio_cpu_1thread']:.3g}); "
+            f"{h.get('kernel', 'numpy')}; 1 thread {h['fast_1thread_s']:.3g} s "
+            f"(x{h['ratio_1thread']:.3g}, CPU x{h['ratio_cpu_1thread']:.3g}); "
+            f"NumPy path {h.get('numpy_path_s', float('nan')):.3g} s; "
             f"max|diff| {h['max_abs_diff']:.3g}; P={h['povs'][0]}; load {h['load_before'][0]}")
     c = results.get("cca")
     if c:
         for dim, v in c["cca"]["dims"].items():
             row(f"CCA {dim} per epoch [ms]", v["per_epoch_ms"], v["baseline_per_epoch_ms"],
-                v["ratio"], f"fit {v['fit_s']:.3g} s; max|diff| {v['max_abs_diff_vs_baseline']:.2g}")
+                v["ratio"], f"fit {v['fit_s']:.3g} s; max|diff| {v['max_abs_diff_vs_baseline']:.2g}; "
+                f"{v.get('kernel', 'numpy')}; NumPy loop "
+                f"{v.get('numpy_loop_per_epoch_ms', float('nan')):.3g} ms/epoch, "
+                f"max|diff| {v.get('max_abs_diff_vs_numpy_loop', float('nan')):.2g}")
         r = c["regularization"]
         row("regularisation averaging [ms]", r["averaging_ms"], r["averaging_baseline_ms"],
             r["averaging_ratio"], f"max|diff| {r['averaging_max_abs_diff']:.2g}")

@@ -34,9 +34,12 @@ def test_run_all_on_tiny_povs_writes_json_and_baselines_agree(tmp_path, capsys):
     hausdorff = results["hausdorff"]
     assert hausdorff["povs"] == [P, N, 4]
     assert hausdorff["max_abs_diff"] <= 1e-12 and hausdorff["max_abs_diff_1thread"] <= 1e-12
+    assert hausdorff["numpy_path_max_abs_diff"] <= 1e-12
     for dim in ("2d", "3d"):
         # The reference CCA is an independent transcription of the update rule.
         assert results["cca"]["cca"]["dims"][dim]["max_abs_diff_vs_baseline"] < 1e-9
+        # compiled or not, the fitted CCA is the NumPy loop's, to the bit
+        assert results["cca"]["cca"]["dims"][dim]["max_abs_diff_vs_numpy_loop"] == 0.0
     assert results["cca"]["regularization"]["averaging_max_abs_diff"] < 1e-12
     assert "hausdorff matrix" in capsys.readouterr().out
 
