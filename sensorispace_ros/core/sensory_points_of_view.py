@@ -9,16 +9,22 @@ the null vector of the *sensory* Jacobian ``J_s = dsense/dm`` (6x4, rank 3
 because the sensation depends on the eye's 3-D pose only), which the agent
 estimates by finite differences through ``sense``.
 
-The walk is a predictor-corrector continuation: a predictor step of length
-``h`` along the null vector, then one minimum-norm Gauss-Newton step back
-onto ``sense(m) = s_i`` using the Jacobian measured at the predicted point.
-Both come from one ``sense`` call per step whose rows are the predicted
-point and its finite-difference stencil, for every walking POV at once.
-``h`` adapts to the size of the correction, so steps are ~30-100 times
-the paper's 1e-3. The closed loop is resampled at ``N`` points equally
-spaced in arc length along a periodic cubic spline (a polyline's arc length
-at such steps is off by ~h^2 kappa^2 / 24 relative, enough to shift samples
-by ~1e-3 rad), and the samples are projected back onto the level set.
+The walk is a predictor-corrector continuation: predicted states along the
+null vector (a quadratic arc, its bend from the last two tangents), then one
+minimum-norm Gauss-Newton step each back onto ``sense(m) = s_i`` using the
+Jacobian measured at the predicted state. The ``sense`` calls are the
+sequential cost (a round trip each over ROS), rows are cheap, so one call
+carries, for every walking POV at once: two fronts leaving the start in
+opposite directions and meeting half way round (half the calls of one front
+going all the way), each probing ``knots_per_step`` states ``h, 2h, ...``
+ahead with their finite-difference stencils (the farthest sets the reach,
+the nearer ones keep the knots ``h`` apart). ``h`` adapts to the size of
+the farthest correction; knots are ~30-150 times the paper's 1e-3 apart. The
+knots get one more Gauss-Newton step together (one call), the closed loop is
+resampled at ``N`` points equally spaced in arc length along a periodic cubic
+spline (a polyline's arc length at such steps is off by ~h^2 kappa^2 / 24
+relative, enough to shift samples by ~1e-3 rad), and the samples are
+projected back onto the level set.
 
 Nothing here knows the arm, the retina or the world: ``body`` only needs
 ``sense``, ``n_motors`` and ``n_sensors``; ``loop_winding`` comes from
@@ -115,7 +121,8 @@ class SensoryPointsOfView:
     walk could not sample a whole loop (``reason[p]``: ``"split"``,
     ``"not_closed"``, ``"rank_deficient"``). ``queries[p]``: motor states
     probed for POV ``p``; ``calls``: ``sense`` calls of the whole batch.
-    ``steps[p]``: predictor-corrector steps; ``max_residual``: largest
+    ``steps[p]``: knots of the walk (corrected predictions kept, both
+    fronts); ``max_residual``: largest
     sensory error ``|sense(sample) - sense(start)|`` of a valid POV's final
     samples; ``target_sensations[p]`` the start's sensation.
     """
@@ -134,20 +141,24 @@ def sample_sensory_points_of_view(
         body, motor_states: np.ndarray, *, n_samples: int = 100, fd_step: float = 1e-6,
         initial_step: float = 0.05, min_step: float = 1e-3, max_step: float = 0.15,
         predictor_tol: float = 2e-3, rank_ratio: float = 1e-3, max_queries: int = 5000,
-        polish_iterations: int = 2, min_loop_length: float = 0.3) -> SensoryPointsOfView:
+        polish_iterations: int = 2, min_loop_length: float = 0.3,
+        knots_per_step: int = 4) -> SensoryPointsOfView:
     """Sample the POV of every motor state in ``motor_states`` ``(P, M)``
     through ``body.sense`` in the current (static) environment.
 
-    All POVs walk together: each step is one ``sense`` call with
-    ``(M + 1)`` rows per walking POV. ``initial_step``/``min_step``/
-    ``max_step`` bound the predictor step (rad); the step grows or shrinks
-    so the Gauss-Newton correction stays near ``predictor_tol`` (the
-    correction of a tangent step of length h is ~ h^2 kappa / 2). A step
-    whose correction exceeds ``4 * predictor_tol`` is redone at half length.
-    The loop closes when the walk, after ``min_loop_length`` rad of arc,
-    is within one step of the start in the periodic motor metric; a loop that
-    closes only modulo 2 pi in some joint is a split POV (paper Fig. 5b,
-    ``loop_winding``) and is rejected as in the paper. ``rank_ratio``:
+    All POVs walk together: each call has ``2 * knots_per_step * (M + 1)``
+    rows per walking POV (two fronts, ``knots_per_step`` probes each, a
+    stencil per probe). ``initial_step``/``min_step``/``max_step`` bound
+    the knot interval ``h`` (rad), so a call reaches up to
+    ``knots_per_step * max_step``; ``h`` grows or shrinks so the farthest
+    probe's Gauss-Newton correction stays near ``predictor_tol``. A front
+    keeps its probes up to the first whose correction exceeds
+    ``4 * predictor_tol``; if that is the first, it retries at half ``h``.
+    The loop closes when the two fronts, after ``min_loop_length`` rad of
+    arc together, face each other within about one knot interval in the
+    periodic motor metric; a loop that closes only modulo 2 pi in some joint
+    is a split POV (paper Fig. 5b, ``loop_winding``) and is rejected as in
+    the paper. ``max_queries``: rows per POV (both fronts). ``rank_ratio``:
     smallest accepted ratio of the 3rd to the 1st singular value of the
     sensory Jacobian at the start (below it the sensation does not determine
     the eye's pose and there is no 1-D level set to walk).
@@ -162,7 +173,7 @@ def sample_sensory_points_of_view(
                            min_step=min_step, max_step=max_step, predictor_tol=predictor_tol,
                            rank_ratio=rank_ratio, max_queries=max_queries,
                            polish_iterations=polish_iterations,
-                           min_loop_length=min_loop_length)
+                           min_loop_length=min_loop_length, knots_per_step=knots_per_step)
     n_pov = len(start)
     rows_per_state = n_motors + 1
     queries = np.zeros(n_pov, dtype=int)
@@ -189,66 +200,126 @@ def sample_sensory_points_of_view(
     for p in np.flatnonzero(~full_rank):
         reason[p] = RANK_DEFICIENT
 
+    # Two fronts per POV walk the loop in opposite directions from the start,
+    # in the same sense calls, until they meet half way round. Arrays are
+    # (POV, front, ...): front 0 along +tangent, front 1 along -tangent.
     active = np.flatnonzero(full_rank)
-    point = start[active].copy()             # last accepted (corrected) state
-    direction = tangent[active].copy()
-    step = np.full(len(active), float(initial_step))
-    arc = np.zeros(len(active))
-    bend = np.zeros_like(direction)          # d(tangent)/d(arc), from the last two steps
+    n_knots = int(knots_per_step)
+    fraction = np.arange(1, n_knots + 1)                      # probe k at k * spacing
+    point = np.repeat(start[active, None, :], 2, axis=1)      # last accepted (corrected) knots
+    direction = tangent[active, None, :] * np.array([1.0, -1.0])[None, :, None]
+    spacing = np.full((len(active), 2), float(initial_step))
+    arc = np.zeros((len(active), 2))
+    bend = np.zeros_like(direction)          # d(tangent)/d(arc), from the last two knots
+    branches = [([], []) for _ in range(n_pov)]             # knots of each front
+    branch_jacobians = [([], []) for _ in range(n_pov)]
     while len(active):
-        predicted = point + step[:, None] * direction + (0.5 * step * step)[:, None] * bend
-        sensation, jac, _ = sensory_jacobian(body, predicted, fd_step)
+        reach = spacing[..., None] * fraction                                # (A, 2, K)
+        predicted = (point[:, :, None, :] + reach[..., None] * direction[:, :, None, :]
+                     + (0.5 * reach * reach)[..., None] * bend[:, :, None, :])
+        sensation, jac, _ = sensory_jacobian(body, predicted.reshape(-1, n_motors), fd_step)
         calls += 1
-        queries[active] += rows_per_state
-        correction, null = _correction_and_null(jac, sensation - target[active])
-        size = np.linalg.norm(correction, axis=1)
-        rejected = (size > 4.0 * predictor_tol) & (step > min_step)
-        accepted = ~rejected
-        new_point = predicted + correction
-        null *= np.where(np.sum(null * direction, axis=1) < 0.0, -1.0, 1.0)[:, None]
-        travelled = np.linalg.norm(new_point - point, axis=1)
+        queries[active] += 2 * n_knots * rows_per_state
+        correction, null = _correction_and_null(
+            jac, sensation - np.repeat(target[active], 2 * n_knots, axis=0))
+        jac = jac.reshape(predicted.shape[:3] + jac.shape[1:])
+        correction = correction.reshape(predicted.shape)
+        null = null.reshape(predicted.shape)
+        size = np.linalg.norm(correction, axis=-1)                           # (A, 2, K)
+        heading = direction[:, :, None, :] + reach[..., None] * bend[:, :, None, :]
+        null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
+        knots = predicted + correction
+        # A front keeps its probes up to the first whose correction is too
+        # large (the predictor error grows with the reach).
+        good = (size <= 4.0 * predictor_tol) | (spacing[..., None] <= min_step)
+        kept = np.cumprod(good, axis=-1).sum(axis=-1)                        # (A, 2)
+        accepted = kept > 0
+        last = np.maximum(kept - 1, 0)
+        front_of = (np.arange(len(active))[:, None], np.arange(2)[None, :])
+        links = np.linalg.norm(np.diff(np.concatenate([point[:, :, None, :], knots], axis=2),
+                                       axis=2), axis=-1)                     # (A, 2, K)
+        travelled = np.sum(np.where(np.arange(n_knots) < kept[..., None], links, 0.0), axis=-1)
+        previous_null = np.where((last > 0)[..., None], null[front_of + (last - 1,)], direction)
+        new_bend = ((null[front_of + (last,)] - previous_null)
+                    / np.maximum(links[front_of + (last,)], 1e-12)[..., None])
 
-        # Predictor error ~ h^2: aim the next correction at predictor_tol.
-        scale = (predictor_tol / np.maximum(size, 1e-12)) ** (1.0 / 3.0)
-        step = np.where(rejected, 0.5 * step,
-                        np.clip(step * np.clip(0.9 * scale, 0.5, 1.5), min_step, max_step))
-        new_bend = (null - direction) / np.maximum(travelled, 1e-12)[:, None]
-        bend = np.where(accepted[:, None], new_bend, bend)
-        point = np.where(accepted[:, None], new_point, point)
-        direction = np.where(accepted[:, None], null, direction)
-        arc += np.where(accepted, travelled, 0.0)
-        steps[active] += accepted
+        # Predictor error ~ h^3 (the bend makes it second order): aim the
+        # farthest probe's correction at predictor_tol.
+        scale = (predictor_tol / np.maximum(size[..., -1], 1e-12)) ** (1.0 / 3.0)
+        spacing = np.where(~accepted, 0.5 * spacing,
+                           np.clip(spacing * np.clip(0.9 * scale, 0.5, 1.5), min_step, max_step))
+        bend = np.where(accepted[..., None], new_bend, bend)
+        point = np.where(accepted[..., None], knots[front_of + (last,)], point)
+        direction = np.where(accepted[..., None], null[front_of + (last,)], direction)
+        arc += travelled
+        steps[active] += kept.sum(axis=1)
+        for k, front in zip(*np.nonzero(accepted)):
+            branches[active[k]][front].extend(knots[k, front, :kept[k, front]])
+            branch_jacobians[active[k]][front].extend(jac[k, front, :kept[k, front]])
 
-        # Close when the start lies within one step ahead (or is very near).
-        to_start = _wrap(start[active] - point)
-        gap = np.linalg.norm(to_start, axis=1)
-        ahead = np.sum(to_start * direction, axis=1) > 0.0
-        closing = accepted & (arc > min_loop_length) & (
-            (gap < 1.5 * step) & ahead | (gap < 0.5 * step))
-        out_of_budget = queries[active] + rows_per_state > max_queries
-        for k in np.flatnonzero(accepted):
-            paths[active[k]].append(point[k].copy())
-            jacobians_along[active[k]].append(jac[k])
+        # The fronts meet, modulo 2 pi per joint (a split POV meets itself a
+        # turn away). Within about a knot interval of each other they close
+        # the loop. Within reach of both next calls they aim at their
+        # midpoint instead: the last knot interval is then no longer than the
+        # others, and the fronts cannot pass each other between two calls.
+        gap = _wrap(point[:, 1] - point[:, 0])
+        distance = np.linalg.norm(gap, axis=1)
+        facing = (np.sum(gap * direction[:, 0], axis=1) > 0.0) & (
+            np.sum(gap * direction[:, 1], axis=1) < 0.0)
+        long_enough = arc.sum(axis=1) > min_loop_length
+        widest = spacing.max(axis=1)
+        closing = long_enough & ((facing & (distance < 1.25 * widest)) |
+                                 (distance < 0.5 * widest))
+        converge = (long_enough & facing & ~closing
+                    & (distance < 1.1 * n_knots * spacing.sum(axis=1)))
+        spacing[converge] = np.maximum(distance[converge] / (2 * n_knots), min_step)[:, None]
+        out_of_budget = queries[active] + 2 * n_knots * rows_per_state > max_queries
+        for k in np.flatnonzero(closing):
+            p = active[k]
+            forward, backward = branches[p]
+            forward_jac, backward_jac = branch_jacobians[p]
+            if backward and distance[k] < 0.2 * widest[k]:
+                backward, backward_jac = backward[:-1], backward_jac[:-1]   # near-duplicate knot
+            # Unwrapped, the backward front ends a whole number of turns from
+            # the forward one: shift it so the path is continuous (a split
+            # POV's path then ends a turn away from its start).
+            turns = TWO_PI * np.rint((point[k, 1] - point[k, 0] - gap[k]) / TWO_PI)
+            paths[p] = [start[p].copy()] + forward + [b - turns for b in backward[::-1]]
+            jacobians_along[p] = jacobians_along[p] + forward_jac + backward_jac[::-1]
         for k in np.flatnonzero(out_of_budget & ~closing):
             reason[active[k]] = NOT_CLOSED
         keep = ~(closing | out_of_budget)
-        active, point, direction, bend, step, arc = (
-            active[keep], point[keep], direction[keep], bend[keep], step[keep], arc[keep])
+        active, point, direction, bend, spacing, arc = (
+            active[keep], point[keep], direction[keep], bend[keep], spacing[keep], arc[keep])
 
     samples = np.repeat(start[:, None, :], n_samples, axis=1)
     for p in range(n_pov):
-        if reason[p] != VALID:
-            continue
-        path = np.asarray(paths[p])
-        if np.any(loop_winding(path) != 0):
+        if reason[p] == VALID and np.any(loop_winding(np.asarray(paths[p])) != 0):
             reason[p] = SPLIT
-            continue
-        samples[p] = resample_loop_spline(path, n_samples)
+    whole = [p for p in range(n_pov) if reason[p] == VALID]
+    if whole:
+        # One Gauss-Newton step on every knot (its own Jacobian, measured at
+        # its predicted state, in one call): a knot corrected once from a
+        # prediction ~predictor_tol off the level set is still ~1e-5 off,
+        # systematically on one side, which biases the spline's arc length
+        # (samples then shift along the loop by up to ~4e-5 rad).
+        knots = np.concatenate([np.asarray(paths[p][1:]) for p in whole])
+        knot_jacobians = np.concatenate([np.asarray(jacobians_along[p][1:]) for p in whole])
+        counts = [len(paths[p]) - 1 for p in whole]
+        sensation = np.asarray(body.sense(knots), dtype=float)
+        calls += 1
+        knots = knots + minimum_norm_correction(
+            knot_jacobians, sensation - np.repeat(target[whole], counts, axis=0))
+        for p, chunk in zip(whole, np.split(knots, np.cumsum(counts)[:-1])):
+            queries[p] += len(chunk)
+            paths[p] = [paths[p][0]] + list(chunk)
+            samples[p] = resample_loop_spline(np.asarray(paths[p]), n_samples)
 
     # Project the samples back onto the level set with one Gauss-Newton step
-    # each. The Jacobian is the one measured at the nearest walk point (a few
-    # 1e-2 rad away): its error only slows the convergence of a correction
-    # that is already ~1e-6, so it costs one row per sample instead of M + 1.
+    # each. The Jacobian is the one measured at the nearest knot (at most
+    # half a knot interval away): its error only slows the convergence of a
+    # correction that is already ~1e-8 (spline between polished knots), so
+    # it costs one row per sample instead of M + 1.
     max_residual = 0.0
     good = np.flatnonzero([r == VALID for r in reason])
     if len(good):
@@ -340,7 +411,8 @@ def _check_walk_parameters(**values) -> None:
         raise ValueError("initial_step must lie in [min_step, max_step], got "
                          f"{values['initial_step']} not in [{values['min_step']}, "
                          f"{values['max_step']}]")
-    for name, minimum in (("n_samples", 2), ("max_queries", 1), ("polish_iterations", 0)):
+    for name, minimum in (("n_samples", 2), ("max_queries", 1), ("polish_iterations", 0),
+                          ("knots_per_step", 1)):
         value = values[name]
         if int(value) != value or value < minimum:
             raise ValueError(f"{name} must be an integer >= {minimum}, got {value}")

@@ -62,6 +62,43 @@ def test_naive_povs_match_the_analytic_walk_within_budget(world):
     assert sim.queries == naive.queries.sum()
 
 
+def _cyclic_chords(samples):
+    return np.linalg.norm(np.diff(np.vstack([samples, samples[:1]]), axis=0), axis=1)
+
+
+def test_fronts_meet_into_one_closed_loop_of_equal_arcs_on_the_level_set(world):
+    starts = np.vstack([world.m0, _states_in_view(world, 3, 1.1, 2.9, seed=3)])
+    sim = _body(world)
+    result = sample_sensory_points_of_view(sim, starts)
+    assert result.valid.all()
+    for p in range(len(starts)):
+        samples = result.samples[p]
+        # Every sample senses what the start senses (on the POV) ...
+        assert np.max(np.abs(sim.sense(samples) - sim.sense(starts[p:p + 1]))) < 1e-9
+        # ... and the loop is traced once: N equal arcs, the last one (back
+        # to the start, across where the two fronts met) included. Fronts
+        # that passed each other, or stopped short, would leave one arc
+        # longer or shorter than the others.
+        chords = _cyclic_chords(samples)
+        assert np.ptp(chords) < 1e-2 * np.median(chords)
+        assert abs(chords[-1] - np.median(chords)) < 1e-3 * np.median(chords)
+
+
+def test_two_fronts_and_probes_per_call_cut_the_sequential_calls(world):
+    start = _states_in_view(world, 1, 1.1, 2.9, seed=4)
+    one_probe = sample_sensory_points_of_view(_body(world), start, knots_per_step=1)
+    four_probes = sample_sensory_points_of_view(_body(world), start, knots_per_step=4)
+    assert one_probe.valid.all() and four_probes.valid.all()
+    # The same loop, sampled the same way.
+    assert hausdorff_pair(one_probe.samples[0], four_probes.samples[0]) < 1e-6
+    assert four_probes.calls < one_probe.calls
+    # A single front one knot per call, knots at most max_step = 0.15 apart,
+    # needs at least (loop length) / max_step calls: both fronts with four
+    # probes each need fewer than half of that.
+    loop_length = _cyclic_chords(four_probes.samples[0]).sum()
+    assert four_probes.calls < 0.5 * loop_length / 0.15
+
+
 def test_split_points_of_view_are_rejected_like_the_paper(world):
     split_start = _states_in_view(world, 1, 0.3, 0.8, seed=2)
     # |tip| < 1: the fibre is two loops, each winding once around a joint
@@ -140,7 +177,7 @@ def test_sensory_jacobian_matches_the_chain_rule(world):
 
 @pytest.mark.parametrize("name, value", [("initial_step", 0.0), ("predictor_tol", -1.0),
                                          ("n_samples", 1), ("max_queries", 0),
-                                         ("min_step", np.nan)])
+                                         ("min_step", np.nan), ("knots_per_step", 0)])
 def test_bad_walk_parameters_are_named(world, name, value):
     with pytest.raises(ValueError, match=name):
         sample_sensory_points_of_view(_body(world), world.m0[None], **{name: value})
