@@ -91,20 +91,28 @@ def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]
             "parts_left": sorted(p.name for p in bag.parent.glob(f"{bag.name}.part-*"))}
 
 
-def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference: dict | None):
+def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference: dict | None,
+                write_ahead: bool = True):
     domain_id = launcher.free_domain_id()
     env = launcher.graph_environment(domain_id)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_STATIC_PEERS", None)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     results, bag = work / "results", work / "bag"
+
+    def command(name: str) -> list[str]:
+        line = np_mod.command(name, SMOKE, results, bag)
+        if name == "recorder" and not write_ahead:
+            line += ["-p", "recorder.write_ahead:=false"]
+        return line
+
     processes = np_mod.NodeProcesses(work / "logs")
     watcher = SettledWatcher(domain_id)
     outcome = {"node": victim, "kill_at_settled": kill_at}
     started = time.monotonic()
     try:
         for name in np_mod.NODES:
-            processes.start(name, np_mod.command(name, SMOKE, results, bag), env)
+            processes.start(name, command(name), env)
         while watcher.settled < kill_at:
             watcher.spin(0.1)
             if processes.exited() or time.monotonic() - started > 200:
@@ -114,7 +122,7 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
         killed_at = time.monotonic()
         outcome["killed_after_s"] = round(killed_at - started, 1)
         outcome["settled_at_kill"] = int(watcher.settled)
-        processes.start(victim, np_mod.command(victim, SMOKE, results, bag), env,
+        processes.start(victim, command(victim), env,
                         log_name=f"{victim}.restarted")
         deadline = time.monotonic() + stall_s
         last_progress, last_settled = time.monotonic(), watcher.settled
@@ -173,10 +181,13 @@ def main(argv=None) -> int:
     parser.add_argument("--stall-s", type=float, default=150.0)
     parser.add_argument("--work", type=Path, default=Path("results/restart"))
     parser.add_argument("--reference", type=Path, default=None)
+    parser.add_argument("--no-write-ahead", action="store_true",
+                        help="recorder without its write-ahead log (to measure what it saves)")
     args = parser.parse_args(argv)
     reference = np_mod.load_result(args.reference) if args.reference else None
     for victim in args.nodes:
-        outcome = restart_run(victim, args.work / victim, args.kill_at, args.stall_s, reference)
+        outcome = restart_run(victim, args.work / victim, args.kill_at, args.stall_s, reference,
+                              write_ahead=not args.no_write_ahead)
         print(json.dumps(outcome), flush=True)
     return 0
 
