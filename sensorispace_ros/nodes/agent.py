@@ -18,17 +18,48 @@ publishes its own bookkeeping, never anything of the world:
 ``/agent/compensation_records`` (each accepted compensation) and, at the
 end, ``/agent/stage_counters``: together ``core.naive_evaluation.
 NaiveAgentRecords``, the data the offline run is evaluated from.
+
+Restart (issue #7; only with ``graph.checkpoint_dir`` set, "" costs nothing).
+The agent persists ``<dir>/agent.snapshot`` and ``<dir>/agent.journal``
+(format: ``sensorispace_ros.agent_checkpoint``). The journal gets, unbuffered
+(one ``os.write`` each, kept by the page cache through a kill -9), every
+input the agent consumes: each new passive sensation when it arrives, each
+body answer (with a crc of the command it answers), and a marker once a
+change's reaction is published. At most every ``snapshot_period_s`` of wall
+time, at an event boundary (after ``/agent/settled`` k), the snapshot is
+replaced atomically (``NaiveAgent.state()`` plus the node's counters and
+queued passives) and the journal emptied. A restarted agent loads the
+snapshot, re-feeds the journal through the deterministic NaiveAgent (answers
+come from the journal, checked by command number and crc; reactions of
+changes with a marker are not published again) and, where the journal ends
+mid-change, continues live: its next command carries the same ``cmd/<n>``
+as the one the dead agent sent (the body answers duplicates identically).
+If it restarted idle (last change settled), it re-publishes that settle every
+``graph.resend_period_s`` until a newer passive sensation arrives (the
+settle, or the next passive sensation, may have been lost while it was
+dead). ``/agent/done`` totals, POVs, equality rows and records equal those of
+an undisturbed run. The snapshot is a pickle: the checkpoint directory must
+be as trusted as the code.
+
+Retransmit: a command unanswered after ``graph.command_timeout_s`` is
+published again with the same frame id (a restarted body lost it); a late
+duplicate answer is dropped. A passive sensation of the change the agent
+last settled makes it publish that settle again (a restarted environment
+re-sends its current change when the settle may have been lost).
 """
 from __future__ import annotations
 
 import collections
 import time
+from pathlib import Path
 
 import numpy as np
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
 from .. import contracts, messages
+from ..agent_checkpoint import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal, CheckpointError,
+                                command_check, read_journal, read_snapshot, write_snapshot)
 from ..core.naive_agent import STAGES as NAIVE_STAGES
 from ..core.naive_agent import NaiveAgent, NaiveParams
 from . import GraphNode, frame, run_node
@@ -47,16 +78,27 @@ class BodyOverTopics:
     an Event cost 3-6 ms per round trip, GIL switching; see the report).
     """
 
-    def __init__(self, publish_command, spin_once, n_motors: int, n_sensors: int):
+    def __init__(self, publish_command, spin_once, n_motors: int, n_sensors: int,
+                 command_timeout_s: float = 2.0, on_retransmit=None):
+        if not command_timeout_s > 0:
+            raise ValueError(f"command_timeout_s: must be > 0, got {command_timeout_s!r}")
         self._publish_command = publish_command
         self._spin_once = spin_once
         self.n_motors = n_motors
         self.n_sensors = n_sensors
+        self.command_timeout_s = float(command_timeout_s)
+        self._on_retransmit = on_retransmit
         self._pending: tuple[str, int] | None = None
         self._reply: np.ndarray | None = None
         self.requests = 0
+        self.retransmits = 0
         self.aborted = False
         self.round_trip_s = 0.0          # total time spent waiting for the body
+        # Restart (issue #7): answers read back from the journal, by command
+        # number, served before going live; the journal new answers go to.
+        self.replay: dict[int, tuple[int, np.ndarray]] = {}
+        self.replayed = 0
+        self.journal: AgentJournal | None = None
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         motor_states = np.asarray(motor_states, dtype=float)
@@ -64,18 +106,44 @@ class BodyOverTopics:
             raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
                              f"got {motor_states.shape}")
         self.requests += 1
-        frame_id = frame("cmd", self.requests)
+        number = self.requests
+        check = command_check(motor_states) if self.journal is not None else 0
+        if self.replay:
+            recorded = self.replay.pop(number, None)
+            if recorded is not None:
+                return self._replayed(number, check, recorded, len(motor_states))
+            self.replay.clear()     # answers are journaled in order: the rest is live
+        frame_id = frame("cmd", number)
         self._pending = (frame_id, len(motor_states))
         self._reply = None
-        started = time.perf_counter()
+        started = sent = time.perf_counter()
         self._publish_command(motor_states, frame_id)
+        wait_s = min(0.5, self.command_timeout_s)
         while self._reply is None:
             if self.aborted:
                 raise RunAborted("shutting down while waiting for the body")
-            self._spin_once(0.5)
+            self._spin_once(wait_s)
+            now = time.perf_counter()
+            if self._reply is None and now - sent >= self.command_timeout_s:
+                self.retransmits += 1
+                if self._on_retransmit is not None:
+                    self._on_retransmit(frame_id, now - started)
+                self._publish_command(motor_states, frame_id)
+                sent = now
         self.round_trip_s += time.perf_counter() - started
         reply, self._reply = self._reply, None
+        if self.journal is not None:
+            self.journal.answer(number, check, reply)
         return reply
+
+    def _replayed(self, number: int, check: int, recorded, n_rows: int) -> np.ndarray:
+        recorded_check, rows = recorded
+        if recorded_check != check or len(rows) != n_rows or rows.shape[1] != self.n_sensors:
+            path = self.journal.path if self.journal is not None else JOURNAL_FILE
+            raise CheckpointError(f"{path}: command {number} differs from the journaled one "
+                                  "(journal of another run or configuration?)")
+        self.replayed += 1
+        return rows
 
     def deliver(self, frame_id: str, sensations: np.ndarray) -> bool:
         """Hand a sensation to the waiting request; False if nobody waits for it."""
@@ -89,6 +157,10 @@ class BodyOverTopics:
 
 
 class AgentNode(GraphNode):
+
+    # Wall time between two snapshots (each is written at an event boundary
+    # and empties the journal); see the measured costs in the report of #7.
+    snapshot_period_s = 5.0
 
     def __init__(self, **kwargs):
         super().__init__("agent", **kwargs)
@@ -109,19 +181,126 @@ class AgentNode(GraphNode):
 
         self.body = BodyOverTopics(self.publish_command, lambda t: self.spin_once(t),
                                    n_motors=len(self.columns["/body/motor_command"]),
-                                   n_sensors=len(self.columns["/body/sensation"]))
+                                   n_sensors=len(self.columns["/body/sensation"]),
+                                   command_timeout_s=float(self.graph["command_timeout_s"]),
+                                   on_retransmit=self.log_retransmit)
         # The agent knows its own initial posture (proprioception), nothing of the world.
         self.initial_motor_state = np.asarray(self.cfg["arm"]["initial_motor_state"], float)
         self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]),
                                             self.cfg["seed"])
         self.passive: collections.deque = collections.deque()
         self.last_passive = -1
+        self.last_settled = -1
+        self.settles_resent = 0
         self.n_povs = 0
         self.n_rows = 0
         self.run_over = False
         self.finished = False
         self.exit_code = 0
         self._stepping = False
+        # Restart (see the module docstring).
+        self.journal: AgentJournal | None = None
+        self.published_before_restart: set[int] = set()
+        self.checkpoint_stats = {"snapshots": 0, "snapshot_bytes": 0, "snapshot_s": 0.0,
+                                 "replayed_passives": 0}
+        self._last_snapshot = time.monotonic()
+        self._resume_timer = None
+        self._await_peers = False
+        if self.graph["checkpoint_dir"]:
+            self.restore(Path(self.graph["checkpoint_dir"]))
+
+    # ------------------------------------------------------------ restart
+
+    def restore(self, directory: Path) -> None:
+        """Load the snapshot and the journal of ``directory`` (none: a fresh
+        start) and open the journal for appending."""
+        snapshot_path = directory / SNAPSHOT_FILE
+        snapshot = read_snapshot(snapshot_path)
+        if snapshot is not None:
+            if snapshot.get("config") != self.cfg:
+                raise CheckpointError(f"{snapshot_path}: written by a run with another "
+                                      "configuration; remove it to start afresh")
+            try:
+                self.agent = NaiveAgent.from_state(self.body, snapshot["agent"])
+                node = snapshot["node"]
+                (self.last_passive, self.last_settled, self.n_povs, self.n_rows,
+                 self.run_over) = (node["last_passive"], node["last_settled"], node["n_povs"],
+                                   node["n_rows"], node["run_over"])
+                self.body.requests, self.body.retransmits = node["requests"], node["retransmits"]
+                self.passive.extend(node["passive"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise CheckpointError(f"{snapshot_path}: incomplete agent snapshot "
+                                      f"({type(exc).__name__}: {exc})") from exc
+        journal_path = directory / JOURNAL_FILE
+        journal = read_journal(journal_path)
+        # Records older than the snapshot: a kill fell between its replace and
+        # the journal's truncation.
+        passives = [p for p in journal.passives if p[1] > self.last_passive]
+        self.passive.extend(passives)
+        if passives:
+            self.last_passive = passives[-1][1]
+        self.body.replay = {n: a for n, a in journal.answers.items() if n > self.body.requests}
+        self.published_before_restart = {k for k in journal.settled if k > self.last_settled}
+        self.journal = AgentJournal(journal_path, journal.valid_bytes)
+        self.body.journal = self.journal
+        self.checkpoint_stats["replayed_passives"] = len(passives)
+        if snapshot is not None or journal.valid_bytes:
+            self._await_peers = True
+            self.get_logger().warning(
+                f"resuming: snapshot {'at change ' + str(self.last_settled) if snapshot else 'none'}"
+                f", journal {len(passives)} passive sensations, {len(self.body.replay)} answers, "
+                f"{len(self.published_before_restart)} published reactions"
+                + (f", {journal.torn_bytes} torn bytes ignored" if journal.torn_bytes else ""))
+            self._resume_timer = self.create_timer(float(self.graph["resend_period_s"]),
+                                                   self.resend_idle_settle)
+
+    def resend_idle_settle(self) -> None:
+        """After a restart, while idle on a settled change, say so again until
+        a new passive sensation arrives: the settle may have been published
+        before the environment's subscription matched, or lost with the dead
+        agent; so may the passive sensation that followed it."""
+        if self.run_over:
+            self._resume_timer.cancel()
+        elif not self.passive and not self._stepping \
+                and self.last_settled == self.last_passive >= 0:
+            self.settled_pub.publish(UInt64(data=self.last_settled))
+            self.settles_resent += 1
+
+    def await_peers(self, timeout_s: float = 5.0) -> None:
+        """Before the first publication after a restart: give discovery time to
+        match the body's and the environment's subscriptions (what a
+        publisher sends before that is lost; re-sends would recover it, late)."""
+        self._await_peers = False
+        deadline = time.monotonic() + timeout_s
+        while (self.command_pub.get_subscription_count() == 0
+               or self.settled_pub.get_subscription_count() == 0) \
+                and time.monotonic() < deadline and not self.body.aborted:
+            self.spin_once(0.05)
+
+    def take_snapshot(self) -> None:
+        started = time.perf_counter()
+        size = write_snapshot(self.journal.path.with_name(SNAPSHOT_FILE), {
+            "config": self.cfg, "agent": self.agent.state(),
+            "node": {"last_passive": self.last_passive, "last_settled": self.last_settled,
+                     "n_povs": self.n_povs, "n_rows": self.n_rows, "run_over": self.run_over,
+                     "requests": self.body.requests, "retransmits": self.body.retransmits,
+                     "passive": list(self.passive)}})
+        self.journal.truncate()
+        stats = self.checkpoint_stats
+        stats["snapshots"] += 1
+        stats["snapshot_bytes"] = size
+        stats["snapshot_s"] += time.perf_counter() - started
+        self._last_snapshot = time.monotonic()
+
+    def close(self) -> None:
+        if self.journal is not None:
+            self.journal.close()
+
+    def log_retransmit(self, frame_id: str, waited_s: float) -> None:
+        self.get_logger().warning(f"no answer to {frame_id} after {waited_s:.1f} s: sent again "
+                                  f"({self.body.retransmits} re-sends so far)")
+
+    # ------------------------------------------------------------ the run
 
     def abort(self) -> None:
         self.body.aborted = True
@@ -140,8 +319,18 @@ class AgentNode(GraphNode):
             self.drop("/body/sensation", f"passive sensation with {len(sensations)} rows")
             return
         if number <= self.last_passive:
-            return                      # a re-sent change the agent already has
+            # A re-sent change the agent already has. If it is the one last
+            # settled, the settle may have been lost: say it again.
+            if number == self.last_settled and not self.run_over:
+                self.settled_pub.publish(UInt64(data=number))
+                self.settles_resent += 1
+            return
         self.last_passive = number
+        if self._resume_timer is not None:     # in step with the environment again
+            self._resume_timer.cancel()
+            self._resume_timer = None
+        if self.journal is not None:
+            self.journal.passive(kind, number, sensations[0])
         self.passive.append((kind, number, sensations[0]))
 
     def step(self) -> None:
@@ -150,6 +339,8 @@ class AgentNode(GraphNode):
             return
         self._stepping = True
         try:
+            if self._await_peers:
+                self.await_peers()
             while self.passive and not self.run_over:
                 self.react(*self.passive.popleft())
         except RunAborted:
@@ -166,27 +357,53 @@ class AgentNode(GraphNode):
 
     def react(self, kind: str, number: int, sensation: np.ndarray) -> None:
         header = messages.make_header(frame(kind, number), self.get_clock().now().nanoseconds)
+        # Replayed after a restart, already published by the agent that died.
+        published = number in self.published_before_restart
         if kind == "end":
             self.run_over = True
-            self.publish_stage_counters(header)
-            self.done_pub.publish(messages.table_to_cloud(
-                {"changes": number, "points_of_view": self.n_povs,
-                 "compensation_rows": self.n_rows,
-                 "compensated": self.agent.compensated,
-                 "queries": self.agent.queries_total, "calls": self.agent.calls_total},
-                self.columns["/agent/done"], header))
-            self.settled_pub.publish(UInt64(data=number))
+            if not published:
+                self.publish_stage_counters(header)
+                self.done_pub.publish(messages.table_to_cloud(
+                    {"changes": number, "points_of_view": self.n_povs,
+                     "compensation_rows": self.n_rows,
+                     "compensated": self.agent.compensated,
+                     "queries": self.agent.queries_total, "calls": self.agent.calls_total},
+                    self.columns["/agent/done"], header))
+            self.settle(number, published)
             self.get_logger().info(
                 f"run over: {self.n_povs} points of view, {self.n_rows} equality rows, "
                 f"{self.body.requests} round trips "
-                f"({1e3 * self.body.round_trip_s / max(self.body.requests, 1):.3f} ms each)")
+                f"({1e3 * self.body.round_trip_s / max(self.body.requests, 1):.3f} ms each), "
+                f"{self.body.retransmits} commands re-sent, {self.body.replayed} answers and "
+                f"{self.checkpoint_stats['replayed_passives']} passive sensations replayed, "
+                f"{self.checkpoint_stats['snapshots']} snapshots "
+                f"({self.checkpoint_stats['snapshot_s']:.2f} s, last "
+                f"{self.checkpoint_stats['snapshot_bytes'] / 1e6:.1f} MB)")
             return
         if number == 0:
             reaction = self.agent.start(self.initial_motor_state)
         else:
             reaction = self.agent.react(sensation)
-        self.publish_reaction(reaction, header)
+        if not published:
+            self.publish_reaction(reaction, header)
+        self.n_povs += len(reaction.new_pov_ids)
+        self.n_rows += len(np.reshape(reaction.equality_rows, (-1, 3)))
+        self.settle(number, published)
+
+    def settle(self, number: int, published: bool) -> None:
+        """Journal that change ``number``'s reaction is out, then settle it; a
+        snapshot when one is due."""
+        self.last_settled = number
+        if published:
+            return
+        if self.journal is not None:
+            self.journal.settled(number)
         self.settled_pub.publish(UInt64(data=number))
+        if self.journal is not None and not self.passive and self.snapshot_due():
+            self.take_snapshot()
+
+    def snapshot_due(self) -> bool:
+        return time.monotonic() - self._last_snapshot >= self.snapshot_period_s
 
     def publish_reaction(self, reaction, header) -> None:
         povs = np.asarray(reaction.new_povs, dtype=float)
@@ -197,7 +414,6 @@ class AgentNode(GraphNode):
                 {"pov": np.repeat(ids, n_samples), "sample": np.tile(np.arange(n_samples), len(ids)),
                  **{f"m{j}": povs[:, :, j].ravel() for j in range(n_motors)}},
                 self.columns["/agent/points_of_view"], header))
-            self.n_povs += len(povs)
             self.pov_record_pub.publish(messages.table_to_cloud(
                 {"pov": ids, "event": np.asarray(self.agent.pov_events)[ids],
                  "queries": np.asarray(self.agent.pov_queries)[ids]},
@@ -218,7 +434,6 @@ class AgentNode(GraphNode):
             self.compensation_pub.publish(messages.table_to_cloud(
                 {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]},
                 self.columns["/agent/compensations"], header))
-            self.n_rows += len(rows)
 
     def publish_stage_counters(self, header) -> None:
         """Motor states probed and round trips per stage (0 for a stage never entered)."""

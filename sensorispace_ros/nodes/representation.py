@@ -1,8 +1,10 @@
 """Representation node: points of view + equality sets -> embeddings.
 
 Subscribes only to ``/agent/*``. Collects the points of view and the
-equality rows (keyed by the frame id of the message that carried them, so a
-re-sent message is not counted twice); once ``/agent/done`` has arrived and
+equality rows; a re-sent message is not counted twice and the first copy
+wins: POV ids it already holds and a second ``/agent/compensations`` message
+for one change (frame id) are ignored (a restarted agent re-publishes the
+reaction of the change it died in, issue #7); once ``/agent/done`` has arrived and
 the totals match, runs ``pipeline.build_representation`` in a worker
 thread, publishes ``/representation/embedding`` for every dimension and
 regularisation iteration, and writes its arrays to
@@ -51,7 +53,9 @@ class RepresentationNode(GraphNode):
         contracts.create_subscription(self, "/agent/compensations", self.on_compensations)
         contracts.create_subscription(self, "/agent/done", self.on_done)
         self.pov_tables: dict[str, np.ndarray] = {}
+        self.pov_ids: set[int] = set()
         self.row_tables: dict[str, np.ndarray] = {}
+        self.duplicates = 0             # messages (or POVs) already held, ignored
         self.totals: dict | None = None
         self.worker: threading.Thread | None = None
         self.result: dict | None = None
@@ -65,15 +69,30 @@ class RepresentationNode(GraphNode):
 
     def on_points_of_view(self, msg) -> None:
         table = self._decode("/agent/points_of_view", msg)
-        if table is not None and len(table):
-            self.pov_tables[msg.header.frame_id] = table
-            self.maybe_start()
+        if table is None or not len(table):
+            return
+        held = np.isin(table["pov"], list(self.pov_ids))
+        if held.any():
+            self.duplicates += 1
+            table = table[~held]
+            if not len(table):
+                return
+        key = msg.header.frame_id
+        if key in self.pov_tables:          # new POVs under a frame id already seen
+            key = f"{key}#{len(self.pov_tables)}"
+        self.pov_tables[key] = table
+        self.pov_ids.update(int(pov) for pov in np.unique(table["pov"]))
+        self.maybe_start()
 
     def on_compensations(self, msg) -> None:
         table = self._decode("/agent/compensations", msg)
-        if table is not None and len(table):
-            self.row_tables[msg.header.frame_id] = table
-            self.maybe_start()
+        if table is None or not len(table):
+            return
+        if msg.header.frame_id in self.row_tables:
+            self.duplicates += 1
+            return
+        self.row_tables[msg.header.frame_id] = table
+        self.maybe_start()
 
     def on_done(self, msg) -> None:
         table = self._decode("/agent/done", msg, kinds=("end",))
@@ -88,8 +107,7 @@ class RepresentationNode(GraphNode):
     def maybe_start(self) -> None:
         if self.totals is None or self.worker is not None:
             return
-        n_povs = len(np.unique(np.concatenate([t["pov"] for t in self.pov_tables.values()]))) \
-            if self.pov_tables else 0
+        n_povs = len(self.pov_ids)
         n_rows = sum(len(t) for t in self.row_tables.values())
         if (n_povs, n_rows) != (self.totals["points_of_view"], self.totals["compensation_rows"]):
             return                          # still in flight on another topic

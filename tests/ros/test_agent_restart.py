@@ -1,0 +1,324 @@
+"""The agent node survives its death (issue #7): snapshot + journal replay,
+command retransmit, settled re-send; the representation ignores the
+duplicates a restarted agent re-publishes.
+
+The graph test runs every node in this process on one executor (a private
+Context and domain id, as tests/ros/test_graph_in_process.py) and "kills" the
+agent twice: the node is dropped at that instant without writing anything
+more, and a fresh AgentNode is started on the same checkpoint directory. The
+run must end with the offline run's POVs, equality sets, records and totals.
+"""
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import UInt64
+
+from sensorispace_ros import config, contracts, launcher, messages
+from sensorispace_ros.agent_checkpoint import JOURNAL_FILE, SNAPSHOT_FILE, read_journal
+from sensorispace_ros.nodes import frame
+from sensorispace_ros.nodes.agent import AgentNode, BodyOverTopics, RunAborted
+from sensorispace_ros.nodes.representation import RepresentationNode
+
+from .conftest import SMOKE
+
+
+# ------------------------------------------------------------- retransmit
+
+class SilentOnce:
+    """A body that ignores the first copy of every command (a restarted body
+    that lost it); answers later copies after ``delay_s``."""
+
+    def __init__(self, delay_s=0.0):
+        self.published: list[str] = []
+        self.delay_s = delay_s
+        self.body = None
+
+    def publish(self, motor_states, frame_id):
+        self.published.append(frame_id)
+        self.motor = np.asarray(motor_states)
+
+    def spin_once(self, timeout_s):
+        if self.published.count(self.published[-1]) >= 2:
+            time.sleep(self.delay_s)
+            self.body.deliver(self.published[-1], np.tile(self.motor[:, :1], (1, 6)))
+        else:
+            time.sleep(timeout_s)
+
+
+def test_an_unanswered_command_is_sent_again_with_the_same_frame_id():
+    fake = SilentOnce()
+    body = BodyOverTopics(fake.publish, fake.spin_once, n_motors=4, n_sensors=6,
+                          command_timeout_s=0.05, on_retransmit=lambda *a: None)
+    fake.body = body
+    started = time.monotonic()
+    answer = body.sense(np.full((2, 4), 0.25))
+    assert time.monotonic() - started >= 0.05
+    np.testing.assert_array_equal(answer, np.full((2, 6), 0.25))
+    assert fake.published == ["cmd/1", "cmd/1"] and body.retransmits == 1
+    body.sense(np.zeros((1, 4)))
+    assert fake.published[2:] == ["cmd/2", "cmd/2"] and body.retransmits == 2
+    # The late answer to the first copy of cmd/2 is not taken for anything.
+    assert not body.deliver("cmd/2", np.zeros((1, 6)))
+
+
+def test_a_prompt_answer_is_never_sent_twice():
+    published = []
+    body = BodyOverTopics(lambda m, f: published.append(f), lambda t: None,
+                          n_motors=4, n_sensors=6, command_timeout_s=0.05)
+    body._spin_once = lambda t: body.deliver(published[-1], np.zeros((1, 6)))
+    for _ in range(3):
+        body.sense(np.zeros((1, 4)))
+    assert published == ["cmd/1", "cmd/2", "cmd/3"] and body.retransmits == 0
+
+
+def test_command_timeout_must_be_positive():
+    with pytest.raises(ValueError, match="command_timeout_s"):
+        BodyOverTopics(None, None, 4, 6, command_timeout_s=0)
+
+
+# ------------------------------------------- nodes fed by hand (no graph)
+
+class RecordingPublisher:
+    def __init__(self):
+        self.sent = []
+
+    def publish(self, msg):
+        self.sent.append(msg)
+
+
+@pytest.fixture
+def context(domain_id):
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+    yield ctx
+    ctx.try_shutdown()
+
+
+def _passive(kind, number, value=0.5):
+    return messages.matrix_to_cloud(np.full((1, 6), value),
+                                    contracts.contract("/body/sensation").columns,
+                                    messages.make_header(frame(kind, number)))
+
+
+def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
+    node = AgentNode(context=context, parameter_overrides=launcher.parameter_overrides(
+        SMOKE, {"graph.results_dir": str(tmp_path)}))
+    try:
+        node.settled_pub = RecordingPublisher()
+        node.last_passive = node.last_settled = 3
+        node.on_sensation(_passive("change", 3))        # the settle of 3 may have been lost
+        assert [m.data for m in node.settled_pub.sent] == [3]
+        node.on_sensation(_passive("change", 2))        # older: nothing to say
+        assert [m.data for m in node.settled_pub.sent] == [3] and not node.passive
+        node.on_sensation(_passive("change", 4))        # new: queued, not settled yet
+        assert [m.data for m in node.settled_pub.sent] == [3]
+        assert [(k, n) for k, n, _ in node.passive] == [("change", 4)]
+        node.on_sensation(_passive("change", 4))        # duplicate while reacting: ignored
+        assert [m.data for m in node.settled_pub.sent] == [3] and len(node.passive) == 1
+    finally:
+        node.destroy_node()
+
+
+def _table(topic, frame_id, **columns):
+    return messages.table_to_cloud(columns, contracts.contract(topic).columns,
+                                   messages.make_header(frame_id))
+
+
+def test_representation_ignores_re_published_povs_and_rows(context, tmp_path):
+    node = RepresentationNode(context=context, parameter_overrides=launcher.parameter_overrides(
+        SMOKE, {"graph.results_dir": str(tmp_path)}))
+    started = []
+    node.build = lambda: started.append(True)
+    try:
+        def povs(frame_id, ids, value):
+            ids = np.asarray(ids)
+            return _table("/agent/points_of_view", frame_id, pov=np.repeat(ids, 2),
+                          sample=np.tile([0, 1], len(ids)),
+                          **{f"m{j}": np.full(2 * len(ids), value) for j in range(4)})
+
+        def rows(frame_id, set_id):
+            return _table("/agent/compensations", frame_id, set=np.full(2, set_id),
+                          pov_from=np.array([0, 1]), pov_to=np.array([1, 2]))
+
+        sequence = [povs("change/0", [0], 1.0), povs("change/1", [1, 2], 2.0),
+                    rows("change/1", 0),
+                    # a restarted agent re-publishes change 1 (same ids, same rows)
+                    povs("change/1", [1, 2], 2.0), rows("change/1", 0),
+                    povs("change/2", [3], 3.0), rows("change/2", 1),
+                    # and an impostor POV 3 under another frame: first copy wins
+                    povs("change/3", [3], 9.0)]
+        for msg in sequence:
+            (node.on_compensations if "set" in [f.name for f in msg.fields]
+             else node.on_points_of_view)(msg)
+        node.on_done(_table("/agent/done", "end/3", changes=np.array([3]),
+                            points_of_view=np.array([4]), compensation_rows=np.array([4]),
+                            compensated=np.array([2]), queries=np.array([1]),
+                            calls=np.array([1])))
+        assert node.worker is not None, "duplicates were counted: totals never matched"
+        assert node.duplicates == 3
+        from sensorispace_ros.nodes.representation import assemble_points_of_view
+        ids, motor = assemble_points_of_view(list(node.pov_tables.values()))
+        assert list(ids) == [0, 1, 2, 3] and np.all(motor[3] == 3.0)
+        assert sum(len(t) for t in node.row_tables.values()) == 4
+    finally:
+        node.destroy_node()
+
+
+# ------------------------------------------------- the graph, killed twice
+
+class MortalAgent(AgentNode):
+    """Dies at a chosen instant, as under kill -9: nothing more is written."""
+
+    die_after_command: int | None = None       # right after publishing cmd/<n>
+    die_before_marker_of: int | None = None    # reaction of change k out, journal marker not
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.dead = False
+        self.snapshot_at_death: dict | None = None
+
+    def snapshot_due(self):
+        return self.last_settled % 20 == 0      # deterministic, unlike the wall clock
+
+    def die(self):
+        self.dead = True
+        self.body.aborted = True
+        directory = self.journal.path.parent
+        self.snapshot_at_death = {
+            "snapshot": (directory / SNAPSHOT_FILE).is_file(),
+            "journal": read_journal(directory / JOURNAL_FILE)}
+        raise RunAborted("killed")
+
+    def publish_command(self, motor_states, frame_id):
+        super().publish_command(motor_states, frame_id)
+        if frame_id == frame("cmd", self.die_after_command or -1):
+            self.die()
+
+    def settle(self, number, published):
+        if number == self.die_before_marker_of and not published:
+            self.die()
+        super().settle(number, published)
+
+    def step(self):
+        if not self.dead:
+            super().step()
+
+
+def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
+    """The smoke graph in this process; ``deaths`` are MortalAgent settings,
+    one agent life each; the last agent is a plain AgentNode."""
+    from sensorispace_ros.nodes.body import BodyNode
+    from sensorispace_ros.nodes.environment import EnvironmentNode
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+    overrides = launcher.parameter_overrides(SMOKE, {
+        "graph.results_dir": str(tmp_path), "graph.resend_period_s": 0.5,
+        "graph.checkpoint_dir": str(tmp_path / "checkpoints")})
+    executor = SingleThreadedExecutor(context=context)
+    nodes, dead = {}, []
+    lives = list(deaths)
+
+    def new_agent():
+        if lives:
+            agent = MortalAgent(context=context, parameter_overrides=overrides)
+            for name, value in lives.pop(0).items():
+                setattr(agent, name, value)
+        else:
+            agent = AgentNode(context=context, parameter_overrides=overrides)
+        agent.spin_once = lambda t: executor.spin_once(timeout_sec=t)
+        executor.add_node(agent)
+        return agent
+
+    try:
+        for name, make in (("representation", RepresentationNode), ("body", BodyNode),
+                           ("environment", EnvironmentNode)):
+            nodes[name] = make(context=context, parameter_overrides=overrides)
+            nodes[name].spin_once = lambda t: executor.spin_once(timeout_sec=t)
+            executor.add_node(nodes[name])
+        nodes["agent"] = new_agent()
+        started = time.monotonic()
+        while nodes["representation"].result is None:
+            if nodes["agent"].finished or nodes["representation"].finished:
+                raise RuntimeError("a node failed; see its log")
+            if time.monotonic() - started > timeout_s:
+                raise TimeoutError(f"graph did not finish within {timeout_s} s")
+            executor.spin_once(timeout_sec=0.1)
+            for node in list(nodes.values()):
+                node.step()
+            if getattr(nodes["agent"], "dead", False):
+                corpse = nodes["agent"]
+                executor.remove_node(corpse)
+                corpse.destroy_node()
+                corpse.journal.close()      # the fd only; a killed process writes nothing
+                dead.append(corpse)
+                nodes["agent"] = new_agent()
+        return nodes, dead
+    finally:
+        nodes["agent"].abort()
+        executor.shutdown()
+        for node in nodes.values():
+            node.destroy_node()
+        context.try_shutdown()
+
+
+@pytest.fixture(scope="module")
+def offline():
+    from sensorispace_ros import pipeline
+    from sensorispace_ros.core.exploration import build_world
+    from sensorispace_ros.core.naive_agent import NaiveParams
+    from sensorispace_ros.core.naive_evaluation import run_naive
+    cfg = config.load_config(SMOKE)
+    world = build_world(cfg["seed"], pipeline.world_params(cfg))
+    return run_naive(world, NaiveParams(**cfg["naive"]), cfg["seed"],
+                     paper_positions=np.zeros((0, 2)))
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_id, offline):
+    reference = offline.agent
+    n_changes = reference._event
+    # First death: waiting for the answer to a command a third into the run.
+    # Second: right after the reaction of the last change that found a POV is
+    # published, before its journal marker (the reaction is published again).
+    deaths = [{"die_after_command": reference.calls_total // 3},
+              {"die_before_marker_of": max(reference.pov_events)}]
+    assert deaths[1]["die_before_marker_of"] > n_changes // 2
+    nodes, dead = _run_with_deaths(tmp_path, domain_id, deaths)
+
+    first, second = dead
+    assert first.snapshot_at_death["snapshot"], "no snapshot before the first death"
+    assert first.snapshot_at_death["journal"].answers, "nothing journaled since the snapshot"
+    assert second.body.replayed > 0 and second.checkpoint_stats["replayed_passives"] > 0
+    agent = nodes["agent"]
+    killed_in = deaths[1]["die_before_marker_of"]
+    assert agent.body.replayed > 0 and killed_in - 1 in agent.published_before_restart
+    assert killed_in not in agent.published_before_restart   # so published again
+
+    arrays = nodes["representation"].result
+    np.testing.assert_array_equal(arrays["povs"], offline.povs)
+    np.testing.assert_array_equal(arrays["pairs"], offline.pairs)
+    np.testing.assert_array_equal(arrays["set_ids"], offline.set_ids)
+    assert nodes["representation"].duplicates > 0, "the re-published reaction never arrived"
+    totals = {k[len("agent_"):]: int(v) for k, v in arrays.items() if k.startswith("agent_")}
+    assert totals == {"changes": n_changes + 1, "points_of_view": len(offline.povs),
+                      "compensation_rows": len(offline.pairs),
+                      "compensated": reference.compensated,
+                      "queries": reference.queries_total, "calls": reference.calls_total}
+    assert agent.agent.queries_by_stage == reference.queries_by_stage
+    assert agent.agent.calls_by_stage == reference.calls_by_stage
+    assert agent.agent.pov_queries == reference.pov_queries
+    assert agent.agent.pov_events == reference.pov_events
+    assert agent.agent.compensation_queries == reference.compensation_queries
+    assert len(agent.agent.compensations) == len(reference.compensations)
+    for got, want in zip(agent.agent.compensations, reference.compensations):
+        assert (got.event, got.anchor_event, got.pov, got.searched) == \
+            (want.event, want.anchor_event, want.pov, want.searched)
+        np.testing.assert_array_equal(got.motor_state, want.motor_state)
+        np.testing.assert_array_equal(got.anchor_motor_state, want.anchor_motor_state)
