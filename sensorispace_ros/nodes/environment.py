@@ -9,14 +9,16 @@ sensation, so the agent learns of the end only through its body.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, ``{current, settled}``
 is written atomically (tmp + os.replace) to ``<dir>/environment.json`` at
-every change and every settle. A restarted environment does not rewind: it
-resumes at ``current`` (re-publishes its event and lights; the world and its
-schedule are rebuilt from the seed), or goes on to the next change if
-``current`` was already settled, and re-sends the current lights every
-``graph.resend_period_s`` until the agent settles it (a settle sent while the
-environment was dead is lost; the agent answers a re-sent change it already
-settled with its settle again). Bag and analysis see the re-sent messages as
-duplicates (first occurrence wins).
+every change, at the end and when the run is complete. A restarted
+environment does not rewind: it resumes at ``current`` (re-publishes its event
+and lights; the world and its schedule are rebuilt from the seed), or goes on
+to the next change if ``current`` was already settled, and re-sends the
+current lights every ``graph.resend_period_s`` until the agent settles it (a
+settle sent while the environment was dead is lost; the agent answers a
+re-sent change it already settled with its settle again). A repeated settle of
+the change before ``current`` (a restarted agent that lost the passive
+sensation of ``current``) is answered with the current lights again. Bag and
+analysis see the re-sent messages as duplicates (first occurrence wins).
 """
 from __future__ import annotations
 
@@ -127,8 +129,7 @@ class EnvironmentNode(GraphNode):
             if self.settled >= self.resent_until_settled:
                 self.resent_until_settled = None
             else:
-                self.publish_lights(frame("end" if self.current > self.n_changes else "change",
-                                          self.current))
+                self.publish_current_lights()
             return
         if self.current < 0:
             if not self._peers_ready():
@@ -139,6 +140,12 @@ class EnvironmentNode(GraphNode):
 
     def on_settled(self, msg) -> None:
         k = int(msg.data)
+        if k == self.settled == self.current - 1 and not self.resuming:
+            # A restarted agent that lost the passive sensation of `current` re-sends
+            # its last settle: the current lights again make the body send it again
+            # (the agent ignores passives it already has).
+            self.publish_current_lights()
+            return
         if k != self.current or k <= self.settled:
             self.drop("/agent/settled", f"settled {k} while waiting for {self.current}")
             return
@@ -175,6 +182,10 @@ class EnvironmentNode(GraphNode):
                  "grid_index": event.grid_index},
                 contracts.contract("/environment/event").columns, header))
         self.publish_lights(header.frame_id, header)
+
+    def publish_current_lights(self) -> None:
+        self.publish_lights(frame("end" if self.current > self.n_changes else "change",
+                                  self.current))
 
     def publish_lights(self, frame_id: str, header=None) -> None:
         header = header or messages.make_header(frame_id, self.get_clock().now().nanoseconds)

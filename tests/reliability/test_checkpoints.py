@@ -138,3 +138,23 @@ def test_an_environment_with_an_unusable_progress_file_starts_afresh(tmp_path, d
         assert probe.events == [] and probe.lights and set(probe.lights) == {"change/0"}
     finally:
         probe.close()
+
+
+@pytest.mark.graph
+@pytest.mark.timeout(60)
+def test_a_repeated_settle_of_the_previous_change_gets_the_current_lights_again(tmp_path,
+                                                                               domain_id):
+    """A restarted agent that lost the passive sensation of the current change
+    re-sends its last settle; the environment answers with the current lights."""
+    (tmp_path / "environment.json").write_text(json.dumps({"current": 5, "settled": 5}))
+    probe = EnvironmentProbe(domain_id, tmp_path)
+    try:
+        probe.spin(1.0)
+        assert probe.lights == ["change/6"] and probe.events == ["change/6"]
+        probe.settle(5)
+        probe.spin(0.5)
+        assert probe.lights == ["change/6", "change/6"] and probe.events == ["change/6"]
+        assert probe.env.current == 6 and probe.env.settled == 5
+        assert "/agent/settled" not in probe.env.dropped
+    finally:
+        probe.close()
