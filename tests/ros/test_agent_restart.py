@@ -176,11 +176,13 @@ class MortalAgent(AgentNode):
 
     die_after_command: int | None = None       # right after publishing cmd/<n>
     die_before_marker_of: int | None = None    # reaction of change k out, journal marker not
+    die_after_settle_of: int | None = None     # change k settled, its successor not yet seen
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.dead = False
         self.snapshot_at_death: dict | None = None
+        self.resumed_at = (self.last_passive, self.last_settled, len(self.passive))
 
     def snapshot_due(self):
         return self.last_settled % 20 == 0      # deterministic, unlike the wall clock
@@ -203,6 +205,8 @@ class MortalAgent(AgentNode):
         if number == self.die_before_marker_of and not published:
             self.die()
         super().settle(number, published)
+        if number == self.die_after_settle_of and not published:
+            self.die()
 
     def step(self):
         if not self.dead:
@@ -285,19 +289,25 @@ def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_i
     reference = offline.agent
     n_changes = reference._event
     # First death: waiting for the answer to a command a third into the run.
-    # Second: right after the reaction of the last change that found a POV is
-    # published, before its journal marker (the reaction is published again).
+    # Second: right after settling the change half way (the passive sensation
+    # of the next one goes to the dead agent: the restarted one, idle, settles
+    # again until the environment re-sends it). Third: right after the
+    # reaction of the last change that found a POV is published, before its
+    # journal marker (the reaction is published again).
     deaths = [{"die_after_command": reference.calls_total // 3},
+              {"die_after_settle_of": n_changes // 2},
               {"die_before_marker_of": max(reference.pov_events)}]
-    assert deaths[1]["die_before_marker_of"] > n_changes // 2
+    assert deaths[2]["die_before_marker_of"] > n_changes // 2 + 1
     nodes, dead = _run_with_deaths(tmp_path, domain_id, deaths)
 
-    first, second = dead
+    first, second, third = dead
     assert first.snapshot_at_death["snapshot"], "no snapshot before the first death"
     assert first.snapshot_at_death["journal"].answers, "nothing journaled since the snapshot"
     assert second.body.replayed > 0 and second.checkpoint_stats["replayed_passives"] > 0
+    # The third life's journal ended on the settled change: nothing of the next one.
+    assert third.resumed_at[0] == max(third.published_before_restart) == n_changes // 2
     agent = nodes["agent"]
-    killed_in = deaths[1]["die_before_marker_of"]
+    killed_in = deaths[2]["die_before_marker_of"]
     assert agent.body.replayed > 0 and killed_in - 1 in agent.published_before_restart
     assert killed_in not in agent.published_before_restart   # so published again
 
