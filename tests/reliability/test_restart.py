@@ -18,7 +18,7 @@ with the same command line. Asserted:
   of those changes (messages sent while no recorder ran are not in it; the
   analysis takes those events from the seeded schedule);
 - ``sensorispace analyze`` of that bag (duplicates included: restarted nodes
-  re-send) gives the undisturbed run's numbers: the parity keys of
+  re-send; skipped for the representation, which adds nothing to the bag) gives the undisturbed run's numbers: the parity keys of
   tests/ros/test_launch.py (exploration.*, quality.*, pov.count,
   naive.coverage, naive.wrong_poses, naive.state_changes_accepted) equal the
   offline naive run's.
@@ -71,6 +71,8 @@ def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_pat
     assert outcome["bag"] == {"settled_missing": [], "events_missing": [], "parts_left": []}, \
         str(outcome)
     assert outcome["bag_expected_settled"] >= (50 if victim == "recorder" else 285), str(outcome)
+    if victim == "representation":
+        return          # its restart changes nothing the bag holds (it only reads history)
     analysed = analysed_metrics(tmp_path / "bag", tmp_path / "analysed")
     checked = [k for k in offline_naive_metrics
                if k in PARITY_KEYS or k.startswith(PARITY_PREFIXES)]
