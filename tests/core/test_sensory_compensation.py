@@ -80,8 +80,55 @@ def test_searches_are_independent_in_a_batch(world):
     np.testing.assert_allclose(together.motor_states[0], alone.motor_states[0], atol=1e-12)
 
 
+def test_restarts_toward_a_found_target_stop(world):
+    target = _target(world)
+    shift = np.array([0.3, 0.3])
+    body = SimulatedBody(world.receptors, world.initial_lights + shift)
+    starts = np.vstack([world.m0, world.m0 + [0.6, -0.4, 0.3, -0.2],
+                        world.m0 + [-0.8, 0.5, 0.4, -0.3]])
+    targets = np.repeat(target[None], len(starts), axis=0)
+    every = compensate(body, targets, starts, stop_found_targets=False)
+    first = compensate(body, targets, starts)
+    assert every.accepted.all()                 # each restart would find it ...
+    assert first.accepted.any()                 # ... one is enough
+    assert first.calls < every.calls
+    found = first.motor_states[first.accepted]
+    wanted = arm.forward(world.m0) + [*shift, 0.0]
+    assert np.max(arm.pose_error(arm.forward(found), wanted)) < 1e-8
+    # Another target's search goes on after this one is found (5 vs 9
+    # iterations here), exactly as it would alone.
+    near, far = world.m0, world.m0 + [0.3, -0.3, 0.2, 0.1]
+    two_targets = body.sense(np.vstack([near, far]))
+    two_starts = np.vstack([near + 0.01, far + [0.5, -0.5, 0.3, 0.2]])
+    both = compensate(body, two_targets, two_starts)
+    alone = compensate(body, two_targets[1:], two_starts[1:])
+    assert both.accepted.all() and both.iterations[0] < both.iterations[1]
+    assert both.iterations[1] == alone.iterations[0]
+    np.testing.assert_array_equal(both.motor_states[1], alone.motor_states[0])
+
+
+def test_searches_at_a_local_minimum_stop_early_with_the_same_error(world):
+    # Lights redistributed: the old sensation exists nowhere, the searches
+    # end in local minima with a nonzero residual.
+    target = _target(world)
+    lights = world.initial_center + draw_light_offsets(np.random.default_rng(0),
+                                                       len(world.initial_offsets))
+    body = SimulatedBody(world.receptors, lights)
+    starts = world.m0 + np.random.default_rng(7).normal(0.0, 0.5, (12, 4))
+    targets = np.repeat(target[None], len(starts), axis=0)
+    waiting = compensate(body, targets, starts, stall_iterations=4, stationary_ratio=0.0)
+    stopping = compensate(body, targets, starts, stall_iterations=4)
+    assert not waiting.accepted.any() and not stopping.accepted.any()
+    earlier = stopping.iterations < waiting.iterations
+    assert earlier.any() and stopping.calls < waiting.calls
+    # The iterations saved would not have lowered the error by more than a few %.
+    np.testing.assert_allclose(stopping.sensory_error[earlier], waiting.sensory_error[earlier],
+                               rtol=0.05)
+
+
 @pytest.mark.parametrize("name, value", [("error_tol", 0.0), ("max_iterations", 0),
-                                         ("stall_factor", 1.0), ("rank_ratio", -1.0)])
+                                         ("stall_factor", 1.0), ("rank_ratio", -1.0),
+                                         ("stationary_ratio", 1.0)])
 def test_bad_search_parameters_are_named(world, name, value):
     body = SimulatedBody(world.receptors, world.initial_lights)
     with pytest.raises(ValueError, match=name):
