@@ -225,13 +225,17 @@ def sample_sensory_points_of_view(
         jac = jac.reshape(predicted.shape[:3] + jac.shape[1:])
         correction = correction.reshape(predicted.shape)
         null = null.reshape(predicted.shape)
-        size = np.linalg.norm(correction, axis=-1)                           # (A, 2, K)
+        # A probe that lands where the sensation is blank or pins no pose
+        # has an infinite (or NaN) correction: too large, like any other.
+        with np.errstate(over="ignore", invalid="ignore"):
+            size = np.linalg.norm(correction, axis=-1)                       # (A, 2, K)
+        size = np.where(np.isfinite(size), size, np.inf)
         heading = direction[:, :, None, :] + reach[..., None] * bend[:, :, None, :]
         null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
         knots = predicted + correction
         # A front keeps its probes up to the first whose correction is too
         # large (the predictor error grows with the reach).
-        good = (size <= 4.0 * predictor_tol) | (spacing[..., None] <= min_step)
+        good = (size <= 4.0 * predictor_tol) | ((spacing[..., None] <= min_step) & (size < np.inf))
         kept = np.cumprod(good, axis=-1).sum(axis=-1)                        # (A, 2)
         accepted = kept > 0
         last = np.maximum(kept - 1, 0)

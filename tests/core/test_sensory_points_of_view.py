@@ -1,5 +1,6 @@
 """Naive POVs: walked through ``sense`` only, checked against the analytic walk."""
 import types
+import warnings
 
 import numpy as np
 import pytest
@@ -117,6 +118,30 @@ def test_blank_start_is_not_walked(world):
     result = sample_sensory_points_of_view(body, np.vstack([blank, world.m0]))
     assert result.reason[0] == RANK_DEFICIENT
     assert result.queries[0] == 5          # the start and its stencil, no walk
+
+
+def test_a_front_at_a_blank_wall_neither_crosses_it_nor_poisons_the_walk(world):
+    # The eye sees nothing once joint 0 exceeds the start by 0.3 rad: probes
+    # beyond have a zero Jacobian and an infinite correction. The loop is cut,
+    # so the walk cannot close; it must end at its budget without ever
+    # commanding a non-finite motor state (a graph body drops such commands)
+    # and without floating-point warnings.
+    sim = _body(world)
+    wall = world.m0[0] + 0.3
+    commanded = []
+
+    def sense(states):
+        states = np.asarray(states, dtype=float)
+        commanded.append(states)
+        return np.where(states[:, :1] > wall, 0.0, sim.sense(states))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = sample_sensory_points_of_view(closure_body(sense), world.m0[None],
+                                               max_queries=2000)
+    assert result.reason == [NOT_CLOSED]
+    assert result.queries[0] <= 2000
+    assert np.all(np.isfinite(np.concatenate(commanded)))
 
 
 def test_walk_stops_at_the_query_budget(world):
