@@ -113,7 +113,9 @@ class GraphNode(Node):
         PUBLISH_RETRY_S, logging (throttled), instead of letting the error end the
         node. Only the middleware's threads free the history (lease expiry, acks),
         so the retry sleeps rather than spinning the executor (no re-entrant
-        callbacks). False if the message was given up (logged as an error)."""
+        callbacks). Any other RCLError, or one still there after PUBLISH_RETRY_S, is
+        logged as an error and the message given up (False); during shutdown it is
+        given up at once."""
         deadline = None
         while True:
             try:
@@ -126,9 +128,12 @@ class GraphNode(Node):
                 if deadline is None:
                     deadline = now + PUBLISH_RETRY_S
                 self.publish_failures += 1
-                if now >= deadline:
+                if not self.context.ok():
+                    return False               # shutting down (SIGTERM): nothing to wait for
+                if "cannot publish data" not in str(exc) or now >= deadline:
                     self.get_logger().error(f"gave up publishing on {publisher.topic_name} "
-                                            f"after {PUBLISH_RETRY_S:.0f} s: {exc}")
+                                            f"after {now - deadline + PUBLISH_RETRY_S:.1f} s: "
+                                            f"{exc}")
                     return False
                 self.get_logger().warning(f"publish on {publisher.topic_name} failed, "
                                           f"retrying: {exc}", throttle_duration_sec=2.0)

@@ -131,3 +131,17 @@ def test_a_publish_that_keeps_failing_is_given_up_without_raising(graph_node, mo
     started = time.monotonic()
     assert publisher.publish(UInt64(data=7)) is False
     assert 0.3 <= time.monotonic() - started < 3.0
+
+
+def test_another_publish_error_is_logged_and_given_up_at_once(graph_node, monkeypatch):
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    from rclpy.publisher import Publisher
+    from std_msgs.msg import UInt64
+
+    def publish(self, msg):
+        raise _rclpy.RCLError("Failed to publish: some other failure")
+    monkeypatch.setattr(Publisher, "publish", publish)
+    publisher = graph_node.create_publisher(UInt64, "/retry_probe", 10)
+    started = time.monotonic()
+    assert publisher.publish(UInt64(data=7)) is False
+    assert time.monotonic() - started < 0.5 and graph_node.publish_failures == 1
