@@ -13,7 +13,7 @@ import pytest
 
 from sensorispace_ros import launcher
 
-from .conftest import stop_by_pid
+from .conftest import SMOKE, stop_by_pid
 
 SUBSCRIBER = """
 import rclpy
@@ -145,3 +145,10 @@ def test_another_publish_error_is_logged_and_given_up_at_once(graph_node, monkey
     started = time.monotonic()
     assert publisher.publish(UInt64(data=7)) is False
     assert time.monotonic() - started < 0.5 and graph_node.publish_failures == 1
+
+
+def test_launch_refuses_a_negative_respawn_count(capsys):
+    assert launcher.main(["launch", "--config", str(SMOKE), "--respawn", "-1"]) == 2
+    assert "--respawn must be >= 0, got -1" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="respawn must be >= 0"):
+        launcher.launch_graph(SMOKE, respawn=-1)
