@@ -149,6 +149,10 @@ class BodyOverTopics:
         self.replayed += 1
         return rows
 
+    @property
+    def pending_number(self) -> int | None:
+        return None if self._pending is None else self.requests
+
     def deliver(self, frame_id: str, sensations: np.ndarray) -> bool:
         """Hand a sensation to the waiting request; False if nobody waits for it."""
         if self._pending is None or self._pending[0] != frame_id:
@@ -200,6 +204,7 @@ class AgentNode(GraphNode):
         self.last_passive = -1
         self.last_settled = -1
         self.settles_resent = 0
+        self.late_answers = 0
         self.n_povs = 0
         self.n_rows = 0
         self.run_over = False
@@ -275,9 +280,12 @@ class AgentNode(GraphNode):
             self.settles_resent += 1
 
     def await_peers(self, timeout_s: float = 5.0) -> None:
-        """Before the first publication after a restart: give discovery time to
-        match the body's and the environment's subscriptions (what a
-        publisher sends before that is lost; re-sends would recover it, late)."""
+        """Before the first publication after a restart (the journal replayed):
+        give discovery time to match the body's and the environment's
+        subscriptions (what a publisher sends before that is lost; re-sends
+        would recover it, late)."""
+        if not self._await_peers:
+            return
         self._await_peers = False
         deadline = time.monotonic() + timeout_s
         while (self.command_pub.get_subscription_count() == 0
@@ -320,7 +328,16 @@ class AgentNode(GraphNode):
             return
         (kind, number), sensations = decoded
         if kind == "cmd":
-            if not self.body.deliver(msg.header.frame_id, sensations):
+            if self.body.deliver(msg.header.frame_id, sensations):
+                return
+            pending = self.body.pending_number
+            if self._await_peers or number < self.body.requests \
+                    or (number == self.body.requests and pending is None):
+                # A second answer to a command already answered (a re-sent
+                # copy), or the answer to a command of the agent that died
+                # (this one has not published anything yet).
+                self.late_answers += 1
+            else:
                 self.drop("/body/sensation", f"{msg.header.frame_id} answers no pending "
                           f"command (or has {len(sensations)} rows)")
             return
@@ -348,8 +365,6 @@ class AgentNode(GraphNode):
             return
         self._stepping = True
         try:
-            if self._await_peers:
-                self.await_peers()
             while self.passive and not self.run_over:
                 self.react(*self.passive.popleft())
         except RunAborted:
@@ -371,6 +386,7 @@ class AgentNode(GraphNode):
         if kind == "end":
             self.run_over = True
             if not published:
+                self.await_peers()
                 self.publish_stage_counters(header)
                 self.done_pub.publish(messages.table_to_cloud(
                     {"changes": number, "points_of_view": self.n_povs,
@@ -383,7 +399,8 @@ class AgentNode(GraphNode):
                 f"run over: {self.n_povs} points of view, {self.n_rows} equality rows, "
                 f"{self.body.requests} round trips "
                 f"({1e3 * self.body.round_trip_s / max(self.body.requests, 1):.3f} ms each), "
-                f"{self.body.retransmits} commands re-sent, {self.body.replayed} answers and "
+                f"{self.body.retransmits} commands re-sent, {self.late_answers} late answers, "
+                f"{self.body.replayed} answers and "
                 f"{self.checkpoint_stats['replayed_passives']} passive sensations replayed, "
                 f"{self.checkpoint_stats['snapshots']} snapshots "
                 f"({self.checkpoint_stats['snapshot_s']:.2f} s, last "
@@ -394,6 +411,7 @@ class AgentNode(GraphNode):
         else:
             reaction = self.agent.react(sensation)
         if not published:
+            self.await_peers()
             self.publish_reaction(reaction, header)
         self.n_povs += len(reaction.new_pov_ids)
         self.n_rows += len(np.reshape(reaction.equality_rows, (-1, 3)))
@@ -460,6 +478,7 @@ class AgentNode(GraphNode):
             counters, self.columns["/agent/stage_counters"], header))
 
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
+        self.await_peers()
         self.command_pub.publish(messages.matrix_to_cloud(
             motor_states, self.columns["/body/motor_command"],
             messages.make_header(frame_id, self.get_clock().now().nanoseconds)))

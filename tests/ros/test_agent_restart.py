@@ -124,6 +124,25 @@ def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
         node.destroy_node()
 
 
+def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
+    node = AgentNode(context=context, parameter_overrides=launcher.parameter_overrides(
+        SMOKE, {"graph.results_dir": str(tmp_path)}))
+    columns = contracts.contract("/body/sensation").columns
+
+    def answer(n):
+        return messages.matrix_to_cloud(np.zeros((1, 6)), columns,
+                                        messages.make_header(frame("cmd", n)))
+    try:
+        node.body.requests = 5                  # cmd/5 answered, nothing pending
+        node.on_sensation(answer(5))            # the answer to its re-sent copy
+        node.on_sensation(answer(4))
+        assert node.late_answers == 2 and not node.dropped
+        node.on_sensation(answer(6))            # a command never sent
+        assert node.late_answers == 2 and node.dropped["/body/sensation"] == 1
+    finally:
+        node.destroy_node()
+
+
 def _table(topic, frame_id, **columns):
     return messages.table_to_cloud(columns, contracts.contract(topic).columns,
                                    messages.make_header(frame_id))
@@ -307,6 +326,8 @@ def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_i
     # The third life's journal ended on the settled change: nothing of the next one.
     assert third.resumed_at[0] == max(third.published_before_restart) == n_changes // 2
     agent = nodes["agent"]
+    for life in (second, third, agent):      # late answers are expected, drops are not
+        assert not life.dropped, life.dropped
     killed_in = deaths[2]["die_before_marker_of"]
     assert agent.body.replayed > 0 and killed_in - 1 in agent.published_before_restart
     assert killed_in not in agent.published_before_restart   # so published again
