@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.nodes.body import RestingStateFile
+from sensorispace_ros.nodes.environment import PROGRESS_BYTES
 
 
 def test_resting_state_file_returns_the_last_state_saved_after_a_reopen(tmp_path):
@@ -86,6 +87,7 @@ class EnvironmentProbe:
 
     def close(self) -> None:
         self.executor.shutdown()
+        self.env.close()
         self.env.destroy_node()
         self.probe.destroy_node()
         self.context.try_shutdown()
@@ -111,6 +113,7 @@ def test_a_restarted_environment_resumes_at_its_current_change_and_resends_it_un
         assert len(probe.lights) == before
         assert json.loads((tmp_path / "environment.json").read_text()) == \
             {"current": 6, "settled": 5}
+        assert (tmp_path / "environment.json").stat().st_size == PROGRESS_BYTES  # in place
     finally:
         probe.close()
 
