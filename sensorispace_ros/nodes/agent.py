@@ -61,7 +61,7 @@ import numpy as np
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
-from .. import contracts, messages
+from .. import config, contracts, messages
 from ..agent_checkpoint import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal, CheckpointError,
                                 command_check, read_journal, read_snapshot, write_snapshot)
 from ..core.naive_agent import STAGES as NAIVE_STAGES
@@ -220,7 +220,11 @@ class AgentNode(GraphNode):
         self._resume_timer = None
         self._await_peers = False
         if self.graph["checkpoint_dir"]:
-            self.restore(Path(self.graph["checkpoint_dir"]))
+            try:
+                self.restore(Path(self.graph["checkpoint_dir"]))
+            except (CheckpointError, OSError) as exc:
+                # run_node turns this into one line and exit code 2, no traceback.
+                raise config.ConfigError(f"graph.checkpoint_dir: {exc}") from exc
 
     # ------------------------------------------------------------ restart
 

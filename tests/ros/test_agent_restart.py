@@ -143,6 +143,32 @@ def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
         node.destroy_node()
 
 
+@pytest.mark.parametrize("damage", ["snapshot", "journal", "config"])
+def test_a_bad_checkpoint_stops_the_agent_naming_the_file(context, tmp_path, damage):
+    from sensorispace_ros.agent_checkpoint import AgentJournal, write_snapshot
+    checkpoints = tmp_path / "checkpoints"
+    checkpoints.mkdir()
+    if damage == "snapshot":
+        (checkpoints / SNAPSHOT_FILE).write_bytes(b"not a pickle")
+        expected = r"graph\.checkpoint_dir: .*agent\.snapshot: corrupt"
+    elif damage == "journal":
+        journal = AgentJournal(checkpoints / JOURNAL_FILE)
+        journal.settled(1)
+        journal.settled(2)
+        journal.close()
+        data = bytearray((checkpoints / JOURNAL_FILE).read_bytes())
+        data[3] ^= 0xFF
+        (checkpoints / JOURNAL_FILE).write_bytes(bytes(data))
+        expected = r"graph\.checkpoint_dir: .*agent\.journal: corrupt"
+    else:
+        write_snapshot(checkpoints / SNAPSHOT_FILE, {"config": {"seed": 12345}})
+        expected = r"agent\.snapshot: written by a run with another configuration"
+    with pytest.raises(config.ConfigError, match=expected):
+        AgentNode(context=context, parameter_overrides=launcher.parameter_overrides(
+            SMOKE, {"graph.results_dir": str(tmp_path),
+                    "graph.checkpoint_dir": str(checkpoints)}))
+
+
 def _table(topic, frame_id, **columns):
     return messages.table_to_cloud(columns, contracts.contract(topic).columns,
                                    messages.make_header(frame_id))
