@@ -143,6 +143,34 @@ def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
         node.destroy_node()
 
 
+def test_journal_records_older_than_the_snapshot_are_not_replayed(context, tmp_path):
+    """A kill between the snapshot's os.replace and the journal's truncation
+    leaves records the snapshot already holds: they must not be fed twice."""
+    overrides = launcher.parameter_overrides(SMOKE, {
+        "graph.results_dir": str(tmp_path), "graph.checkpoint_dir": str(tmp_path / "cp")})
+    first = AgentNode(context=context, parameter_overrides=overrides)
+    first.last_passive = first.last_settled = 5
+    first.body.requests = 10
+    first.take_snapshot()
+    for number in (4, 5, 6):                 # 4, 5 before the snapshot, 6 after
+        first.journal.passive("change", number, np.full(6, float(number)))
+    for number in (9, 10, 11, 12):           # 9, 10 before the snapshot
+        first.journal.answer(number, 0, np.full((1, 6), float(number)))
+    first.journal.settled(5)
+    first.journal.settled(6)
+    first.destroy_node()                     # dies: no close, nothing more written
+    second = AgentNode(context=context, parameter_overrides=overrides)
+    try:
+        assert [(k, n) for k, n, _ in second.passive] == [("change", 6)]
+        np.testing.assert_array_equal(second.passive[0][2], np.full(6, 6.0))
+        assert sorted(second.body.replay) == [11, 12] and second.body.requests == 10
+        assert second.published_before_restart == {6}
+        assert (second.last_passive, second.last_settled) == (6, 5)
+    finally:
+        second.close()
+        second.destroy_node()
+
+
 @pytest.mark.parametrize("damage", ["snapshot", "journal", "config"])
 def test_a_bad_checkpoint_stops_the_agent_naming_the_file(context, tmp_path, damage):
     from sensorispace_ros.agent_checkpoint import AgentJournal, write_snapshot
