@@ -244,6 +244,7 @@ class AgentNode(GraphNode):
                  self.run_over) = (node["last_passive"], node["last_settled"], node["n_povs"],
                                    node["n_rows"], node["run_over"])
                 self.body.requests, self.body.retransmits = node["requests"], node["retransmits"]
+                self.body.round_trip_s = node["round_trip_s"]
                 self.passive.extend(node["passive"])
             except (KeyError, TypeError, ValueError) as exc:
                 raise CheckpointError(f"{snapshot_path}: incomplete agent snapshot "
@@ -304,6 +305,7 @@ class AgentNode(GraphNode):
             "node": {"last_passive": self.last_passive, "last_settled": self.last_settled,
                      "n_povs": self.n_povs, "n_rows": self.n_rows, "run_over": self.run_over,
                      "requests": self.body.requests, "retransmits": self.body.retransmits,
+                     "round_trip_s": self.body.round_trip_s,
                      "passive": list(self.passive)}})
         self.journal.truncate()
         stats = self.checkpoint_stats
