@@ -647,17 +647,23 @@ SEEDED = {"fig11_equality_sets", "fig14_reaching_2d", "fig15_reaching_3d",
 
 
 def draw_all(arrays: Mapping, out_dir: str | Path, seed: int = 0,
-             progress: Callable | None = None) -> list[Path]:
-    """Write every figure as ``out_dir/<name>.png``; return the paths."""
+             progress: Callable | None = None, only=None) -> list[Path]:
+    """Write every figure (or those named in ``only``) as
+    ``out_dir/<name>.png``; return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    if only is not None:
+        unknown = sorted(set(only) - set(FIGURES))
+        if unknown:
+            raise ValueError(f"only names unknown figures: {unknown}")
+    chosen = [(name, draw) for name, draw in FIGURES.items() if only is None or name in only]
     written = []
-    for k, (name, draw) in enumerate(FIGURES.items()):
+    for k, (name, draw) in enumerate(chosen):
         fig = draw(arrays, seed=seed) if name in SEEDED else draw(arrays)
         path = out_dir / f"{name}.png"
         fig.savefig(path, dpi=DPI)
         plt.close(fig)
         written.append(path)
         if progress is not None:
-            progress(k + 1, len(FIGURES))
+            progress(k + 1, len(chosen))
     return written

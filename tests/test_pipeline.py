@@ -96,6 +96,19 @@ def test_smoke_run_writes_every_figure(smoke_run):
         image = matplotlib.image.imread(path)
         assert image.shape[0] > 300 and image.shape[1] > 300
         assert image[..., :3].std() > 0.05, f"{name} looks blank"
+    # Fig. 6 (drawn in a forked process) is the figure of the stored example POVs
+    arrays = np.load(out / pipeline.ARRAYS_FILE)
+    assert arrays["pov_example"].shape[1] == 4 and arrays["pov_examples_x"].ndim == 3
+
+
+def test_draw_all_draws_only_the_named_figures(smoke_run, tmp_path):
+    out, _ = smoke_run
+    arrays = dict(np.load(out / pipeline.ARRAYS_FILE))
+    written = figures.draw_all(arrays, tmp_path, only=["fig08_projections_before"])
+    assert [p.name for p in written] == ["fig08_projections_before.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fig08_projections_before.png"]
+    with pytest.raises(ValueError, match="unknown"):
+        figures.draw_all(arrays, tmp_path, only=["fig99"])
 
 
 def test_metrics_json_is_sorted_and_rounded(smoke_run):
