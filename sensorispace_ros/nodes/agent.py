@@ -31,9 +31,12 @@ every 100 times the last snapshot's duration, the snapshot is replaced
 atomically (``NaiveAgent.state()`` plus the node's counters and
 queued passives) and the journal emptied. A restarted agent loads the
 snapshot, re-feeds the journal through the deterministic NaiveAgent (answers
-come from the journal, checked by command number and crc; reactions of
-changes with a marker are not published again) and, where the journal ends
-mid-change, continues live: its next command carries the same ``cmd/<n>``
+come from the journal, checked by command number and crc) and publishes the
+replayed reactions again (what a killed process published last may never
+have left it; the representation ignores duplicates, the analysis takes the
+first copy; the snapshot waits until its publishers' messages are
+acknowledged before it empties the journal), settling only changes without
+a marker; where the journal ends mid-change, it continues live: its next command carries the same ``cmd/<n>``
 as the one the dead agent sent (the body answers duplicates identically).
 Before its first publication it waits (<= 5 s) until the body's and the
 environment's subscriptions have matched (earlier messages are lost).
@@ -58,6 +61,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
@@ -205,6 +209,7 @@ class AgentNode(GraphNode):
         self.last_settled = -1
         self.settles_resent = 0
         self.late_answers = 0
+        self.predecessor_sent = 0
         self.n_povs = 0
         self.n_rows = 0
         self.run_over = False
@@ -264,6 +269,8 @@ class AgentNode(GraphNode):
         self.checkpoint_stats["replayed_passives"] = len(passives)
         if snapshot is not None or journal.valid_bytes:
             self._await_peers = True
+            # The dead agent's last command (answer not journaled) may still be answered.
+            self.predecessor_sent = max([self.body.requests, *self.body.replay]) + 1
             self.get_logger().warning(
                 f"resuming: snapshot {'at change ' + str(self.last_settled) if snapshot else 'none'}"
                 f", journal {len(passives)} passive sensations, {len(self.body.replay)} answers, "
@@ -291,15 +298,20 @@ class AgentNode(GraphNode):
         would recover it, late)."""
         if not self._await_peers:
             return
-        self._await_peers = False
         deadline = time.monotonic() + timeout_s
         while (self.command_pub.get_subscription_count() == 0
                or self.settled_pub.get_subscription_count() == 0) \
                 and time.monotonic() < deadline and not self.body.aborted:
             self.spin_once(0.05)
+        self._await_peers = False
 
     def take_snapshot(self) -> None:
         started = time.perf_counter()
+        # The journal about to be emptied is what re-publishes, after a kill,
+        # reactions that never left the process: wait until they were received.
+        for publisher in (self.pov_pub, self.compensation_pub, self.pov_record_pub,
+                          self.compensation_record_pub, self.settled_pub):
+            publisher.wait_for_all_acked(Duration(seconds=1.0))
         size = write_snapshot(self.journal.path.with_name(SNAPSHOT_FILE), {
             "config": self.cfg, "agent": self.agent.state(),
             "node": {"last_passive": self.last_passive, "last_settled": self.last_settled,
@@ -336,12 +348,10 @@ class AgentNode(GraphNode):
         if kind == "cmd":
             if self.body.deliver(msg.header.frame_id, sensations):
                 return
-            pending = self.body.pending_number
-            if self._await_peers or number < self.body.requests \
-                    or (number == self.body.requests and pending is None):
+            if number < self.body.requests or number <= self.predecessor_sent \
+                    or (number == self.body.requests and self.body.pending_number is None):
                 # A second answer to a command already answered (a re-sent
-                # copy), or the answer to a command of the agent that died
-                # (this one has not published anything yet).
+                # copy), or the answer to a command of the agent that died.
                 self.late_answers += 1
             else:
                 self.drop("/body/sensation", f"{msg.header.frame_id} answers no pending "
@@ -387,19 +397,21 @@ class AgentNode(GraphNode):
 
     def react(self, kind: str, number: int, sensation: np.ndarray) -> None:
         header = messages.make_header(frame(kind, number), self.get_clock().now().nanoseconds)
-        # Replayed after a restart, already published by the agent that died.
+        # Replayed after a restart and already settled by the agent that died.
+        # Its reaction is published again all the same (the representation
+        # ignores duplicates): what a killed process published last may
+        # never have left it.
         published = number in self.published_before_restart
+        self.await_peers()
         if kind == "end":
             self.run_over = True
-            if not published:
-                self.await_peers()
-                self.publish_stage_counters(header)
-                self.done_pub.publish(messages.table_to_cloud(
-                    {"changes": number, "points_of_view": self.n_povs,
-                     "compensation_rows": self.n_rows,
-                     "compensated": self.agent.compensated,
-                     "queries": self.agent.queries_total, "calls": self.agent.calls_total},
-                    self.columns["/agent/done"], header))
+            self.publish_stage_counters(header)
+            self.done_pub.publish(messages.table_to_cloud(
+                {"changes": number, "points_of_view": self.n_povs,
+                 "compensation_rows": self.n_rows,
+                 "compensated": self.agent.compensated,
+                 "queries": self.agent.queries_total, "calls": self.agent.calls_total},
+                self.columns["/agent/done"], header))
             self.settle(number, published)
             self.get_logger().info(
                 f"run over: {self.n_povs} points of view, {self.n_rows} equality rows, "
@@ -416,9 +428,7 @@ class AgentNode(GraphNode):
             reaction = self.agent.start(self.initial_motor_state)
         else:
             reaction = self.agent.react(sensation)
-        if not published:
-            self.await_peers()
-            self.publish_reaction(reaction, header)
+        self.publish_reaction(reaction, header)
         self.n_povs += len(reaction.new_pov_ids)
         self.n_rows += len(np.reshape(reaction.equality_rows, (-1, 3)))
         self.settle(number, published)

@@ -366,7 +366,8 @@ def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_i
     # of the next one goes to the dead agent: the restarted one, idle, settles
     # again until the environment re-sends it). Third: right after the
     # reaction of the last change that found a POV is published, before its
-    # journal marker (the reaction is published again).
+    # journal marker (it is settled again; every replayed reaction is
+    # published again).
     deaths = [{"die_after_command": reference.calls_total // 3},
               {"die_after_settle_of": n_changes // 2},
               {"die_before_marker_of": max(reference.pov_events)}]
@@ -384,7 +385,7 @@ def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_i
         assert not life.dropped, life.dropped
     killed_in = deaths[2]["die_before_marker_of"]
     assert agent.body.replayed > 0 and killed_in - 1 in agent.published_before_restart
-    assert killed_in not in agent.published_before_restart   # so published again
+    assert killed_in not in agent.published_before_restart   # so settled again
 
     arrays = nodes["representation"].result
     np.testing.assert_array_equal(arrays["povs"], offline.povs)
