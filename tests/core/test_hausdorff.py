@@ -124,7 +124,11 @@ def test_pruned_rows_without_numba_equal_the_brute_force():
     landmark/early-break/jump path taken."""
     povs = paper_like_loops(np.random.default_rng(4), P=20, N=12)
     R = np.ascontiguousarray(np.mod(povs, TWO_PI))
-    assert np.array_equal(hausdorff_module._pruned_matrix(R), hausdorff_matrix_bruteforce(povs))
+    brute = hausdorff_matrix_bruteforce(povs)
+    for landmarks in (0, 4, 20):
+        for n_jobs in (1, 2):
+            assert np.array_equal(hausdorff_module._pruned_matrix(
+                R, n_jobs=n_jobs, rows_per_task=3, landmarks=landmarks), brute)
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
