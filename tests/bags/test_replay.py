@@ -98,7 +98,9 @@ def test_timed_replay_keeps_the_recorded_spacing_scaled_by_rate(
     process = replay(children, ros_env, tmp_path / "bag", "rate:=2.0", f"topics:=[{SETTLED}]")
     wait_for(lambda: len(listener.received[SETTLED]) == 11, 30, "11 messages", spin=listener.spin)
     elapsed = listener.arrivals[-1] - listener.arrivals[0]
-    assert 0.45 <= elapsed < 2.0, elapsed  # 1.0 s at 2x = 0.5 s; fast mode would be ~0
+    # 1.0 s at 2x = 0.5 s; fast mode would be ~0. The listener stamps on its own spin,
+    # so a late first stamp shortens the span (measured 0.445 s in a loaded full suite).
+    assert 0.35 <= elapsed < 2.0, elapsed
     assert listener.received[SETTLED] == [on_the_wire(uint64_cdr(i)) for i in range(11)]
     process.communicate(timeout=30)
     assert process.returncode == 0
