@@ -554,6 +554,9 @@ def reaching_examples(arrays: Mapping, dim: str, seed: int = 0, count: int = 3) 
         start, target = rng.choice(len(positions), size=2, replace=False)
         if np.hypot(*(positions[start] - positions[target])) < 2.0:
             continue                      # short paths say little about straightness
+        if any(graph.component_labels[start] != graph.component_labels[target]
+               for graph in graphs.values()):
+            continue                      # not connected in a pruned graph: no path to draw
         paths = {stage: reach.shortest_path(graph, int(start), int(target))
                  for stage, graph in graphs.items()}
         if any(p is None or len(p) < 2 for p in paths.values()):

@@ -101,6 +101,22 @@ def test_smoke_run_writes_every_figure(smoke_run):
     assert arrays["pov_example"].shape[1] == 4 and arrays["pov_examples_x"].ndim == 3
 
 
+def test_reaching_examples_skip_pairs_a_pruned_graph_does_not_connect():
+    """A representation in two far clusters (pruned graph disconnected, as a
+    short graph run can give): the figure draws pairs within a cluster."""
+    rng = np.random.default_rng(0)
+    positions = rng.uniform(0, 6, size=(40, 2))
+    embedding = np.vstack([positions[:20], positions[20:] + 100.0])
+    cfg = load_config(SMOKE, overrides={"representation.reaching.max_degree": 5})
+    arrays = {"config_json": json.dumps(cfg), "true_positions": positions,
+              "povs": rng.uniform(0, 1, size=(40, 3, 4)),
+              "embedding_2d_before": embedding, "embedding_2d_iterations": embedding[None]}
+    examples = figures.reaching_examples(arrays, "2d", count=3)
+    assert len(examples["starts"]) == 3
+    for start, target in zip(examples["starts"], examples["targets"]):
+        assert (start < 20) == (target < 20)
+
+
 def test_draw_all_draws_only_the_named_figures(smoke_run, tmp_path):
     out, _ = smoke_run
     arrays = dict(np.load(out / pipeline.ARRAYS_FILE))
