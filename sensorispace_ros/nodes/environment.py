@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,9 @@ from . import GraphNode, build_world, frame, run_node
 
 KIND_CODES = {world_mod.TRANSLATION: 0, world_mod.REDISTRIBUTION: 1}
 PROGRESS_BYTES = 64       # environment.json: one in-place record, well inside a page
+# One participant announcement period of the launcher's Fast DDS profile
+# (launcher.LEASE_ANNOUNCEMENT_S = 1 s) plus a margin; see _peers_ready.
+RECORDER_DISCOVERY_S = 1.5
 
 
 class EnvironmentNode(GraphNode):
@@ -55,6 +59,7 @@ class EnvironmentNode(GraphNode):
         self.progress_file = (Path(self.graph["checkpoint_dir"]) / "environment.json"
                               if self.graph["checkpoint_dir"] else None)
         self._progress_fd: int | None = None
+        self._graph_seen_at: float | None = None
         self.resuming = self._load_progress()
         # after a restart: the change whose lights are re-sent until it is settled
         self.resent_until_settled = self.current if self.resuming else None
@@ -112,12 +117,21 @@ class EnvironmentNode(GraphNode):
         if missing:
             self.get_logger().info(f"waiting for {', '.join(missing)}", throttle_duration_sec=5.0)
             return False
+        if "recorder" not in self.graph["wait_for_nodes"]:
+            return True
         # /environment/event is volatile: a restarted environment would lose the
         # re-sent event if it published before the recorder's reader matched.
-        if "recorder" in self.graph["wait_for_nodes"] and \
-                self.event_pub.get_subscription_count() == 0:
+        if self.event_pub.get_subscription_count() == 0:
             return False
-        return True
+        # The other nodes' volatile writers (the agent's /agent/settled, ...) match
+        # the recorder's readers when their participants have discovered each other,
+        # which can take until the next participant announcement (measured: the
+        # first 25 settles, ~1 s, missing from the bag). Everyone has announced
+        # itself once RECORDER_DISCOVERY_S after this node saw the whole graph.
+        now = time.monotonic()
+        if self._graph_seen_at is None:
+            self._graph_seen_at = now
+        return now - self._graph_seen_at >= RECORDER_DISCOVERY_S
 
     def resume(self) -> None:
         """Carry on where the killed environment stopped (never rewinds)."""

@@ -73,8 +73,6 @@ class SettledWatcher:
 # milliseconds of its arrival (write-ahead log), this margin covers a recorder
 # lagging behind the watcher on a loaded machine.
 RECORDER_MARGIN_S = 0.2
-# Changes at the start of a run left out of the bag check (see restart_run).
-STARTUP_CHANGES = 5
 
 
 def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]) -> dict:
@@ -156,9 +154,6 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
                         if t < killed_at - RECORDER_MARGIN_S}
         else:                       # the recorder lived through: everything
             expected = set(range(outcome["settled_at_end"] + 1))
-        # Not the start: an early volatile /agent/settled can precede the match of the
-        # agent's writer with the recorder's reader in any run (seen once: 0 and 1 missing)
-        expected = {k for k in expected if k >= STARTUP_CHANGES}
         outcome["bag_expected_settled"] = max(expected, default=-1)
         if victim == "recorder":    # measured, not asserted: the loss window itself
             before_kill = {k: killed_at - t for k, t in watcher.received_at.items()
