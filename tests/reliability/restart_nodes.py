@@ -92,7 +92,8 @@ def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]
 
 
 def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference: dict | None,
-                write_ahead: bool = True):
+                write_ahead: bool = True, restart_delay_s: float = 0.0,
+                command_timeout_s: float | None = None):
     domain_id = launcher.free_domain_id()
     env = launcher.graph_environment(domain_id)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -104,6 +105,8 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
         line = np_mod.command(name, SMOKE, results, bag)
         if name == "recorder" and not write_ahead:
             line += ["-p", "recorder.write_ahead:=false"]
+        if name == "agent" and command_timeout_s is not None:
+            line += ["-p", f"graph.command_timeout_s:={command_timeout_s}"]
         return line
 
     processes = np_mod.NodeProcesses(work / "logs")
@@ -122,6 +125,7 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
         killed_at = time.monotonic()
         outcome["killed_after_s"] = round(killed_at - started, 1)
         outcome["settled_at_kill"] = int(watcher.settled)
+        watcher.spin(restart_delay_s)       # the node stays dead this long
         processes.start(victim, command(victim), env,
                         log_name=f"{victim}.restarted")
         deadline = time.monotonic() + stall_s
@@ -181,13 +185,19 @@ def main(argv=None) -> int:
     parser.add_argument("--stall-s", type=float, default=150.0)
     parser.add_argument("--work", type=Path, default=Path("results/restart"))
     parser.add_argument("--reference", type=Path, default=None)
+    parser.add_argument("--command-timeout-s", type=float, default=None,
+                        help="the agent's graph.command_timeout_s (re-send period)")
+    parser.add_argument("--restart-delay-s", type=float, default=0.0,
+                        help="wait this long between the kill and the restart")
     parser.add_argument("--no-write-ahead", action="store_true",
                         help="recorder without its write-ahead log (to measure what it saves)")
     args = parser.parse_args(argv)
     reference = np_mod.load_result(args.reference) if args.reference else None
     for victim in args.nodes:
         outcome = restart_run(victim, args.work / victim, args.kill_at, args.stall_s, reference,
-                              write_ahead=not args.no_write_ahead)
+                              write_ahead=not args.no_write_ahead,
+                              restart_delay_s=args.restart_delay_s,
+                              command_timeout_s=args.command_timeout_s)
         print(json.dumps(outcome), flush=True)
     return 0
 
