@@ -72,11 +72,19 @@ class BodyNode(GraphNode):
         world = build_world(self.cfg)
         self.body = SimulatedBody(world.receptors, None, world.m0.copy())
         self.resting_file = None
+        # After a restart: commands wait until the lights history (transient_local,
+        # re-delivered interleaved with commands) is back at the change applied
+        # before the kill; measured: a re-sent command was answered with change 4's
+        # lights of the history instead of change 61's.
+        self.lights_before_kill: int | None = None
+        self.lights_number = -1
         if self.graph["checkpoint_dir"]:
+            # [m0..m3, k]: the resting state and the number of the last lights applied
             self.resting_file = RestingStateFile(
-                Path(self.graph["checkpoint_dir"]) / "body.state", len(world.m0))
-            resting = self.resting_file.load()
-            if resting is not None:
+                Path(self.graph["checkpoint_dir"]) / "body.state", len(world.m0) + 1)
+            saved = self.resting_file.load()
+            if saved is not None:
+                resting, self.lights_before_kill = saved[:-1], int(saved[-1])
                 self.body.motor_state = resting
                 self.get_logger().warning(f"restarted: resting motor state {resting.tolist()} "
                                           f"restored from {self.resting_file.path}")
@@ -97,7 +105,7 @@ class BodyNode(GraphNode):
         decoded = self.decode("/environment/lights", msg, kinds=("change", "end"))
         if decoded is None:
             return
-        (kind, _), lights = decoded
+        (kind, number), lights = decoded
         if kind == "change":
             if len(lights) == 0:
                 self.drop("/environment/lights", "no lights")
@@ -106,6 +114,11 @@ class BodyNode(GraphNode):
         elif self.body.lights_world is None:
             self.drop("/environment/lights", "end of run before any lights")
             return
+        self.lights_number = number
+        if self.lights_before_kill is not None and number >= self.lights_before_kill:
+            self.lights_before_kill = None
+        if self.resting_file is not None and self.lights_before_kill is None:
+            self.resting_file.save(np.append(self.body.motor_state, number))
         self.publish_passive(msg.header)
 
     def publish_passive(self, header) -> None:
@@ -123,8 +136,8 @@ class BodyNode(GraphNode):
         if decoded is None:
             return
         _, motor = decoded
-        if self.body.lights_world is None:
-            self.drop("/body/motor_command", "no lights received yet")
+        if self.body.lights_world is None or self.lights_before_kill is not None:
+            self.drop("/body/motor_command", "no current lights yet (the agent re-sends it)")
             return
         if len(motor) == 0:
             self.drop("/body/motor_command", "empty batch")
@@ -137,7 +150,7 @@ class BodyNode(GraphNode):
         sensations, poses = self.body.sense_with_poses(motor)
         if self.resting_file is not None:
             # before the answer: once the agent has it, a restart rests where it did
-            self.resting_file.save(self.body.motor_state)
+            self.resting_file.save(np.append(self.body.motor_state, self.lights_number))
         self.publish_answer(sensations, poses, self.body.motor_state, header)
 
     def publish_answer(self, sensations: np.ndarray, poses: np.ndarray, rest: np.ndarray,

@@ -161,3 +161,85 @@ def test_a_repeated_settle_of_the_previous_change_gets_the_current_lights_again(
         assert "/agent/settled" not in probe.env.dropped
     finally:
         probe.close()
+
+
+@pytest.mark.graph
+@pytest.mark.timeout(60)
+def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_kill_are_back(
+        tmp_path, domain_id):
+    """The lights history (transient_local) reaches a restarted body interleaved with the
+    agent's re-sent command; answering it in an old change's lights made the agent diverge
+    (seen once in ~12 body restarts). The body persists the number of the lights it last
+    applied and holds commands until that change is back."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from sensorispace_ros import contracts, launcher, messages
+    from sensorispace_ros.core.body import SimulatedBody
+    from sensorispace_ros.nodes import build_world, frame
+    from sensorispace_ros.nodes.body import BodyNode
+
+    from .conftest import SMOKE
+    cfg_overrides = launcher.parameter_overrides(SMOKE, {"graph.checkpoint_dir": str(tmp_path)})
+    resting = np.array([0.3, -1.2, 2.0, -2.5])
+    RestingStateFile(tmp_path / "body.state", 5).save(np.append(resting, 3))  # lights 3 applied
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id,
+               signal_handler_options=SignalHandlerOptions.NO)
+    body = BodyNode(context=context, parameter_overrides=cfg_overrides)
+    probe = rclpy.create_node("body_probe", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        executor.add_node(body)
+        executor.add_node(probe)
+        world = build_world(body.cfg)
+        old_lights = np.asarray(world.initial_lights)
+        current_lights = old_lights + np.array([0.7, -0.4])
+        answers = {}
+        contracts.create_subscription(
+            probe, "/body/sensation",
+            lambda m: answers.setdefault(m.header.frame_id, []).append(
+                messages.cloud_to_matrix(m, contracts.contract("/body/sensation").columns)))
+        lights_pub = contracts.create_publisher(probe, "/environment/lights")
+        command_pub = contracts.create_publisher(probe, "/body/motor_command")
+        lights_columns = contracts.contract("/environment/lights").columns
+        command_columns = contracts.contract("/body/motor_command").columns
+        motor = np.array([[0.1, -1.5, 2.2, -3.0], [0.2, -1.4, 2.1, -2.9]])
+
+        def spin(seconds):
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.02)
+
+        def send_lights(k, lights):
+            lights_pub.publish(messages.matrix_to_cloud(
+                lights, lights_columns, messages.make_header(frame("change", k), 0)))
+
+        def send_command():
+            command_pub.publish(messages.matrix_to_cloud(
+                motor, command_columns, messages.make_header(frame("cmd", 7), 0)))
+
+        spin(1.0)                               # discovery
+        assert np.array_equal(body.body.motor_state, resting)   # restored resting state
+        send_lights(1, old_lights)              # the history, oldest first ...
+        spin(0.3)
+        send_command()                          # ... interleaved with the re-sent command
+        spin(0.5)
+        assert "cmd/7" not in answers           # held: change 3 is not back yet
+        send_lights(3, current_lights)
+        spin(0.3)
+        send_command()                          # the agent's next re-send
+        spin(0.5)
+        assert len(answers.get("cmd/7", [])) == 1
+        expected = SimulatedBody(world.receptors, current_lights, world.m0.copy()).sense(motor)
+        assert np.array_equal(answers["cmd/7"][0], expected)
+        wrong = SimulatedBody(world.receptors, old_lights, world.m0.copy()).sense(motor)
+        assert not np.allclose(answers["cmd/7"][0], wrong)
+    finally:
+        executor.shutdown()
+        body.destroy_node()
+        probe.destroy_node()
+        context.try_shutdown()
