@@ -109,10 +109,11 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         command_pub = contracts.create_publisher(node, "/body/motor_command")
         lights_pub = contracts.create_publisher(node, "/environment/lights")
 
+        command_packer = messages.CloudPacker(command_columns)
+
         def publish_command(motor_states, frame_id):     # as AgentNode.publish_command
-            command_pub.publish(messages.matrix_to_cloud(
-                motor_states, command_columns,
-                messages.make_header(frame_id, node.get_clock().now().nanoseconds)))
+            command_pub.publish(command_packer.pack(
+                motor_states, messages.make_header(frame_id, node.get_clock().now().nanoseconds)))
 
         body = BodyOverTopics(publish_command, spin, n_motors=len(command_columns),
                               n_sensors=len(sensation_columns))

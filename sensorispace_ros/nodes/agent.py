@@ -185,6 +185,9 @@ class AgentNode(GraphNode):
             "/agent/compensations", "/agent/done", "/agent/pov_records",
             "/agent/compensation_records", "/agent/stage_counters")}
         self.command_pub = contracts.create_publisher(self, "/body/motor_command")
+        # One command message re-filled per probe (messages.CloudPacker, 15 -> 1 us a
+        # 1-row command); rclpy copies it in publish(), so re-filling it next time is safe.
+        self.command_packer = messages.CloudPacker(self.columns["/body/motor_command"])
         self.pov_pub = contracts.create_publisher(self, "/agent/points_of_view")
         self.compensation_pub = contracts.create_publisher(self, "/agent/compensations")
         self.settled_pub = contracts.create_publisher(self, "/agent/settled")
@@ -495,9 +498,8 @@ class AgentNode(GraphNode):
 
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
         self.await_peers()
-        self.command_pub.publish(messages.matrix_to_cloud(
-            motor_states, self.columns["/body/motor_command"],
-            messages.make_header(frame_id, self.get_clock().now().nanoseconds)))
+        self.command_pub.publish(self.command_packer.pack(
+            motor_states, messages.make_header(frame_id, self.get_clock().now().nanoseconds)))
 
 
 def main(args=None) -> int:
