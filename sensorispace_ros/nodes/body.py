@@ -7,13 +7,16 @@ one-row passive sensation of the resting arm (frame ``change/<k>`` or
 and ``/body/joint_states``; the agent never subscribes to those.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor
-state is written on every command into ``<dir>/body.state`` (a memory-mapped
-file: survives kill -9 in the page cache, no fsync) and read back at start,
-so a restarted body computes passive sensations at the right pose. The lights
-come back by themselves (``/environment/lights`` keeps 100 changes for late
-joiners; each re-delivered one is answered with a passive sensation, which the
-agent ignores when old). Every well-formed command is answered, duplicates too
-(the answer depends only on the commanded rows and the lights).
+state and the number of the last lights applied are written on every command
+and change into ``<dir>/body.state`` (a memory-mapped file: survives kill -9
+in the page cache, no fsync) and read back at start, so a restarted body
+computes passive sensations at the right pose. The lights come back by
+themselves (``/environment/lights`` keeps 100 changes for late joiners, oldest
+first; each re-delivered one is answered with a passive sensation, which the
+agent ignores when old); until the change applied before the kill is back,
+commands are dropped (the agent re-sends them), so none is answered in an old
+layout. Every well-formed command is answered, duplicates too (the answer
+depends only on the commanded rows and the lights).
 """
 from __future__ import annotations
 
@@ -28,20 +31,20 @@ from . import GraphNode, build_world, run_node
 
 
 class RestingStateFile:
-    """The arm's resting motor state in a small memory-mapped file.
+    """A short float vector (the body's: resting motor state, then the number of
+    the last lights applied) in a small memory-mapped file.
 
-    Two slots written alternately, each ``[seq, m0..m3, seq]``: a kill -9 in the
+    Two slots written alternately, each ``[seq, values..., seq]``: a kill -9 in the
     middle of a write leaves the slot's two sequence numbers unequal, and
     ``load`` takes the newest slot whose numbers agree (seqlock). No fsync, no
     rename: the page cache keeps what a killed process wrote (a machine crash
     is out of scope).
     """
 
-    def __init__(self, path: Path, n_motors: int):
+    def __init__(self, path: Path, size: int):
         self.path = Path(path)
-        self.n_motors = n_motors
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        shape = (2, n_motors + 2)
+        shape = (2, size + 2)
         fresh = not self.path.is_file() or self.path.stat().st_size != 8 * shape[0] * shape[1]
         self.slots = np.memmap(self.path, dtype=np.float64, mode="w+" if fresh else "r+",
                                shape=shape)
@@ -51,17 +54,17 @@ class RestingStateFile:
         return [row for row in self.slots if row[0] > 0 and row[0] == row[-1]]
 
     def load(self) -> np.ndarray | None:
-        """The last resting state written, or None (no file, nothing valid)."""
+        """The last vector written, or None (no file, nothing valid)."""
         valid = self._valid_slots()
         if not valid:
             return None
         return np.array(max(valid, key=lambda row: row[0])[1:-1])
 
-    def save(self, motor_state: np.ndarray) -> None:
+    def save(self, values: np.ndarray) -> None:
         self.seq += 1
         slot = self.slots[self.seq % 2]
         slot[0] = self.seq
-        slot[1:-1] = motor_state
+        slot[1:-1] = values
         slot[-1] = self.seq
 
 
