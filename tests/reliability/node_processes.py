@@ -17,6 +17,23 @@ from sensorispace_ros.nodes.representation import RESULT_FILE
 NODES = ("environment", "body", "agent", "representation", "recorder")
 
 
+def stop_by_pid(process: subprocess.Popen, grace_s: float = 5.0) -> None:
+    """SIGTERM, then SIGKILL after ``grace_s``; never by name."""
+    if process.poll() is None:
+        try:
+            os.kill(process.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+        try:
+            process.wait(timeout=grace_s)
+        except subprocess.TimeoutExpired:
+            try:
+                os.kill(process.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            process.wait()
+
+
 def node_parameters(name: str, results_dir: Path, bag_dir: Path, nodes=NODES) -> dict:
     """The launcher's per-node parameters (launcher.launch_graph does the same)."""
     if name == "recorder":
@@ -83,17 +100,7 @@ class NodeProcesses:
         order = [n for n in self.children if n != "recorder"] + \
                 [n for n in self.children if n == "recorder"]
         for name in order:
-            proc = self.children[name]
-            if proc.poll() is None:
-                try:
-                    os.kill(proc.pid, signal.SIGTERM)
-                except ProcessLookupError:
-                    pass
-                try:
-                    proc.wait(timeout=grace_s)
-                except subprocess.TimeoutExpired:
-                    os.kill(proc.pid, signal.SIGKILL)
-                    proc.wait()
+            stop_by_pid(self.children[name], grace_s)
         for log in self._logs:
             log.close()
         self._logs = []

@@ -13,7 +13,8 @@ import pytest
 
 from sensorispace_ros import launcher
 
-from .conftest import SMOKE, stop_by_pid
+from .conftest import SMOKE
+from .node_processes import stop_by_pid
 
 SUBSCRIBER = """
 import rclpy
