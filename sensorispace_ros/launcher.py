@@ -458,13 +458,19 @@ def parameter_overrides(config_path: str | Path, graph: dict | None = None) -> l
 
 
 def run_graph_in_process(config_path: str | Path, domain_id: int, results_dir: str | Path,
-                         extra_nodes=(), timeout_s: float = 600.0, on_spin=None) -> dict:
+                         extra_nodes=(), timeout_s: float = 600.0, on_spin=None,
+                         parameters: dict | None = None, node_factories: dict | None = None
+                         ) -> dict:
     """All four nodes in this process on one SingleThreadedExecutor and a private Context.
 
     ``extra_nodes``: callables ``context -> Node`` added to the same executor
-    (tests add observers or hostile publishers). ``on_spin(nodes)`` is called
-    after every spin. Returns ``{"nodes": {...}, "wall_s": ...}`` once the
-    representation is written; raises TimeoutError otherwise.
+    (tests add observers or hostile publishers). ``on_spin(nodes, replace)`` is
+    called after every spin; ``replace(name)`` destroys that node, puts a fresh
+    one from its factory in its place and returns the old one (tests "kill" and
+    restart a node). ``parameters``: more ``graph.*`` parameters for every node;
+    ``node_factories``: ``name -> callable(context=, parameter_overrides=)``
+    in place of a node class. Returns ``{"nodes": {...}, "wall_s": ...}`` once
+    the representation is written; raises TimeoutError otherwise.
     """
     import rclpy
     from rclpy.context import Context
@@ -481,19 +487,30 @@ def run_graph_in_process(config_path: str | Path, domain_id: int, results_dir: s
     rclpy.init(context=context, domain_id=int(domain_id),
                signal_handler_options=SignalHandlerOptions.NO)
     overrides = parameter_overrides(config_path, {"graph.results_dir": str(results_dir),
-                                                  "graph.resend_period_s": 0.5})
+                                                  "graph.resend_period_s": 0.5,
+                                                  **(parameters or {})})
+    factories = {"representation": RepresentationNode, "body": BodyNode, "agent": AgentNode,
+                 "environment": EnvironmentNode, **(node_factories or {})}
     nodes: dict = {}
     executor = SingleThreadedExecutor(context=context)
+
+    def add(name: str, node) -> None:
+        node.spin_once = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)
+        executor.add_node(node)
+        nodes[name] = node
+
+    def replace(name: str):
+        old = nodes[name]
+        executor.remove_node(old)
+        old.destroy_node()
+        add(name, factories[name](context=context, parameter_overrides=overrides))
+        return old
+
     try:
-        for name, make in (("representation", RepresentationNode), ("body", BodyNode),
-                           ("agent", AgentNode), ("environment", EnvironmentNode)):
-            nodes[name] = make(context=context, parameter_overrides=overrides)
-            executor.add_node(nodes[name])
+        for name, make in factories.items():
+            add(name, make(context=context, parameter_overrides=overrides))
         for k, make in enumerate(extra_nodes):
-            nodes[f"extra{k}"] = make(context)
-            executor.add_node(nodes[f"extra{k}"])
-        for node in nodes.values():
-            node.spin_once = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)
+            add(f"extra{k}", make(context))
         started = time.monotonic()
         while nodes["representation"].result is None:
             if nodes["agent"].finished or nodes["representation"].finished:
@@ -506,7 +523,7 @@ def run_graph_in_process(config_path: str | Path, domain_id: int, results_dir: s
                 if step is not None:
                     step()
             if on_spin is not None:
-                on_spin(nodes)
+                on_spin(nodes, replace)
         return {"nodes": nodes, "wall_s": time.monotonic() - started}
     finally:
         if "agent" in nodes:

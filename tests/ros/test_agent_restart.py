@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import UInt64
 
@@ -289,59 +288,28 @@ class MortalAgent(AgentNode):
 def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
     """The smoke graph in this process; ``deaths`` are MortalAgent settings,
     one agent life each; the last agent is a plain AgentNode."""
-    from sensorispace_ros.nodes.body import BodyNode
-    from sensorispace_ros.nodes.environment import EnvironmentNode
-
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    overrides = launcher.parameter_overrides(SMOKE, {
-        "graph.results_dir": str(tmp_path), "graph.resend_period_s": 0.5,
-        "graph.checkpoint_dir": str(tmp_path / "checkpoints")})
-    executor = SingleThreadedExecutor(context=context)
-    nodes, dead = {}, []
     lives = list(deaths)
+    dead = []
 
-    def new_agent():
-        if lives:
-            agent = MortalAgent(context=context, parameter_overrides=overrides)
-            for name, value in lives.pop(0).items():
-                setattr(agent, name, value)
-        else:
-            agent = AgentNode(context=context, parameter_overrides=overrides)
-        agent.spin_once = lambda t: executor.spin_once(timeout_sec=t)
-        executor.add_node(agent)
+    def new_agent(**kwargs):
+        if not lives:
+            return AgentNode(**kwargs)
+        agent = MortalAgent(**kwargs)
+        for name, value in lives.pop(0).items():
+            setattr(agent, name, value)
         return agent
 
-    try:
-        for name, make in (("representation", RepresentationNode), ("body", BodyNode),
-                           ("environment", EnvironmentNode)):
-            nodes[name] = make(context=context, parameter_overrides=overrides)
-            nodes[name].spin_once = lambda t: executor.spin_once(timeout_sec=t)
-            executor.add_node(nodes[name])
-        nodes["agent"] = new_agent()
-        started = time.monotonic()
-        while nodes["representation"].result is None:
-            if nodes["agent"].finished or nodes["representation"].finished:
-                raise RuntimeError("a node failed; see its log")
-            if time.monotonic() - started > timeout_s:
-                raise TimeoutError(f"graph did not finish within {timeout_s} s")
-            executor.spin_once(timeout_sec=0.1)
-            for node in list(nodes.values()):
-                node.step()
-            if getattr(nodes["agent"], "dead", False):
-                corpse = nodes["agent"]
-                executor.remove_node(corpse)
-                corpse.destroy_node()
-                corpse.journal.close()      # the fd only; a killed process writes nothing
-                dead.append(corpse)
-                nodes["agent"] = new_agent()
-        return nodes, dead
-    finally:
-        nodes["agent"].abort()
-        executor.shutdown()
-        for node in nodes.values():
-            node.destroy_node()
-        context.try_shutdown()
+    def bury_and_restart(nodes, replace):
+        if getattr(nodes["agent"], "dead", False):
+            corpse = replace("agent")
+            corpse.journal.close()          # the fd only; a killed process writes nothing
+            dead.append(corpse)
+
+    result = launcher.run_graph_in_process(
+        SMOKE, domain_id, tmp_path, timeout_s=timeout_s, on_spin=bury_and_restart,
+        parameters={"graph.checkpoint_dir": str(tmp_path / "checkpoints")},
+        node_factories={"agent": new_agent})
+    return result["nodes"], dead
 
 
 @pytest.fixture(scope="module")

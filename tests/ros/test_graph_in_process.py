@@ -63,7 +63,7 @@ def _run(tmp_path, domain_id, extra_nodes=()):
 
     result = launcher.run_graph_in_process(
         SMOKE, domain_id, tmp_path, extra_nodes=(make_observer, *extra_nodes), timeout_s=600,
-        on_spin=lambda nodes: observers[0].look(nodes))
+        on_spin=lambda nodes, replace: observers[0].look(nodes))
     return result, observers[0]
 
 
