@@ -6,14 +6,32 @@ geometry. The naive code is handed ``SensingOnly(body)``, which exposes
 ``sense`` and the two vector sizes; Python cannot truly hide the simulator
 behind it, so the tests also run the naive strategy against a body written
 as a bare closure with nothing else to reach.
+
+With numba installed (``kernel="auto"``) the simulator runs the forward
+model and the retina in one compiled loop over rows (``simulate``). It does
+the floating-point operations of ``arm.forward`` + ``retina.sensation`` in
+their order, and numba's ``math.cos/sin/exp/hypot`` are the C library's,
+which NumPy calls too on a machine without AVX-512 (float64 has no SIMD
+path there), so the bits are equal (tests/core/test_body_simulation.py
+checks it); those two NumPy functions stay the reference and the fallback.
+Measured: 1 row 54 -> 2 us, 649 rows 0.42 -> 0.22 ms. The simulator is
+in the agent's loop (~63,000 calls a paper run) and in the body node's.
 """
 from __future__ import annotations
 
+import math
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from . import arm, retina
+
+try:
+    import numba
+except ImportError:             # optional: the NumPy path is the fallback
+    numba = None
+
+KERNELS = ("auto", "numpy", "numba")
 
 
 @runtime_checkable
@@ -27,13 +45,100 @@ class SensingBody(Protocol):
         the last row afterwards."""
 
 
+def _simulate_rows(motor, lights, receptors, sensations, poses):
+    """``arm.forward`` + ``retina.sensation`` of each row of ``motor`` (B, 4),
+    unit segments, lights (L, 2), into ``sensations`` (B, R) and ``poses``
+    (B, 3). Written for numba; every operation and its order is the NumPy
+    path's: hidden lights add nothing (NumPy adds an exact 0.0), the sum over
+    lights runs in light order from 0.0."""
+    n_lights = lights.shape[0]
+    n_receptors = receptors.shape[0]
+    for b in range(motor.shape[0]):
+        joint0 = motor[b, 0]
+        theta1 = joint0 + motor[b, 1]
+        theta2 = theta1 + motor[b, 2]
+        x = math.cos(joint0) + math.cos(theta1)
+        x += math.cos(theta2)
+        y = math.sin(joint0) + math.sin(theta1)
+        y += math.sin(theta2)
+        alpha = joint0 + motor[b, 1]
+        for k in range(2, motor.shape[1]):
+            alpha += motor[b, k]
+        poses[b, 0] = x
+        poses[b, 1] = y
+        poses[b, 2] = alpha
+        cos_a = math.cos(alpha)
+        sin_a = math.sin(alpha)
+        for r in range(n_receptors):
+            sensations[b, r] = 0.0
+        for light in range(n_lights):
+            rel_x = lights[light, 0] - x
+            rel_y = lights[light, 1] - y
+            depth = rel_x * cos_a + rel_y * sin_a
+            if depth > 0.0:
+                projection = (-rel_x * sin_a + rel_y * cos_a) / depth
+                distance = math.hypot(rel_x, rel_y)
+                for r in range(n_receptors):
+                    exponent = receptors[r] - projection
+                    exponent *= exponent
+                    if exponent > retina._EXP_UNDERFLOW:    # NaN stays NaN, as np.minimum
+                        exponent = retina._EXP_UNDERFLOW
+                    sensations[b, r] += math.exp(-exponent) / distance
+
+
+_simulate_rows_compiled = (None if numba is None
+                           else numba.njit(nogil=True, cache=True)(_simulate_rows))
+
+
+def numba_available() -> bool:
+    """True when the compiled simulator can be used."""
+    return numba is not None
+
+
+def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
+             receptor_positions: np.ndarray, kernel: str = "auto"
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Sensations ``(B, R)`` and eye poses ``(B, 3)`` of motor states ``(B, 4)``
+    (unit segments) in the lights ``(L, 2)``: ``retina.sensation(arm.forward(m))``
+    and ``arm.forward(m)``, bit for bit, by the compiled loop when ``kernel``
+    allows it."""
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    if kernel == "numba" and numba is None:
+        raise ValueError("kernel 'numba' needs the numba package, which is not installed")
+    motor_states = np.asarray(motor_states, dtype=float)
+    lights = np.asarray(lights_world, dtype=float)
+    receptors = np.asarray(receptor_positions, dtype=float)
+    if kernel == "numpy" or numba is None:
+        pose = arm.forward(motor_states)
+        return retina.sensation(pose, lights, receptors), pose
+    if motor_states.ndim != 2 or motor_states.shape[1] < 3:
+        raise ValueError(f"motor_states must have shape (B, {arm.N_JOINTS}), "
+                         f"got {motor_states.shape}")
+    if lights.ndim != 2 or lights.shape[1] != 2 or receptors.ndim != 1:
+        raise ValueError(f"lights_world must be (L, 2) and receptor_positions 1-D, "
+                         f"got {lights.shape} and {receptors.shape}")
+    sensations = np.empty((len(motor_states), len(receptors)))
+    poses = np.empty((len(motor_states), 3))
+    _simulate_rows_compiled(np.ascontiguousarray(motor_states), np.ascontiguousarray(lights),
+                            np.ascontiguousarray(receptors), sensations, poses)
+    return sensations, poses
+
+
 class SimulatedBody:
-    """Arm + retina simulator in a given light configuration (ground truth side)."""
+    """Arm + retina simulator in a given light configuration (ground truth side).
+
+    ``kernel``: "auto" (compiled when numba is installed), "numpy" or "numba"
+    (see ``simulate``); the answers are the same bits.
+    """
 
     n_motors = arm.N_JOINTS
 
     def __init__(self, receptor_positions: np.ndarray, lights_world: np.ndarray | None = None,
-                 motor_state: np.ndarray | None = None):
+                 motor_state: np.ndarray | None = None, kernel: str = "auto"):
+        if kernel not in KERNELS:
+            raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+        self.kernel = kernel
         self.receptor_positions = np.asarray(receptor_positions, dtype=float)
         self.n_sensors = len(self.receptor_positions)
         self.lights_world = None if lights_world is None else np.asarray(lights_world, float)
@@ -60,8 +165,7 @@ class SimulatedBody:
         self.calls += 1
         if len(motor_states):
             self.motor_state = motor_states[-1].copy()
-        pose = arm.forward(motor_states)
-        return retina.sensation(pose, self.lights_world, self.receptor_positions), pose
+        return simulate(motor_states, self.lights_world, self.receptor_positions, self.kernel)
 
     def sensor_pose(self, motor_states: np.ndarray) -> np.ndarray:
         """Ground truth pose of the eye (evaluation only)."""

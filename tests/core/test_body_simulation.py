@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core import body as body_module
 from sensorispace_ros.core.body import SimulatedBody
 
 
@@ -140,3 +141,71 @@ def test_simulated_body_returns_the_dense_sensations_and_poses():
     np.testing.assert_array_equal(sensations, dense_sensation(dense_forward(motor), lights,
                                                               receptors))
     np.testing.assert_array_equal(body.motor_state, motor[-1])
+
+
+needs_numba = pytest.mark.skipif(not body_module.numba_available(),
+                                 reason="the compiled simulator needs numba")
+
+
+@pytest.mark.parametrize("kernel", ["numpy", "numba", "python"])
+@pytest.mark.parametrize("n", [1, 2, 649])
+def test_simulate_kernels_give_the_numpy_bits(kernel, n):
+    # "python": the loop the compiler gets, run as plain Python. Python's math.hypot is
+    # its own (not the C library's, which NumPy and numba call): last-bit differences.
+    rng = np.random.default_rng(100 + n)
+    motor, lights, receptors = random_scene(rng, n)
+    # Rows the body may meet: lights just behind and just in front of the lens plane
+    # (the latter projects ~1e23 away: exp underflows), NaN and inf joints.
+    motor[0] = [0.0, 0.0, 0.0, np.pi]
+    edge_lights = np.concatenate([lights, [[3.0 + 1e-9, 5.0], [3.0, 1e-7]]])
+    if n > 1:
+        motor[1] = [np.nan, 0.0, 0.0, 0.0]
+        if kernel != "python":                  # Python's math.cos(inf) raises
+            motor[2] = [0.0, np.inf, 0.0, 0.0]
+    with np.errstate(invalid="ignore"):         # cos(inf)
+        expected_pose = arm.forward(motor)
+        expected = retina.sensation(expected_pose, edge_lights, receptors)
+    if kernel == "python":
+        got = np.empty_like(expected)
+        pose = np.empty_like(expected_pose)
+        body_module._simulate_rows(motor, edge_lights, receptors, got, pose)
+        np.testing.assert_allclose(got, expected, rtol=4e-16, atol=0)
+        assert pose.tobytes() == expected_pose.tobytes()
+        return
+    else:
+        if kernel == "numba" and not body_module.numba_available():
+            pytest.skip("numba is not installed")
+        got, pose = body_module.simulate(motor, edge_lights, receptors, kernel=kernel)
+    # Bitwise (NaN == NaN at the same places): the compiled body must not change a result.
+    assert got.tobytes() == expected.tobytes()
+    assert pose.tobytes() == expected_pose.tobytes()
+    # A NaN pose sees no light in front (NaN > 0 is false): zeros, in both paths.
+    assert np.isfinite(got[0]).all() and (n == 1 or (np.isnan(pose[1]).all() and not got[1].any()))
+
+
+@needs_numba
+def test_compiled_simulator_on_the_paper_world_and_an_empty_batch():
+    from sensorispace_ros.core import exploration
+    world = exploration.build_world(0, {})
+    rng = np.random.default_rng(11)
+    for lights in (world.initial_lights, world.initial_lights + rng.uniform(-6, 6, 2)):
+        motor = world.m0 + rng.uniform(-1, 1, (500, 4)) * rng.uniform(0, 3, (500, 1))
+        fast = SimulatedBody(world.receptors, lights, kernel="numba").sense_with_poses(motor)
+        slow = SimulatedBody(world.receptors, lights, kernel="numpy").sense_with_poses(motor)
+        assert fast[0].tobytes() == slow[0].tobytes() and fast[1].tobytes() == slow[1].tobytes()
+        assert np.count_nonzero(fast[0]) > 0.25 * fast[0].size     # lights were in view
+    empty, poses = body_module.simulate(np.zeros((0, 4)), world.initial_lights, world.receptors)
+    assert empty.shape == (0, 6) and poses.shape == (0, 3)
+
+
+def test_simulate_rejects_bad_arguments():
+    lights, receptors = np.zeros((3, 2)), np.zeros(6)
+    with pytest.raises(ValueError, match="kernel"):
+        body_module.simulate(np.zeros((1, 4)), lights, receptors, kernel="fortran")
+    with pytest.raises(ValueError, match="kernel"):
+        SimulatedBody(receptors, lights, kernel="fortran")
+    if body_module.numba_available():
+        with pytest.raises(ValueError, match="motor_states"):
+            body_module.simulate(np.zeros(4), lights, receptors)
+        with pytest.raises(ValueError, match="lights_world"):
+            body_module.simulate(np.zeros((1, 4)), np.zeros((2, 3)), receptors)
