@@ -2,9 +2,10 @@
 
 It subscribes to ``/body/sensation`` and nothing else, and meets its body
 through ``BodyOverTopics``, whose ``sense(batch)`` publishes one
-``/body/motor_command`` (frame ``cmd/<n>``) and spins the executor until the
-sensation with that frame id arrives (SingleThreadedExecutor: measured
-~0.2 ms round trips; MultiThreadedExecutor had 0.1-0.6 s outliers).
+``/body/motor_command`` (frame ``cmd/<n>``) and spins until the sensation
+with that frame id arrives (``nodes.SubscriptionSpinner``, in this thread;
+MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and answers travel
+as serialized bytes (``messages.CloudCdrPacker`` / ``cloud_from_cdr``).
 
 Passive sensations (``change/<k>``) are queued by the subscription callback;
 ``step()``, called by the spinning loop between callbacks (never inside
@@ -185,9 +186,10 @@ class AgentNode(GraphNode):
             "/agent/compensations", "/agent/done", "/agent/pov_records",
             "/agent/compensation_records", "/agent/stage_counters")}
         self.command_pub = contracts.create_publisher(self, "/body/motor_command")
-        # One command message re-filled per probe (messages.CloudPacker, 15 -> 1 us a
-        # 1-row command); rclpy copies it in publish(), so re-filling it next time is safe.
-        self.command_packer = messages.CloudPacker(self.columns["/body/motor_command"])
+        # Commands go out and answers come in as serialized bytes (messages.CloudCdrPacker,
+        # cloud_from_cdr): rclpy's message conversions cost ~14 us a publication and
+        # ~30 us a message taken, ~63,000 times each way in a paper run.
+        self.command_packer = messages.CloudCdrPacker(self.columns["/body/motor_command"])
         self.pov_pub = contracts.create_publisher(self, "/agent/points_of_view")
         self.compensation_pub = contracts.create_publisher(self, "/agent/compensations")
         self.settled_pub = contracts.create_publisher(self, "/agent/settled")
@@ -196,7 +198,7 @@ class AgentNode(GraphNode):
         self.compensation_record_pub = contracts.create_publisher(
             self, "/agent/compensation_records")
         self.stage_counter_pub = contracts.create_publisher(self, "/agent/stage_counters")
-        contracts.create_subscription(self, "/body/sensation", self.on_sensation)
+        contracts.create_subscription(self, "/body/sensation", self.on_sensation, raw=True)
 
         self.body = BodyOverTopics(self.publish_command, lambda t: self.spin_once(t),
                                    n_motors=len(self.columns["/body/motor_command"]),
@@ -344,6 +346,9 @@ class AgentNode(GraphNode):
         self.body.aborted = True
 
     def on_sensation(self, msg) -> None:
+        msg = self.read_serialized("/body/sensation", msg)
+        if msg is None:
+            return
         decoded = self.decode("/body/sensation", msg, kinds=("cmd", "change", "end"))
         if decoded is None:
             return
@@ -499,7 +504,7 @@ class AgentNode(GraphNode):
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
         self.await_peers()
         self.command_pub.publish(self.command_packer.pack(
-            motor_states, messages.make_header(frame_id, self.get_clock().now().nanoseconds)))
+            motor_states, frame_id, self.get_clock().now().nanoseconds))
 
 
 def main(args=None) -> int:
