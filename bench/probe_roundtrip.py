@@ -5,19 +5,25 @@ Three server processes in one private domain (localhost discovery):
     decodes each /body/motor_command, simulates the arm and retina, and
     publishes /body/sensation, /body/sensor_pose and /body/joint_states;
   * ``bench/rclpy_echo.py``, which answers a ``rows x 4`` float64
-    PointCloud2 with a prebuilt ``rows x 6`` one (one publication, no work);
+    PointCloud2 with a prebuilt ``rows x 6`` one (one publication, no work),
+    spun by rclpy's stock SingleThreadedExecutor: the bare baseline;
+  * ``bench/rclpy_echo.py --lean``: the same, spun by the graph's own loop
+    (``nodes.SubscriptionSpinner``, as the body node): the floor;
   * ``bench/rclpy_echo.py --simulate``: decode + simulate + pack, one
     publication (diagnostic: where the graph's excess goes), reporting its
     own simulation time per answer.
-The client (this process, one node, SingleThreadedExecutor) probes the body
-exactly as the agent node does - ``nodes.agent.BodyOverTopics`` with the
-contract's publisher and ``messages`` packing - and pings the echoes with
-prebuilt messages. All are measured in the same run, interleaved in rounds
-so load changes hit them alike. Servers are stopped by PID.
+The client (this process, one node) probes the body exactly as the agent
+node does - ``nodes.agent.BodyOverTopics`` with the contract's publisher,
+commands and answers as serialized bytes (``messages.CloudCdrPacker``,
+``cloud_from_cdr``), waiting with ``nodes.SubscriptionSpinner`` - and pings
+the echoes with prebuilt messages, waiting the same way: the client's side is
+the same for every kind. All are measured in the same run, interleaved in
+rounds so load changes hit them alike. Servers are stopped by PID.
 
-Ratios (medians): ``ratio_median`` = graph / bare, the raw ratio: the bare
-echo does no work at all, so it includes the body's simulation of the rows
-(~0.1 ms for 1 row, 0.5-0.9 ms for 649 rows x 10 lights x 6 receptors).
+Ratios (medians): ``ratio_median`` = graph / bare, the raw ratio (issue #6's
+bar, <= 1.3): the bare echo does no work at all, so it includes the body's
+simulation of the rows (compiled: ~2 us for 1 row, ~0.2 ms for 649 rows x 10
+lights x 6 receptors). ``ratio_median_vs_lean_bare`` = graph / the lean echo.
 ``ratio_median_net_of_simulation`` = (graph - simulation) / bare, with the
 simulation time measured inside the sim echo (a server process answering
 probes, as the body node); ``ratio_median_net_of_compute`` the same with the
@@ -67,7 +73,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     from bench import rclpy_echo
     from sensorispace_ros import config as config_mod
     from sensorispace_ros import contracts, launcher, messages
-    from sensorispace_ros.nodes import build_world, frame
+    from sensorispace_ros.nodes import SubscriptionSpinner, build_world, frame
     from sensorispace_ros.nodes.agent import BodyOverTopics
 
     per_round = per_round or {1: 100, batch_rows: 20}
@@ -94,6 +100,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         start([sys.executable, "-m", "sensorispace_ros.nodes.body", "--ros-args",
                "--params-file", str(config)], "body"),
         start([sys.executable, str(HERE / "rclpy_echo.py")], "echo"),
+        start([sys.executable, str(HERE / "rclpy_echo.py"), "--lean"], "lean_echo"),
         start([sys.executable, str(HERE / "rclpy_echo.py"), "--simulate", str(config)], "sim_echo"),
     ]
     context = Context()
@@ -101,7 +108,8 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     node = rclpy.create_node("bench_probe_client", context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
-    spin = lambda t: executor.spin_once(timeout_sec=t)  # noqa: E731
+    spinner = SubscriptionSpinner(node, executor)
+    spin = spinner.spin_once
     try:
         command_columns = contracts.contract("/body/motor_command").columns
         sensation_columns = contracts.contract("/body/sensation").columns
@@ -109,28 +117,34 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         command_pub = contracts.create_publisher(node, "/body/motor_command")
         lights_pub = contracts.create_publisher(node, "/environment/lights")
 
-        command_packer = messages.CloudPacker(command_columns)
+        command_packer = messages.CloudCdrPacker(command_columns)
 
         def publish_command(motor_states, frame_id):     # as AgentNode.publish_command
             command_pub.publish(command_packer.pack(
-                motor_states, messages.make_header(frame_id, node.get_clock().now().nanoseconds)))
+                motor_states, frame_id, node.get_clock().now().nanoseconds))
 
         body = BodyOverTopics(publish_command, spin, n_motors=len(command_columns),
                               n_sensors=len(sensation_columns))
         passive = []
 
-        def on_sensation(msg):                            # as AgentNode.on_sensation
+        def on_sensation(raw):                            # as AgentNode.on_sensation
+            msg = messages.cloud_from_cdr(raw)
             sensations = messages.cloud_to_matrix(msg, sensation_columns)
             if msg.header.frame_id.startswith("cmd/"):
                 body.deliver(msg.header.frame_id, sensations)
             else:
                 passive.append(msg.header.frame_id)
 
-        contracts.create_subscription(node, "/body/sensation", on_sensation)
+        contracts.create_subscription(node, "/body/sensation", on_sensation, raw=True)
         ping_pub = node.create_publisher(PointCloud2, rclpy_echo.PING, rclpy_echo.QOS)
         pong = {}
         node.create_subscription(PointCloud2, rclpy_echo.PONG,
                                  lambda msg: pong.__setitem__(msg.header.frame_id, msg),
+                                 rclpy_echo.QOS)
+        lean_ping_pub = node.create_publisher(PointCloud2, rclpy_echo.LEAN_PING, rclpy_echo.QOS)
+        lean_pong = {}
+        node.create_subscription(PointCloud2, rclpy_echo.LEAN_PONG,
+                                 lambda msg: lean_pong.__setitem__(msg.header.frame_id, msg),
                                  rclpy_echo.QOS)
         sim_ping_pub = node.create_publisher(PointCloud2, rclpy_echo.SIM_PING, rclpy_echo.QOS)
         sim_pong = {}
@@ -146,6 +160,8 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         deadline = time.monotonic() + 60.0
         while (command_pub.get_subscription_count() < 1 or ping_pub.get_subscription_count() < 1
                or sim_ping_pub.get_subscription_count() < 1
+               or lean_ping_pub.get_subscription_count() < 1
+               or node.count_publishers(rclpy_echo.LEAN_PONG) < 1
                or node.count_publishers("/body/sensation") < 1
                or node.count_publishers(rclpy_echo.PONG) < 1
                or node.count_publishers(rclpy_echo.SIM_PONG) < 1):
@@ -174,18 +190,21 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         pings = {rows: rclpy_echo.float_cloud(rows, 4) for rows in sizes}
         counter = [0]
 
-        def ping(rows):
+        def ping(rows, publisher=ping_pub, inbox=pong):
             counter[0] += 1
             frame_id = f"ping/{counter[0]}"
             msg = pings[rows]
             msg.header = messages.make_header(frame_id)
             started = time.perf_counter()
-            ping_pub.publish(msg)
-            while frame_id not in pong:
+            publisher.publish(msg)
+            while frame_id not in inbox:
                 spin(0.5)
             elapsed = time.perf_counter() - started
-            assert pong.pop(frame_id).width == rows
+            assert inbox.pop(frame_id).width == rows
             return elapsed
+
+        def lean_ping(rows):
+            return ping(rows, lean_ping_pub, lean_pong)
 
         def sim_ping(rows):
             counter[0] += 1
@@ -222,9 +241,11 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
             for _ in range(5):
                 probe(rows)
                 ping(rows)
+                lean_ping(rows)
                 sim_ping(rows)
                 simulate(rows)
-        kinds = [("graph", probe), ("bare", ping), ("sim", sim_ping), ("compute", simulate)]
+        kinds = [("graph", probe), ("bare", ping), ("lean_bare", lean_ping), ("sim", sim_ping),
+                 ("compute", simulate)]
         times = {(kind, rows): [] for kind, _ in kinds for rows in sizes}
         load_before = load()
         # Blocks of consecutive probes per kind, as the agent probes the body. Tried
@@ -232,13 +253,14 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
         # 1 row: every server then answers cold, which no real run does.
         for r in range(rounds):
             for rows in sizes:
-                for kind, fn in kinds[r % 4:] + kinds[:r % 4]:
+                for kind, fn in kinds[r % len(kinds):] + kinds[:r % len(kinds)]:
                     times[(kind, rows)].extend(fn(rows) for _ in range(per_round[rows]))
         out = {"load_before": load_before, "load_after": load(), "domain_id": domain,
                "rows": {}}
         for rows in sizes:
             g = np.asarray(times[("graph", rows)]) * 1e3
             b = np.asarray(times[("bare", rows)]) * 1e3
+            lean_b = np.asarray(times[("lean_bare", rows)]) * 1e3
             sim_t = np.asarray(times[("sim", rows)]) * 1e3
             sim_work = np.median(echo_work[rows], axis=0)
             compute = float(np.median(times[("compute", rows)])) * 1e3
@@ -249,6 +271,8 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
                 "bare_median_ms": float(np.median(b)), "bare_mean_ms": float(b.mean()),
                 "bare_p90_ms": float(np.percentile(b, 90)),
                 "ratio_median": float(np.median(g) / np.median(b)),
+                "lean_bare_median_ms": float(np.median(lean_b)),
+                "ratio_median_vs_lean_bare": float(np.median(g) / np.median(lean_b)),
                 "ratio_mean": float(g.mean() / b.mean()),
                 # SimulatedBody.sense_with_poses of the same rows, median, same rounds.
                 "body_compute_ms": compute,
@@ -267,6 +291,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
             }
         return out
     finally:
+        spinner.destroy()
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()

@@ -4,7 +4,14 @@ float64 on ``bench/pong`` (the size of the body's sensation reply), copying
 the request header. No decoding, no computation, one publication per request.
 
     python bench/rclpy_echo.py      (ROS_DOMAIN_ID / discovery range from the environment)
+    python bench/rclpy_echo.py --lean
     python bench/rclpy_echo.py --simulate CONFIG
+
+The bare echo spins the stock ``SingleThreadedExecutor``: what a plain rclpy
+node costs (the baseline of issue #6's bar). ``--lean``: the same echo on
+``bench/lean_ping`` / ``bench/lean_pong``, spun by the graph's own loop
+(``nodes.SubscriptionSpinner``, as the body and agent nodes): the floor of a
+Python ping-pong over rclpy, reported next to the baseline.
 
 ``--simulate``: a diagnostic middle ground, on ``bench/sim_ping`` /
 ``bench/sim_pong``: decode the request with ``messages``, simulate the arm and
@@ -26,6 +33,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import PointCloud2, PointField
 
 PING, PONG = "bench/ping", "bench/pong"
+LEAN_PING, LEAN_PONG = "bench/lean_ping", "bench/lean_pong"
 SIM_PING, SIM_PONG = "bench/sim_ping", "bench/sim_pong"
 # Same QoS as the contract's /body/motor_command and /body/sensation, so the
 # comparison measures the graph's work, not a QoS difference.
@@ -49,12 +57,14 @@ def main(argv=None) -> int:
     import argparse
     parser = argparse.ArgumentParser()
     parser.add_argument("--simulate", default=None, metavar="CONFIG")
+    parser.add_argument("--lean", action="store_true")
     args = parser.parse_args(argv)
     rclpy.init()
     node = rclpy.create_node("bench_echo")
     replies: dict[int, PointCloud2] = {}
     if args.simulate is None:
-        pub = node.create_publisher(PointCloud2, PONG, QOS)
+        ping, pong = (LEAN_PING, LEAN_PONG) if args.lean else (PING, PONG)
+        pub = node.create_publisher(PointCloud2, pong, QOS)
 
         def on_ping(msg: PointCloud2) -> None:
             reply = replies.get(msg.width)
@@ -63,7 +73,7 @@ def main(argv=None) -> int:
             reply.header = msg.header
             pub.publish(reply)
 
-        node.create_subscription(PointCloud2, PING, on_ping, QOS)
+        node.create_subscription(PointCloud2, ping, on_ping, QOS)
     else:
         from sensorispace_ros import config, contracts, messages
         from sensorispace_ros.core.body import SimulatedBody
@@ -91,9 +101,13 @@ def main(argv=None) -> int:
         node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
+    spin = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)  # noqa: E731
+    if args.lean:
+        from sensorispace_ros.nodes import SubscriptionSpinner
+        spin = SubscriptionSpinner(node, executor).spin_once
     try:
         while rclpy.ok():
-            executor.spin_once(timeout_sec=0.2)
+            spin(0.2)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
