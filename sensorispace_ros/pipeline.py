@@ -24,7 +24,7 @@ import time
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 from scipy.spatial.distance import pdist, squareform
@@ -32,6 +32,9 @@ from scipy.stats import spearmanr
 
 from . import config as config_mod
 from .core.seeding import rng_for
+
+if TYPE_CHECKING:
+    from concurrent.futures import Executor, ProcessPoolExecutor
 
 STRATEGIES = ("paper", "naive")
 DIMENSIONS = {"2d": 2, "3d": 3}
@@ -291,20 +294,32 @@ def cca_params(cfg: dict) -> dict:
 
 
 def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray, cfg: dict,
-                         seed: int, progress=None, processes: int | None = None
-                         ) -> Representation:
+                         seed: int, progress=None, processes: int | None = None,
+                         executor: Executor | None = None) -> Representation:
     """Hausdorff metric, CCA before regularisation and the regularisation
     iterations, in 2-D and 3-D, from the agent's data only.
 
     ``processes``: how many processes run the 2-D and 3-D chains (default:
     2 on a multi-core machine, when the caller can fork safely: see
-    ``_can_fork``); the result does not depend on it.
+    ``_can_fork``). ``executor``: the caller's own pool for the chains (a
+    process that must not fork, e.g. ``start_chain_pool``'s), in place of
+    ``processes``. The result depends on neither.
     """
     from .core.hausdorff import hausdorff_matrix
 
     povs = np.asarray(povs, dtype=float)
     if povs.ndim != 3 or povs.shape[2] != 4 or len(povs) < 4:
         raise ValueError(f"povs must have shape (P >= 4, N, 4), got {povs.shape}")
+    if processes is not None and executor is not None:
+        raise ValueError("processes and executor: give one of them, not both")
+    if executor is not None:
+        workers = len(DIMENSIONS)
+    elif processes is None:
+        workers = min(len(DIMENSIONS), os.cpu_count() or 1) if _can_fork() else 1
+    else:
+        workers = int(processes)
+        if workers < 1:
+            raise ValueError(f"processes must be >= 1, got {processes!r}")
     timings: dict = {}
     with _stage(progress, "hausdorff", timings):
         distance = hausdorff_matrix(povs, progress=progress)
@@ -314,26 +329,16 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
     # bits as one (issue #6: x1.3 at load 3, up to x2 on an idle 2-core machine).
     chains, block = {}, {}
     with _stage(progress, "cca_regularization", block, total=len(DIMENSIONS)):
-        if processes is None:
-            workers = min(len(DIMENSIONS), os.cpu_count() or 1) if _can_fork() else 1
-        else:
-            workers = int(processes)
-            if workers < 1:
-                raise ValueError(f"processes must be >= 1, got {processes!r}")
-        if workers > 1:
+        if executor is not None:
+            _chains_in(executor, chains, distance, pairs, set_ids, cfg, seed, progress)
+        elif workers > 1:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
             context = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(max_workers=min(workers, len(DIMENSIONS)),
                                      mp_context=context) as pool:
-                futures = {name: pool.submit(_dimension_chain, distance, pairs, set_ids, cfg,
-                                             seed, name, n_components)
-                           for name, n_components in DIMENSIONS.items()}
-                for name, future in futures.items():
-                    chains[name] = future.result()
-                    if progress is not None:
-                        progress(len(chains), len(DIMENSIONS))
+                _chains_in(pool, chains, distance, pairs, set_ids, cfg, seed, progress)
         else:
             for name, n_components in DIMENSIONS.items():
                 chains[name] = _dimension_chain(distance, pairs, set_ids, cfg, seed, name,
@@ -356,14 +361,121 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
                           set_spread=spread, timings_s=timings)
 
 
+def _chains_in(pool: Executor, chains: dict, distance: np.ndarray, pairs: np.ndarray,
+               set_ids: np.ndarray, cfg: dict, seed: int, progress=None) -> None:
+    """The 2-D and 3-D chains as tasks of ``pool``, into ``chains``."""
+    futures = {name: pool.submit(_dimension_chain, distance, pairs, set_ids, cfg, seed, name,
+                                 n_components)
+               for name, n_components in DIMENSIONS.items()}
+    for name, future in futures.items():
+        chains[name] = future.result()
+        if progress is not None:
+            progress(len(chains), len(DIMENSIONS))
+
+
+# What a chain worker imports, loaded once by the forkserver so that every
+# worker forked from it starts with them (numba's import alone is ~1 s).
+CHAIN_WORKER_MODULES = ("numpy", "scipy.linalg", "scipy.spatial.distance", "sklearn.base",
+                        "sensorispace_ros.core.cca", "sensorispace_ros.core.regularize")
+CHAIN_START_METHODS = ("forkserver", "spawn")
+
+
+def start_chain_pool(start_method: str = "forkserver") -> ProcessPoolExecutor:
+    """A pool for ``build_representation(executor=...)`` that a process with
+    other threads (rclpy) may create: its workers come from a forkserver
+    (or spawn), never from a fork of the caller.
+
+    Both workers are started and warmed up here (imports, numba's cached CCA
+    kernel loaded), so a caller that starts the pool early pays nothing of it
+    when the chains run. Stop it with ``stop_chain_pool``.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if start_method not in CHAIN_START_METHODS:
+        raise ValueError(f"start_method must be one of {', '.join(CHAIN_START_METHODS)}, "
+                         f"got {start_method!r}")
+    context = multiprocessing.get_context(start_method)
+    if start_method == "forkserver":
+        # Only read when this process starts its forkserver; without it the
+        # forkserver would import the caller's __main__ (here: rclpy).
+        context.set_forkserver_preload(list(CHAIN_WORKER_MODULES))
+    pool = ProcessPoolExecutor(max_workers=len(DIMENSIONS), mp_context=context,
+                               initializer=_chain_worker_started)
+    try:
+        # Submitted together, the warm-ups find no idle worker: one worker each.
+        for future in [pool.submit(_warm_chain_worker) for _ in DIMENSIONS]:
+            future.result()
+    except BaseException:
+        stop_chain_pool(pool)
+        raise
+    return pool
+
+
+def chain_pool_pids(pool: ProcessPoolExecutor) -> list[int]:
+    """PIDs of the pool's worker processes (for checks that none is left)."""
+    return sorted(getattr(pool, "_processes", None) or {})
+
+
+def stop_chain_pool(pool: ProcessPoolExecutor, grace_s: float = 1.0) -> None:
+    """Shut ``pool`` down and wait until its workers have exited.
+
+    Idle workers leave at once; a chain still running (the caller is being
+    stopped mid-build) is terminated after ``grace_s``, so no worker outlives
+    its caller's clean shutdown.
+    """
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + grace_s
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+    for process in processes:
+        if process.exitcode is None:
+            process.terminate()
+            process.join(1.0)
+        if process.exitcode is None:
+            process.kill()
+            process.join()
+
+
+def _chain_worker_started() -> None:
+    """Initializer of a chain worker: Ctrl-C is its parent's to handle (the
+    parent stops the pool), and it exits when its parent dies, even by
+    SIGKILL (a worker waiting for tasks would otherwise wait forever)."""
+    import multiprocessing
+    import signal
+    import threading
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+        threading.Thread(target=_exit_with, args=(parent,), name="parent-watch",
+                         daemon=True).start()
+
+
+def _exit_with(parent) -> None:
+    parent.join()
+    os._exit(1)
+
+
+def _warm_chain_worker() -> int:
+    """A tiny CCA, so that the worker has loaded what a chain uses."""
+    from .core.cca import CCA
+
+    points = np.arange(16, dtype=float).reshape(8, 2) ** 1.5
+    CCA(n_components=2, metric="precomputed", init="mds", n_epochs=1,
+        random_state=0).fit_transform(squareform(pdist(points)))
+    return os.getpid()
+
+
 def _can_fork() -> bool:
     """Whether worker processes may be forked from this one.
 
-    fork, because spawn and forkserver re-import the caller's main script
-    (a script without a ``__main__`` guard would fail). A forked child
-    inherits every lock held by another thread at that moment, so only a
-    process with one Python thread and without rclpy (DDS threads) forks;
-    the ROS representation node runs the chains in turn.
+    fork by default, because spawn and forkserver re-import the caller's
+    main script (a script without a ``__main__`` guard would fail). A forked
+    child inherits every lock held by another thread at that moment, so only
+    a process with one Python thread and without rclpy (DDS threads) forks;
+    the ROS representation node passes a ``start_chain_pool`` pool instead.
     """
     import sys
     import threading

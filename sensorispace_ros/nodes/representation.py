@@ -10,11 +10,17 @@ thread, publishes ``/representation/embedding`` for every dimension and
 regularisation iteration, and writes its arrays to
 ``<graph.results_dir>/representation.npz``. Ground truth is joined later,
 by the evaluator, never here.
+
+The 2-D and 3-D chains run in two worker processes of a forkserver pool
+(``pipeline.start_chain_pool``; a process with DDS threads must not fork),
+started with the node so that their start-up overlaps the exploration, and
+stopped with it (``destroy_node``), on SIGTERM too.
 """
 from __future__ import annotations
 
 import json
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +68,32 @@ class RepresentationNode(GraphNode):
         self.finished = False
         self.exit_code = 0
         self.results_dir = Path(self.graph["results_dir"])
+        self.chain_pool = None
+        self.closing = False
+        self.chain_pool_starter = threading.Thread(target=self._start_chain_pool,
+                                                   name="chain-pool", daemon=True)
+        self.chain_pool_starter.start()
+
+    def _start_chain_pool(self) -> None:
+        from .. import pipeline
+        from ..core.hausdorff import hausdorff_matrix
+
+        started = time.monotonic()
+        # Loads numba's cached Hausdorff kernels now rather than after
+        # /agent/done (import and first call: ~0.5 s).
+        hausdorff_matrix(np.linspace(0.0, 1.0, 6 * 10 * 4).reshape(6, 10, 4))
+        try:
+            pool = pipeline.start_chain_pool()
+        except Exception as exc:            # no pool: the chains run in turn here
+            self.get_logger().warning(f"no worker pool for the 2-D/3-D chains, they will run "
+                                      f"in turn: {type(exc).__name__}: {exc}")
+            return
+        if self.closing:                    # destroyed while the pool was starting
+            pipeline.stop_chain_pool(pool)
+            return
+        self.chain_pool = pool
+        self.get_logger().info(f"chain pool ready in {time.monotonic() - started:.1f} s, "
+                               f"worker pids {pipeline.chain_pool_pids(pool)}")
 
     def _decode(self, topic: str, msg, kinds=("change",)):
         decoded = self.decode(topic, msg, kinds, as_table=True)
@@ -126,8 +158,8 @@ class RepresentationNode(GraphNode):
             set_ids = rows["set"].astype(np.int64)
             self.get_logger().info(f"building the representation of {len(ids)} points of view, "
                                    f"{len(rows)} equality rows")
-            representation = pipeline.build_representation(povs, pairs, set_ids, self.cfg,
-                                                           self.cfg["seed"], progress=None)
+            self.chain_pool_starter.join()
+            representation = self._build_representation(povs, pairs, set_ids)
             # Same array names as pipeline.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
                       "hausdorff": representation.distance}
@@ -145,11 +177,40 @@ class RepresentationNode(GraphNode):
             self.result = arrays
             self.get_logger().info(f"representation written to {self.results_dir / RESULT_FILE}")
         except Exception as exc:
+            if self.closing:                # stopped mid-build: the pool was ended under it
+                return
             self.get_logger().error(f"representation failed: {type(exc).__name__}: {exc}")
             self.exit_code = 1
             self.finished = True
             raise
         self.finished = bool(self.graph["exit_when_done"])
+
+    def _build_representation(self, povs: np.ndarray, pairs: np.ndarray,
+                              set_ids: np.ndarray):
+        from concurrent.futures.process import BrokenProcessPool
+
+        from .. import pipeline
+        if self.chain_pool is not None:
+            try:
+                return pipeline.build_representation(povs, pairs, set_ids, self.cfg,
+                                                     self.cfg["seed"], executor=self.chain_pool)
+            except BrokenProcessPool as exc:
+                if self.closing:
+                    raise
+                self.get_logger().warning(f"the chain pool broke ({exc}); "
+                                          "building again with the chains in turn")
+        return pipeline.build_representation(povs, pairs, set_ids, self.cfg, self.cfg["seed"],
+                                             processes=1)
+
+    def destroy_node(self):
+        """Stops the chain pool first: none of its workers outlives the node."""
+        from .. import pipeline
+        self.closing = True
+        self.chain_pool_starter.join()
+        pool, self.chain_pool = self.chain_pool, None
+        if pool is not None:
+            pipeline.stop_chain_pool(pool)
+        return super().destroy_node()
 
     def publish_embedding(self, ids: np.ndarray, embedding: np.ndarray, frame_id: str) -> None:
         embedding = np.asarray(embedding, dtype=float)
