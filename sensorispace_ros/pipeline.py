@@ -387,7 +387,10 @@ def start_chain_pool(start_method: str = "forkserver") -> ProcessPoolExecutor:
 
     Both workers are started and warmed up here (imports, numba's cached CCA
     kernel loaded), so a caller that starts the pool early pays nothing of it
-    when the chains run. Stop it with ``stop_chain_pool``.
+    when the chains run. Stop it with ``stop_chain_pool``. As with any
+    forkserver or spawn pool, each worker imports the caller's main module
+    again: a script needs an ``if __name__ == "__main__":`` guard (the node
+    modules and console scripts have one), else the warm-up fails here.
     """
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
