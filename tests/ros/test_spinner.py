@@ -12,7 +12,7 @@ from sensorispace_ros.nodes import SubscriptionSpinner
 
 
 @pytest.fixture
-def graph(domain_id):
+def graph(domain_id, monkeypatch):
     context = Context()
     rclpy.init(context=context, domain_id=domain_id,
                signal_handler_options=SignalHandlerOptions.NO)
@@ -21,6 +21,10 @@ def graph(domain_id):
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(listener)
     spinner = SubscriptionSpinner(listener, executor)
+
+    def no_executor(*args, **kwargs):
+        raise AssertionError("the lean spinner ran the executor (lost wake-ups)")
+    monkeypatch.setattr(executor, "spin_once", no_executor)
     yield context, talker, listener, spinner
     spinner.destroy()
     executor.shutdown()
@@ -58,8 +62,7 @@ def test_timers_run_and_cancelled_ones_do_not(graph):
     listener.create_timer(0.02, lambda: ticks.append(time.monotonic()))
     stopped = listener.create_timer(0.02, lambda: cancelled.append(1))
     stopped.cancel()
-    # A ready timer wakes the spinner's wait: 9 periods take ~0.18 s, where the
-    # executor's full spin every 0.1 s alone would take ~0.9 s.
+    # A ready timer wakes the spinner's wait (9 periods: ~0.18 s).
     _spin_until(spinner, lambda: len(ticks) >= 10, timeout_s=5.0)
     assert not cancelled
     assert ticks[-1] - ticks[0] < 0.6
@@ -84,6 +87,7 @@ def test_a_shut_down_context_ends_the_spin(graph):
 
 
 def test_without_the_wait_set_binding_it_is_the_executor(graph, monkeypatch):
+    # (also the path of a node holding a waitable that is not a QoS event handler)
     context, talker, listener, spinner = graph
     spinner.lean = False
     calls = []
@@ -91,3 +95,20 @@ def test_without_the_wait_set_binding_it_is_the_executor(graph, monkeypatch):
                         lambda timeout_sec=None: calls.append(timeout_sec))
     spinner.spin_once(0.3)
     assert calls == [0.3]
+
+
+def test_an_incompatible_qos_peer_is_reported(graph):
+    # The contracts' QoS event handlers are waitables: served by the spinner too.
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    context, talker, listener, spinner = graph
+    events = []
+    listener.create_subscription(
+        UInt64, "strict", lambda m: None,
+        QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
+        event_callbacks=SubscriptionEventCallbacks(incompatible_qos=events.append,
+                                                   use_default_callbacks=False))
+    talker.create_publisher(UInt64, "strict",
+                            QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+    _spin_until(spinner, lambda: events)
+    assert events[0].total_count >= 1
