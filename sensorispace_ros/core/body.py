@@ -15,7 +15,10 @@ which NumPy calls too on a machine without AVX-512 (float64 has no SIMD
 path there), so the bits are equal (tests/core/test_body_simulation.py
 checks it); those two NumPy functions stay the reference and the fallback.
 Measured: 1 row 54 -> 2 us, 649 rows 0.42 -> 0.22 ms. The simulator is
-in the agent's loop (~63,000 calls a paper run) and in the body node's.
+in the agent's loop (~63,000 calls a paper run) and in the body node's. One
+thread: splitting long batches over two (numba prange) halved 649 rows but
+made the graph's mean round trip 0.5 -> 0.7-0.9 ms (thread wake-ups on two
+cores shared with the agent and the DDS threads).
 """
 from __future__ import annotations
 
@@ -88,30 +91,6 @@ def _simulate_rows(motor, lights, receptors, sensations, poses):
 
 _simulate_rows_compiled = (None if numba is None
                            else numba.njit(nogil=True, cache=True)(_simulate_rows))
-# Batches at least this long may be split over threads (``simulate(threads=)``):
-# below it, starting the threads costs more than the rows (measured: 64 rows
-# 25 -> 15 us on 2 threads, 1 row 2.5 -> 4.3 us).
-PARALLEL_MIN_ROWS = 64
-_simulate_rows_parallel = None
-
-
-def _parallel_kernel():
-    """The row loop with its rows spread over numba's threads; compiled on
-    first use (only the body node asks for it). Rows are independent, so the
-    bits are those of the serial loop."""
-    global _simulate_rows_parallel
-    if _simulate_rows_parallel is None:
-        import inspect
-        source = inspect.getsource(_simulate_rows).replace(
-            "def _simulate_rows(", "def _simulate_rows_split(").replace(
-            "for b in range(motor.shape[0])", "for b in numba.prange(motor.shape[0])")
-        assert "numba.prange" in source
-        namespace = {"math": math, "numba": numba, "retina": retina}
-        exec(compile(source, __file__, "exec"), namespace)
-        _simulate_rows_parallel = numba.njit(nogil=True, parallel=True, cache=False)(
-            namespace["_simulate_rows_split"])
-    return _simulate_rows_parallel
-
 
 def numba_available() -> bool:
     """True when the compiled simulator can be used."""
@@ -119,13 +98,12 @@ def numba_available() -> bool:
 
 
 def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
-             receptor_positions: np.ndarray, kernel: str = "auto", threads: int = 1
+             receptor_positions: np.ndarray, kernel: str = "auto"
              ) -> tuple[np.ndarray, np.ndarray]:
     """Sensations ``(B, R)`` and eye poses ``(B, 3)`` of motor states ``(B, 4)``
     (unit segments) in the lights ``(L, 2)``: ``retina.sensation(arm.forward(m))``
     and ``arm.forward(m)``, bit for bit, by the compiled loop when ``kernel``
-    allows it. ``threads`` > 1: batches of ``PARALLEL_MIN_ROWS`` rows or more
-    are spread over that many of numba's threads (same bits)."""
+    allows it."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     if kernel == "numba" and numba is None:
@@ -144,12 +122,8 @@ def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
                          f"got {lights.shape} and {receptors.shape}")
     sensations = np.empty((len(motor_states), len(receptors)))
     poses = np.empty((len(motor_states), 3))
-    kernel_fn = _simulate_rows_compiled
-    if threads > 1 and len(motor_states) >= PARALLEL_MIN_ROWS:
-        kernel_fn = _parallel_kernel()
-        numba.set_num_threads(min(int(threads), numba.config.NUMBA_NUM_THREADS))
-    kernel_fn(np.ascontiguousarray(motor_states), np.ascontiguousarray(lights),
-              np.ascontiguousarray(receptors), sensations, poses)
+    _simulate_rows_compiled(np.ascontiguousarray(motor_states), np.ascontiguousarray(lights),
+                            np.ascontiguousarray(receptors), sensations, poses)
     return sensations, poses
 
 
@@ -163,14 +137,10 @@ class SimulatedBody:
     n_motors = arm.N_JOINTS
 
     def __init__(self, receptor_positions: np.ndarray, lights_world: np.ndarray | None = None,
-                 motor_state: np.ndarray | None = None, kernel: str = "auto",
-                 threads: int = 1):
+                 motor_state: np.ndarray | None = None, kernel: str = "auto"):
         if kernel not in KERNELS:
             raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
-        if int(threads) < 1:
-            raise ValueError(f"threads must be >= 1, got {threads!r}")
         self.kernel = kernel
-        self.threads = int(threads)
         self.receptor_positions = np.asarray(receptor_positions, dtype=float)
         self.n_sensors = len(self.receptor_positions)
         self.lights_world = None if lights_world is None else np.asarray(lights_world, float)
@@ -197,8 +167,7 @@ class SimulatedBody:
         self.calls += 1
         if len(motor_states):
             self.motor_state = motor_states[-1].copy()
-        return simulate(motor_states, self.lights_world, self.receptor_positions, self.kernel,
-                        self.threads)
+        return simulate(motor_states, self.lights_world, self.receptor_positions, self.kernel)
 
     def sensor_pose(self, motor_states: np.ndarray) -> np.ndarray:
         """Ground truth pose of the eye (evaluation only)."""

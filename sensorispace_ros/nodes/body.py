@@ -20,7 +20,6 @@ depends only on the commanded rows and the lights).
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -74,10 +73,7 @@ class BodyNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("body", **kwargs)
         world = build_world(self.cfg)
-        # Two threads for long batches: while the body simulates, the agent waits
-        # for it, so the second core is idle (649 rows: 0.23 -> 0.12 ms).
-        self.body = SimulatedBody(world.receptors, None, world.m0.copy(),
-                                  threads=min(2, os.cpu_count() or 1))
+        self.body = SimulatedBody(world.receptors, None, world.m0.copy())
         self.resting_file = None
         # After a restart: commands wait until the lights history (transient_local,
         # re-delivered interleaved with commands) is back at the change applied

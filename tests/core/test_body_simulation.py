@@ -209,17 +209,3 @@ def test_simulate_rejects_bad_arguments():
             body_module.simulate(np.zeros(4), lights, receptors)
         with pytest.raises(ValueError, match="lights_world"):
             body_module.simulate(np.zeros((1, 4)), np.zeros((2, 3)), receptors)
-
-
-@needs_numba
-@pytest.mark.parametrize("n", [1, body_module.PARALLEL_MIN_ROWS, 649])
-def test_threads_give_the_serial_bits(n):
-    rng = np.random.default_rng(n)
-    motor, lights, receptors = random_scene(rng, n)
-    serial = body_module.simulate(motor, lights, receptors, threads=1)
-    split = SimulatedBody(receptors, lights, threads=2).sense_with_poses(motor)
-    assert split[0].tobytes() == serial[0].tobytes() and split[1].tobytes() == serial[1].tobytes()
-    reference = retina.sensation(arm.forward(motor), lights, receptors)
-    assert split[0].tobytes() == reference.tobytes()
-    with pytest.raises(ValueError, match="threads"):
-        SimulatedBody(receptors, lights, threads=0)
