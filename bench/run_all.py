@@ -120,9 +120,9 @@ def table(results: dict) -> str:
     if p:
         for rows_, v in p["rows"].items():
             row(f"probe round trip {rows_} row(s) [ms]", v["graph_median_ms"], v["bare_median_ms"],
-                v["ratio_median"], f"mean ratio {v['ratio_mean']:.3g}; net of body compute "
-                f"{v['ratio_median_net_of_compute']:.3g}; sim echo {v['sim_echo_median_ms']:.3g} ms; "
-                f"body compute "
+                v["ratio_median"], f"mean ratio {v['ratio_mean']:.3g}; lean echo "
+                f"{v['lean_bare_median_ms']:.3g} ms (x{v['ratio_median_vs_lean_bare']:.3g}); "
+                f"net of body compute {v['ratio_median_net_of_compute']:.3g}; body compute "
                 f"{v['body_compute_ms']:.3g} ms; load {p['load_before'][0]}")
     e = results.get("end_to_end")
     if e:
