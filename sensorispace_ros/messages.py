@@ -17,9 +17,10 @@ bytes for ``Publisher.publish(bytes)`` and ``cloud_from_cdr`` reads those of a
 ``raw=True`` subscription. rclpy's own conversion of a PointCloud2 costs ~14 us
 per publication and ~30 us per message taken (measured); a graph run sends
 ~63,000 commands and as many answers. ``cloud_to_matrix`` / ``cloud_to_table``
-check a ``SerializedCloud`` exactly as a PointCloud2, and the bytes written
-are rclpy's (tests/unit/test_messages_cdr.py compares them with
-``rclpy.serialization``).
+check a ``SerializedCloud`` exactly as a PointCloud2, and rclpy reads the
+bytes written as the messages ``matrix_to_cloud`` / ``motor_to_joint_state``
+build (tests/ros/test_messages.py checks both ways with
+``rclpy.serialization``; padding bytes are zero here, unset in rclpy's).
 """
 from __future__ import annotations
 
@@ -251,7 +252,7 @@ def _cdr_fields(fields: tuple) -> bytes:
     """The ``fields`` sequence of a cloud, from its count on, as written at a
     4-aligned position (its bytes do not depend on which)."""
     out = [_UINT32.pack(len(fields))]
-    position = 4 + 4                     # any 4-aligned start: the encapsulation's end
+    position = len(_ENCAPSULATION) + 4   # after the count, from any 4-aligned start
     for name, offset, datatype, count in fields:
         name_bytes = _cdr_string(name, position)
         out += [name_bytes, _FIELD_TAIL.pack(offset, datatype, count)]
