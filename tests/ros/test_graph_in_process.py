@@ -137,7 +137,19 @@ def _broken_clouds(topic: str, frame_id: str) -> list:
         broken.append(messages.table_to_cloud(table, columns, messages.make_header(frame_id)))
     broken.append(messages.table_to_cloud(     # unknown frame id, valid layout
         {name: np.ones(rows) for name in columns}, columns, messages.make_header("bogus/1")))
+    if topic in SERIALIZED_TOPICS:
+        # Their subscribers take the bytes (raw=True): bytes that are no PointCloud2.
+        from rclpy.serialization import serialize_message
+        wire = serialize_message(valid())
+        broken += [wire[:len(wire) // 2],                      # cut short
+                   b"\x00\x00\x00\x00" + wire[4:],                # big-endian CDR
+                   wire[:12] + b"\xff\xff\xff\x7f" + wire[16:],   # frame id length 2**31
+                   bytes(np.random.default_rng(7).integers(0, 256, 300, dtype=np.uint8))]
     return broken
+
+
+# Topics whose graph subscribers take serialized bytes (the probe topics).
+SERIALIZED_TOPICS = ("/body/motor_command", "/body/sensation")
 
 
 HOSTILE_FRAMES = {
