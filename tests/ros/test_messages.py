@@ -82,19 +82,22 @@ def _shifted(fields):
     return fields
 
 
-@pytest.mark.parametrize("bad", [
-    _tamper(fields=_renamed),
-    _tamper(fields=_retyped),
-    _tamper(fields=_shifted),
-    _tamper(fields=lambda f: f[:-1]),
-    _tamper(point_step=48),
-    _tamper(row_step=7),
-    _tamper(width=7),
-    _tamper(height=2),
-    _tamper(is_bigendian=True),
-    _tamper(data=array.array("B", bytes(40 * 6 - 1))),
-], ids=["name", "type", "offset", "missing", "point_step", "row_step", "width", "height",
-        "bigendian", "short_data"])
+# One PointCloud2 wrong in one way each (also sent as serialized bytes below).
+BAD_LAYOUTS = {
+    "name": _tamper(fields=_renamed),
+    "type": _tamper(fields=_retyped),
+    "offset": _tamper(fields=_shifted),
+    "missing": _tamper(fields=lambda f: f[:-1]),
+    "point_step": _tamper(point_step=48),
+    "row_step": _tamper(row_step=7),
+    "width": _tamper(width=7),
+    "height": _tamper(height=2),
+    "bigendian": _tamper(is_bigendian=True),
+    "short_data": _tamper(data=array.array("B", bytes(40 * 6 - 1))),
+}
+
+
+@pytest.mark.parametrize("bad", BAD_LAYOUTS.values(), ids=BAD_LAYOUTS.keys())
 def test_layout_mismatch_rejected(bad):
     assert isinstance(bad, PointCloud2)
     with pytest.raises(MessageError):
@@ -213,19 +216,7 @@ def test_mixed_type_table_through_serialized_bytes():
         assert np.array_equal(records[name], values), name
 
 
-@pytest.mark.parametrize("bad", [
-    _tamper(fields=_renamed),
-    _tamper(fields=_retyped),
-    _tamper(fields=_shifted),
-    _tamper(fields=lambda f: f[:-1]),
-    _tamper(point_step=48),
-    _tamper(row_step=7),
-    _tamper(width=7),
-    _tamper(height=2),
-    _tamper(is_bigendian=True),
-    _tamper(data=array.array("B", bytes(40 * 6 - 1))),
-], ids=["name", "type", "offset", "missing", "point_step", "row_step", "width", "height",
-        "bigendian", "short_data"])
+@pytest.mark.parametrize("bad", BAD_LAYOUTS.values(), ids=BAD_LAYOUTS.keys())
 def test_layout_mismatch_rejected_from_serialized_bytes(bad):
     # The same contract checks as for a PointCloud2, with the same messages.
     with pytest.raises(MessageError) as from_message:
