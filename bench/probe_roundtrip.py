@@ -148,7 +148,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
                                  rclpy_echo.QOS)
         sim_ping_pub = node.create_publisher(PointCloud2, rclpy_echo.SIM_PING, rclpy_echo.QOS)
         sim_pong = {}
-        echo_work = {}                # rows -> [(simulate, decode + pack)] ms inside the sim echo
+        echo_work = {}                # rows -> [(simulate, decode)] ms inside the sim echo
 
         def on_sim_pong(msg):
             sim_pong[msg.header.frame_id] = (messages.cloud_to_matrix(msg, sensation_columns),
@@ -215,9 +215,9 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
             while frame_id not in sim_pong:
                 spin(0.5)
             elapsed = time.perf_counter() - started
-            reply, simulate_ms, codec_ms = sim_pong.pop(frame_id)
+            reply, simulate_ms, decode_ms = sim_pong.pop(frame_id)
             assert reply.shape == (rows, len(sensation_columns))
-            echo_work.setdefault(rows, []).append((simulate_ms, codec_ms))
+            echo_work.setdefault(rows, []).append((simulate_ms, decode_ms))
             return elapsed
 
         def probe(rows):
@@ -281,7 +281,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
                 "sim_echo_median_ms": float(np.median(sim_t)),
                 # ... and what the echo itself spent on it (median, in the echo process).
                 "sim_echo_simulate_ms": float(sim_work[0]),
-                "sim_echo_codec_ms": float(sim_work[1]),
+                "sim_echo_decode_ms": float(sim_work[1]),
                 "ratio_graph_over_sim_echo": float(np.median(g) / np.median(sim_t)),
                 # What is left once the body's simulation (which the bare echo
                 # does not do) is taken out: the graph's messaging overhead.

@@ -14,11 +14,12 @@ node costs (the baseline of issue #6's bar). ``--lean``: the same echo on
 Python ping-pong over rclpy, reported next to the baseline.
 
 ``--simulate``: a diagnostic middle ground, on ``bench/sim_ping`` /
-``bench/sim_pong``: decode the request with ``messages``, simulate the arm and
-retina (``SimulatedBody.sense_with_poses``), pack the reply - the body node's work
-without its two extra ground-truth publications and node machinery. The
-reply's header stamp reports the time this took in the echo process (ns:
-``sec`` = decode + pack, ``nanosec`` = simulation).
+``bench/sim_pong``: take the request's serialized bytes and decode them with
+``messages``, simulate the arm and retina (``SimulatedBody.sense_with_poses``),
+pack the reply's bytes - the body node's work without its two extra
+ground-truth publications and node machinery. The reply's header stamp
+reports the time this took in the echo process (ns: ``sec`` = decoding,
+``nanosec`` = simulation).
 
 Runs until SIGTERM/SIGINT.
 """
@@ -83,22 +84,22 @@ def main(argv=None) -> int:
         command = contracts.contract("/body/motor_command").columns
         sensation = contracts.contract("/body/sensation").columns
         pub = node.create_publisher(PointCloud2, SIM_PONG, QOS)
-        packer = messages.CloudPacker(sensation)          # as the body node
+        packer = messages.CloudCdrPacker(sensation)       # as the body node
 
-        def on_ping(msg: PointCloud2) -> None:
+        def on_ping(raw: bytes) -> None:                   # serialized, as the body node
             started = time.perf_counter_ns()
+            msg = messages.cloud_from_cdr(raw)
             motor = messages.cloud_to_matrix(msg, command)
             simulated = time.perf_counter_ns()
             sensations = body.sense_with_poses(motor)[0]
-            # The reply's stamp carries this node's own work (ns): decode + pack
-            # in ``sec``, simulation in ``nanosec`` (< 1 s), for the bench to report.
+            # The reply's stamp carries this node's own work (ns): decoding in
+            # ``sec``, simulation in ``nanosec`` (< 1 s), for the bench to report.
             simulate_ns = time.perf_counter_ns() - simulated
-            reply = packer.pack(sensations, msg.header)
-            reply.header.stamp.nanosec = simulate_ns
-            reply.header.stamp.sec = time.perf_counter_ns() - started - simulate_ns
-            pub.publish(reply)
+            decode_ns = simulated - started
+            pub.publish(packer.pack(sensations, msg.header.frame_id,
+                                    decode_ns * 1_000_000_000 + simulate_ns))
 
-        node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS)
+        node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS, raw=True)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spin = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)  # noqa: E731

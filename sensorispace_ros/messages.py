@@ -189,36 +189,6 @@ def cloud_to_matrix(msg: PointCloud2, columns: Mapping[str, str]) -> np.ndarray:
     return matrix.astype(float)
 
 
-class CloudPacker:
-    """``matrix_to_cloud`` into one PointCloud2 re-filled at every ``pack``.
-
-    For a node that packs and publishes a message per request (the body's
-    replies): the fields, steps and flags are set once, and a pack sets only
-    header, width, row_step and data (1 us instead of 15 us for a 1-row
-    table). The returned message is valid until the next ``pack``: publish
-    it before packing again (rclpy's publish copies it synchronously).
-    """
-
-    def __init__(self, columns: Mapping[str, str]):
-        self._layout = _layout(tuple(columns.items()))
-        if not self._layout.float_only:
-            raise ValueError("CloudPacker needs float64 columns only")
-        self._n_columns = len(columns)
-        self.msg = _cloud(self._layout, 0, b"", Header())
-
-    def pack(self, matrix: np.ndarray, header: Header) -> PointCloud2:
-        matrix = np.asarray(matrix, dtype=float)
-        if matrix.ndim != 2 or matrix.shape[1] != self._n_columns:
-            raise ValueError(f"matrix must have shape (rows, {self._n_columns}), "
-                             f"got {matrix.shape}")
-        msg = self.msg
-        msg.header = header
-        msg.width = len(matrix)
-        msg.row_step = self._layout.dtype.itemsize * len(matrix)
-        msg.data = array.array("B", np.ascontiguousarray(matrix, dtype="<f8").tobytes())
-        return msg
-
-
 # ---------------------------------------------------------------- serialized clouds
 #
 # ROS 2's CDR (XCDR1) little-endian: a 4-byte encapsulation header 00 01 xx xx,
@@ -380,24 +350,6 @@ def motor_to_joint_state(motor_state: np.ndarray, header: Header,
     if len(motor_state) != len(names):
         raise ValueError(f"motor state has {len(motor_state)} joints, expected {len(names)}")
     return JointState(header=header, name=list(names), position=motor_state.tolist())
-
-
-class JointStatePacker:
-    """``motor_to_joint_state`` into one JointState re-filled at every ``pack``
-    (names set once); valid until the next ``pack``, as ``CloudPacker``."""
-
-    def __init__(self, names: Sequence[str] = JOINT_NAMES):
-        self._n_joints = len(names)
-        self.msg = JointState(name=list(names))
-
-    def pack(self, motor_state: np.ndarray, header: Header) -> JointState:
-        motor_state = np.asarray(motor_state, dtype=float).reshape(-1)
-        if len(motor_state) != self._n_joints:
-            raise ValueError(f"motor state has {len(motor_state)} joints, "
-                             f"expected {self._n_joints}")
-        self.msg.header = header
-        self.msg.position = motor_state.tolist()
-        return self.msg
 
 
 class JointStateCdrPacker:

@@ -140,27 +140,6 @@ def test_encode_refuses_wrong_shapes():
                                 messages.make_header("x"))
 
 
-def test_packers_build_the_same_messages_as_the_functions():
-    rng = np.random.default_rng(4)
-    sensation = contracts.contract("/body/sensation").columns
-    packer = messages.CloudPacker(sensation)
-    joints = messages.JointStatePacker()
-    for rows in (1, 649, 0, 3):            # one message object re-filled, sizes up and down
-        matrix = rng.normal(size=(rows, 6))
-        header = messages.make_header(f"cmd/{rows}", rows)
-        msg = packer.pack(matrix, header)
-        assert msg == messages.matrix_to_cloud(matrix, sensation, header)
-        assert np.array_equal(messages.cloud_to_matrix(_wire(msg), sensation), matrix)
-        motor = rng.normal(size=4)
-        assert joints.pack(motor, header) == messages.motor_to_joint_state(motor, header)
-    with pytest.raises(ValueError, match="shape"):
-        packer.pack(np.zeros((2, 4)), messages.make_header("cmd/1"))
-    with pytest.raises(ValueError, match="joints"):
-        joints.pack(np.zeros(3), messages.make_header("cmd/1"))
-    with pytest.raises(ValueError, match="float64"):
-        messages.CloudPacker(EVENT)
-
-
 # ------------------------------------------------ serialized clouds (raw publish / take)
 
 SENSATION = contracts.contract("/body/sensation").columns
