@@ -131,16 +131,23 @@ def true_poses(bag_dir, povs: np.ndarray) -> tuple[np.ndarray, int]:
         command_columns = contracts.contract(COMMAND).columns
         pose_columns = contracts.contract(POSE).columns
         commands = {}
+        # The recorder writes messages of different topics in the order its
+        # callbacks ran, not in causal order: a pose may come before its command.
+        early_poses = {}
         for topic, _, _, msg in bags.read_bag_messages(bag_dir, [COMMAND, POSE]):
+            frame_id = msg.header.frame_id
             if topic == COMMAND:
-                commands.setdefault(msg.header.frame_id,
-                                    messages.cloud_to_matrix(msg, command_columns))
-                continue
-            motor = commands.get(msg.header.frame_id)
-            if motor is None:
-                continue
-            pose = messages.cloud_to_matrix(msg, pose_columns)
-            if len(pose) != len(motor):
+                if frame_id in commands:
+                    continue                   # a re-sent command: the first copy counts
+                motor = commands[frame_id] = messages.cloud_to_matrix(msg, command_columns)
+                pose = early_poses.pop(frame_id, None)
+            else:
+                pose = messages.cloud_to_matrix(msg, pose_columns)
+                motor = commands.get(frame_id)
+                if motor is None:
+                    early_poses.setdefault(frame_id, pose)
+                    continue
+            if pose is None or len(pose) != len(motor):
                 continue
             for row, p in zip(np.ascontiguousarray(motor, dtype="<f8"), pose):
                 k = wanted.get(row.tobytes())

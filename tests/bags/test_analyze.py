@@ -39,7 +39,7 @@ def cloud(topic, table, frame_id, stamp=1):
         table, contracts.contract(topic).columns, messages.make_header(frame_id, stamp)))
 
 
-def write_run(bag, with_poses=True, config=CONFIG):
+def write_run(bag, with_poses=True, config=CONFIG, pose_first=False):
     rng = np.random.default_rng(0)
     povs = rng.uniform(-np.pi, np.pi, size=(P, N, 4))
     rows = np.array([[0, 0, 1], [0, 2, 3], [1, 4, 5], [1, 6, 7], [2, 8, 9], [2, 10, 11]])
@@ -51,13 +51,17 @@ def write_run(bag, with_poses=True, config=CONFIG):
             writer.write(bags.SESSION_CONFIG_TOPIC, 1, bags.session_config_cdr(config))
         if with_poses:
             commanded = np.vstack([povs[:RECORDED, 0], rng.uniform(-1, 1, size=(3, 4))])
-            writer.write("/body/motor_command", next(t), cloud(
-                "/body/motor_command", {f"m{j}": commanded[:, j] for j in range(4)}, "cmd/1"))
+            command = cloud("/body/motor_command", {f"m{j}": commanded[:, j] for j in range(4)},
+                            "cmd/1")
             # recorded poses differ from arm.forward on purpose: which one is used shows
             pose = np.asarray(arm.forward(commanded)) + 0.5
-            writer.write("/body/sensor_pose", next(t), cloud(
-                "/body/sensor_pose", {"x": pose[:, 0], "y": pose[:, 1], "alpha": pose[:, 2]},
-                "cmd/1"))
+            answer = cloud("/body/sensor_pose",
+                           {"x": pose[:, 0], "y": pose[:, 1], "alpha": pose[:, 2]}, "cmd/1")
+            # The recorder may write the body's answer before the agent's command.
+            for topic, data in ([("/body/sensor_pose", answer), ("/body/motor_command", command)]
+                                if pose_first else
+                                [("/body/motor_command", command), ("/body/sensor_pose", answer)]):
+                writer.write(topic, next(t), data)
         for i in range(P):
             frame = f"change/{i + 1}"
             writer.write("/environment/event", next(t), cloud(
@@ -95,8 +99,9 @@ def test_agent_data_is_rebuilt_like_the_representation_node_does(tmp_path):
     assert grid == {f"change/{i + 1}": 100 + i for i in range(P)}
 
 
-def test_ground_truth_comes_from_recorded_poses_then_forward_kinematics(tmp_path):
-    povs, _ = write_run(tmp_path / "bag")
+@pytest.mark.parametrize("pose_first", [False, True], ids=["command_first", "pose_first"])
+def test_ground_truth_comes_from_recorded_poses_then_forward_kinematics(tmp_path, pose_first):
+    povs, _ = write_run(tmp_path / "bag", pose_first=pose_first)
     poses, recorded = analyze.true_poses(tmp_path / "bag", povs)
     forward = np.asarray(arm.forward(povs[:, 0]))
     assert recorded == RECORDED
