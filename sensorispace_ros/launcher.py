@@ -357,6 +357,7 @@ def evaluate_representation(results_dir: Path, cfg: dict, stream=None) -> dict:
     import numpy as np
 
     from . import pipeline
+    from .nodes.agent import AGENT_RECORDS_FILE
     from .nodes.representation import RESULT_FILE
 
     with np.load(Path(results_dir) / RESULT_FILE) as stored:
@@ -374,8 +375,42 @@ def evaluate_representation(results_dir: Path, cfg: dict, stream=None) -> dict:
     timings = json.loads(str(arrays.pop("timings_s_json", "{}")))
     counters.update({f"timings_s.{key}": value for key, value in timings.items()})
     arrays = {key: value for key, value in arrays.items() if not key.startswith("agent_")}
+    records_file = Path(results_dir) / AGENT_RECORDS_FILE
+    if records_file.is_file() and "changes" in totals:
+        counters.update(_evaluate_agent_records(records_file, arrays, cfg, totals["changes"]))
+    else:
+        counters["analysis.naive_records"] = (f"absent (no {AGENT_RECORDS_FILE}): "
+                                              "naive.* not evaluated")
     return pipeline.evaluate_graph_run(arrays, cfg, results_dir, metrics=counters,
                                        strategy="naive")
+
+
+def _evaluate_agent_records(records_file: Path, arrays: dict, cfg: dict, changes: int) -> dict:
+    """``naive.*`` of a run without a bag, as ``analyze`` computes them from one:
+    the agent's records (its own file) joined with ground truth from the seeded
+    schedule (the environment plays exactly that schedule) and the body's
+    forward model. Sets ``arrays["grid_index"]``."""
+    import numpy as np
+
+    from .analyze import naive_ground_truth
+    from .core import arm
+    from .core.naive_agent import NaiveAgentRecords
+    from .core.naive_evaluation import evaluate_naive_records
+    from .nodes.agent import AGENT_RECORDS_FILE
+
+    with np.load(records_file) as stored:
+        records = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
+    if not np.array_equal(records.povs, arrays["povs"]):
+        return {"analysis.naive_records": f"{records_file} does not hold the representation's "
+                                          "points of view: naive.* not evaluated"}
+    poses = np.asarray(arm.forward(records.povs[:, 0]), dtype=float).reshape(-1, 3)
+    # end/<k> closes a run of k - 1 changes (nodes/environment.py)
+    truth = naive_ground_truth(cfg, {}, int(changes) - 1, poses)
+    evaluated, _, grid_index = evaluate_naive_records(records, truth)
+    arrays["grid_index"] = np.asarray(grid_index, dtype=int)
+    return {**evaluated, "analysis.naive_records": f"evaluated by core.naive_evaluation from "
+                                                   f"{AGENT_RECORDS_FILE} (no bag); events from "
+                                                   "the seeded schedule"}
 
 
 def print_summary(metrics: dict, results_dir: Path, stream) -> None:

@@ -17,8 +17,10 @@ For the evaluator (recorded, read by ``sensorispace analyze``) it also
 publishes its own bookkeeping, never anything of the world:
 ``/agent/pov_records`` (event and walk queries of each POV),
 ``/agent/compensation_records`` (each accepted compensation) and, at the
-end, ``/agent/stage_counters``: together ``core.naive_evaluation.
-NaiveAgentRecords``, the data the offline run is evaluated from.
+end, ``/agent/stage_counters``: together ``core.naive_agent.
+NaiveAgentRecords``, the data the offline run is evaluated from. At the end
+it also writes them to ``<graph.results_dir>/agent_records.npz``, for a run
+evaluated without a bag (``launch --no-record``).
 
 Restart (issue #7; only with ``graph.checkpoint_dir`` set, "" costs nothing).
 The agent persists ``<dir>/agent.snapshot`` and ``<dir>/agent.journal``
@@ -70,8 +72,11 @@ from .. import config, contracts, messages
 from ..agent_checkpoint import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal, CheckpointError,
                                 command_check, read_journal, read_snapshot, write_snapshot)
 from ..core.naive_agent import STAGES as NAIVE_STAGES
-from ..core.naive_agent import NaiveAgent, NaiveParams
+from ..core.naive_agent import NaiveAgent, NaiveAgentRecords, NaiveParams
 from . import GraphNode, frame, run_node
+
+
+AGENT_RECORDS_FILE = "agent_records.npz"
 
 
 class RunAborted(RuntimeError):
@@ -421,6 +426,7 @@ class AgentNode(GraphNode):
                  "queries": self.agent.queries_total, "calls": self.agent.calls_total},
                 self.columns["/agent/done"], header))
             self.settle(number, published)
+            self.write_records()
             self.get_logger().info(
                 f"run over: {self.n_povs} points of view, {self.n_rows} equality rows, "
                 f"{self.body.requests} round trips "
@@ -487,6 +493,15 @@ class AgentNode(GraphNode):
             self.compensation_pub.publish(messages.table_to_cloud(
                 {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]},
                 self.columns["/agent/compensations"], header))
+
+    def write_records(self) -> None:
+        """``<graph.results_dir>/agent_records.npz``: the agent's own records
+        (``NaiveAgentRecords``, what ``/agent/pov_records``,
+        ``/agent/compensation_records`` and ``/agent/stage_counters`` carry), for
+        an evaluation without a bag (``launch --no-record``)."""
+        path = Path(self.graph["results_dir"]) / AGENT_RECORDS_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, **NaiveAgentRecords.from_agent(self.agent).to_arrays())
 
     def publish_stage_counters(self, header) -> None:
         """Motor states probed and round trips per stage (0 for a stage never entered)."""

@@ -105,3 +105,29 @@ def test_state_is_refused_inside_a_reaction(world):
 
     agent = NaiveAgent(Peeking(simulator), NaiveParams(), seed=4)
     agent.start(world.m0)
+
+
+def test_agent_records_survive_a_round_trip_through_arrays(tmp_path):
+    from dataclasses import fields
+
+    from sensorispace_ros.core.naive_agent import NaiveAgentRecords
+    rng = np.random.default_rng(2)
+    records = NaiveAgentRecords(
+        povs=rng.normal(size=(3, 5, 4)), pov_events=np.array([0, 4, 9]),
+        pov_queries=np.array([10, 20, 30]), compensation_event=np.array([4, 9]),
+        compensation_anchor_event=np.array([0, 4]),
+        compensation_motor_state=rng.normal(size=(2, 4)),
+        compensation_anchor_motor_state=rng.normal(size=(2, 4)),
+        compensation_searched=np.array([True, False]), pairs=np.array([[0, 1], [1, 2]]),
+        set_ids=np.array([0, 0]), compensated=2, compensation_queries=77, queries_total=900,
+        calls_total=40, queries_by_stage={"sweep": 5, "pov": 60},
+        calls_by_stage={"sweep": 1, "pov": 3})
+    np.savez(tmp_path / "records.npz", **records.to_arrays())
+    with np.load(tmp_path / "records.npz") as stored:
+        back = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
+    for item in fields(NaiveAgentRecords):
+        got, expected = getattr(back, item.name), getattr(records, item.name)
+        if isinstance(expected, np.ndarray):
+            assert got.dtype == expected.dtype and np.array_equal(got, expected), item.name
+        else:
+            assert got == expected and type(got) is type(expected), item.name

@@ -126,17 +126,43 @@ PARITY_PREFIXES = ("exploration.", "quality.")
 PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
 
 
-def test_launched_metrics_have_the_offline_naive_keys_and_numbers(smoke_launch, tmp_path):
+@pytest.fixture(scope="module")
+def unrecorded_launch(tmp_path_factory):
+    """One `sensorispace launch --no-record` of the smoke config: evaluated without a bag."""
+    from sensorispace_ros.launcher import free_domain_id
+
+    tmp_path = tmp_path_factory.mktemp("launch_no_record")
+    proc = _launch(tmp_path, free_domain_id(), "smoke", _launcher_env(), record=False)
+    try:
+        output, _ = proc.communicate(timeout=450)
+    finally:
+        _stop(proc)
+    return {"output": output, "returncode": proc.returncode,
+            "results": tmp_path / "results" / "smoke"}
+
+
+@pytest.fixture(scope="module")
+def offline_smoke(tmp_path_factory):
     from sensorispace_ros import config, pipeline
 
-    assert smoke_launch["returncode"] == 0, smoke_launch["output"]
-    graph = pipeline.flatten_metrics(
-        json.loads((smoke_launch["results"] / "metrics.json").read_text()))
-    assert graph["analysis.naive_records"].startswith("evaluated"), "not evaluated from the bag"
+    out = tmp_path_factory.mktemp("offline")
     pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
-                       out_dir=tmp_path / "offline")
-    offline = pipeline.flatten_metrics(
-        json.loads((tmp_path / "offline" / "metrics.json").read_text()))
+                       out_dir=out)
+    return pipeline.flatten_metrics(json.loads((out / "metrics.json").read_text()))
+
+
+@pytest.mark.parametrize("launched, evaluated_from", [("smoke_launch", "the bag"),
+                                                      ("unrecorded_launch", "agent_records.npz")])
+def test_launched_metrics_have_the_offline_naive_keys_and_numbers(launched, evaluated_from,
+                                                                   offline_smoke, request):
+    from sensorispace_ros import pipeline
+
+    run = request.getfixturevalue(launched)
+    assert run["returncode"] == 0, run["output"]
+    graph = pipeline.flatten_metrics(json.loads((run["results"] / "metrics.json").read_text()))
+    assert graph["analysis.naive_records"].startswith("evaluated"), \
+        f"not evaluated from {evaluated_from}: {graph['analysis.naive_records']}"
+    offline = offline_smoke
 
     def compared(key):
         return not (key.startswith(("timings_s.", "config.", "analysis."))
