@@ -11,8 +11,8 @@ Decoding is strict: anything that does not match the expected layout exactly
 (names, types, offsets, steps, data length, non-finite floats, unknown joint
 names) raises ``MessageError``; nodes log and drop such messages.
 
-The probe topics (/body/motor_command, /body/sensation, /body/sensor_pose)
-travel as serialized bytes both ways: ``CloudCdrPacker`` writes a cloud's CDR
+The probe topics (/body/motor_command, /body/sensation, /body/sensor_pose,
+/body/joint_states) travel as serialized bytes both ways: ``CloudCdrPacker`` writes a cloud's CDR
 bytes for ``Publisher.publish(bytes)`` and ``cloud_from_cdr`` reads those of a
 ``raw=True`` subscription. rclpy's own conversion of a PointCloud2 costs ~14 us
 per publication and ~30 us per message taken (measured); a graph run sends
@@ -218,6 +218,18 @@ def _cdr_string(text: str, position: int) -> bytes:
     return _UINT32.pack(len(encoded)) + encoded + b"\x00" * (_aligned(end) - end)
 
 
+def _cdr_header(frame_id: str, stamp_ns: int) -> bytes:
+    """Encapsulation and ``std_msgs/Header`` (stamp, frame_id), padded so that
+    what follows is 4-aligned: how both packers' messages begin."""
+    stamp_ns = int(stamp_ns)
+    frame = frame_id.encode("utf-8") + b"\x00"
+    end = len(_ENCAPSULATION) + _STAMP_AND_LENGTH.size + len(frame)
+    return b"".join((_ENCAPSULATION,
+                     _STAMP_AND_LENGTH.pack(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000,
+                                            len(frame)),
+                     frame, b"\x00" * (_aligned(end) - end)))
+
+
 def _cdr_fields(fields: tuple) -> bytes:
     """The ``fields`` sequence of a cloud, from its count on, as written at a
     4-aligned position (its bytes do not depend on which)."""
@@ -309,9 +321,9 @@ def _parse_fields(raw: bytes, position: int, n_fields: int) -> tuple[tuple, int]
 
 
 class CloudCdrPacker:
-    """``matrix_to_cloud`` straight to serialized bytes, for ``publish(bytes)``:
-    the same bytes rclpy would write for the PointCloud2 (checked in the
-    tests), without building the message."""
+    """``matrix_to_cloud`` straight to serialized bytes, for ``publish(bytes)``,
+    without building the message: rclpy reads them as the PointCloud2
+    ``matrix_to_cloud`` builds (checked in the tests)."""
 
     def __init__(self, columns: Mapping[str, str]):
         self._layout = _layout(tuple(columns.items()))
@@ -325,16 +337,10 @@ class CloudCdrPacker:
         if matrix.ndim != 2 or matrix.shape[1] != self._n_columns:
             raise ValueError(f"matrix must have shape (rows, {self._n_columns}), "
                              f"got {matrix.shape}")
-        stamp_ns = int(stamp_ns)
-        frame = frame_id.encode("utf-8") + b"\x00"
-        end = 4 + _STAMP_AND_LENGTH.size + len(frame)
         point_step = self._layout.dtype.itemsize
         data = np.ascontiguousarray(matrix, dtype="<f8").tobytes()
         return b"".join((
-            _ENCAPSULATION,
-            _STAMP_AND_LENGTH.pack(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000,
-                                   len(frame)),
-            frame, b"\x00" * (_aligned(end) - end),
+            _cdr_header(frame_id, stamp_ns),
             _UINT32.pack(1), _UINT32.pack(len(matrix)),              # height, width
             self._fields,
             b"\x00\x00\x00\x00",                                   # is_bigendian, padding
@@ -372,17 +378,11 @@ class JointStateCdrPacker:
         if len(motor_state) != self._n_joints:
             raise ValueError(f"motor state has {len(motor_state)} joints, "
                              f"expected {self._n_joints}")
-        stamp_ns = int(stamp_ns)
-        frame = frame_id.encode("utf-8") + b"\x00"
-        end = 4 + _STAMP_AND_LENGTH.size + len(frame)
-        names_at = _aligned(end)
-        count_end = names_at + len(self._names) + 4          # after the positions' count
+        header = _cdr_header(frame_id, stamp_ns)
+        count_end = len(header) + len(self._names) + 4        # after the positions' count
         padding = -(count_end - len(_ENCAPSULATION)) % 8      # float64: 8-aligned
         return b"".join((
-            _ENCAPSULATION,
-            _STAMP_AND_LENGTH.pack(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000,
-                                   len(frame)),
-            frame, b"\x00" * (names_at - end), self._names,
+            header, self._names,
             _UINT32.pack(self._n_joints), b"\x00" * padding,
             np.ascontiguousarray(motor_state, dtype="<f8").tobytes(),
             b"\x00" * 8))                                   # no velocity, no effort

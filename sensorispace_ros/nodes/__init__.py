@@ -149,11 +149,8 @@ class GraphNode(Node):
         """``(kind, number), data`` of a message on ``topic`` whose frame id is
         one of ``kinds`` (topics.yaml), or None once it has been dropped. The
         data is a float matrix, or a structured copy with ``as_table``. ``msg``
-        may be a PointCloud2's serialized bytes (a ``raw=True`` subscription;
-        see ``read_serialized``)."""
-        msg = self.read_serialized(topic, msg)
-        if msg is None:
-            return None
+        is a PointCloud2 or, from a ``raw=True`` subscription, what
+        ``read_serialized`` made of its bytes."""
         parsed = parse_frame(msg.header.frame_id)
         if parsed is None or parsed[0] not in kinds:
             self.drop(topic, f"frame id {msg.header.frame_id!r}")
