@@ -242,6 +242,17 @@ def naive_ground_truth(cfg: dict, change_events: dict, n_changes: int, poses: np
         paper_positions=paper_compensated_positions(world))
 
 
+def naive_metrics(records, cfg: dict, change_events: dict, changes: int, poses: np.ndarray):
+    """``naive.*`` of a run and the grid index of each POV's change, from the
+    agent's records and ``/agent/done``'s ``changes`` (``end/<k>`` closes a run of
+    k - 1 changes, nodes/environment.py), ground truth from ``naive_ground_truth``."""
+    from .core.naive_evaluation import evaluate_naive_records
+
+    truth = naive_ground_truth(cfg, change_events, int(changes) - 1, poses)
+    evaluated, _, grid_index = evaluate_naive_records(records, truth)
+    return evaluated, np.asarray(grid_index, dtype=int)
+
+
 def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dict:
     """Rebuild and evaluate the run recorded in ``bag_dir``; write ``out_dir/metrics.json``,
     ``arrays.npz`` and figures (``pipeline.evaluate_graph_run``, as for a live graph run).
@@ -286,18 +297,14 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         counters[f"agent.{name}"] = value       # the agent's own counters (/agent/done)
     records = naive_records(bag_dir, data, totals)
     if records is not None:
-        from .core.naive_evaluation import evaluate_naive_records
-
-        # end/<k> closes a run of k - 1 changes (nodes/environment.py)
+        evaluated, arrays["grid_index"] = naive_metrics(records, cfg, change_events,
+                                                        totals["changes"], poses)
+        counters.update(evaluated)
         n_changes = int(totals["changes"]) - 1
-        truth = naive_ground_truth(cfg, change_events, n_changes, poses)
         recorded_events = sum(f"change/{k}" in change_events for k in range(1, n_changes + 1))
         counters["analysis.events"] = (f"{recorded_events} of {n_changes} from recorded "
                                        f"{EVENT}, {n_changes - recorded_events} from the "
                                        f"seeded schedule")
-        evaluated, _, grid_index = evaluate_naive_records(records, truth)
-        counters.update(evaluated)
-        arrays["grid_index"] = np.asarray(grid_index, dtype=int)
         counters["analysis.naive_records"] = "evaluated by core.naive_evaluation"
     else:
         if totals is not None:

@@ -392,11 +392,9 @@ def _evaluate_agent_records(records_file: Path, arrays: dict, cfg: dict, changes
     forward model. Sets ``arrays["grid_index"]``."""
     import numpy as np
 
-    from .analyze import naive_ground_truth
+    from .analyze import naive_metrics
     from .core import arm
     from .core.naive_agent import NaiveAgentRecords
-    from .core.naive_evaluation import evaluate_naive_records
-    from .nodes.agent import AGENT_RECORDS_FILE
 
     with np.load(records_file) as stored:
         records = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
@@ -404,12 +402,9 @@ def _evaluate_agent_records(records_file: Path, arrays: dict, cfg: dict, changes
         return {"analysis.naive_records": f"{records_file} does not hold the representation's "
                                           "points of view: naive.* not evaluated"}
     poses = np.asarray(arm.forward(records.povs[:, 0]), dtype=float).reshape(-1, 3)
-    # end/<k> closes a run of k - 1 changes (nodes/environment.py)
-    truth = naive_ground_truth(cfg, {}, int(changes) - 1, poses)
-    evaluated, _, grid_index = evaluate_naive_records(records, truth)
-    arrays["grid_index"] = np.asarray(grid_index, dtype=int)
+    evaluated, arrays["grid_index"] = naive_metrics(records, cfg, {}, changes, poses)
     return {**evaluated, "analysis.naive_records": f"evaluated by core.naive_evaluation from "
-                                                   f"{AGENT_RECORDS_FILE} (no bag); events from "
+                                                   f"{records_file.name} (no bag); events from "
                                                    "the seeded schedule"}
 
 

@@ -856,13 +856,12 @@ class NaiveAgentRecords:
     def from_arrays(cls, arrays) -> "NaiveAgentRecords":
         """Inverse of ``to_arrays``."""
         values = {}
-        for item in fields(cls):
-            if item.name in ("queries_by_stage", "calls_by_stage"):
+        for item in fields(cls):        # item.type: the annotation's text (postponed)
+            if item.type == "dict":
                 prefix = f"{item.name}."
                 values[item.name] = {key[len(prefix):]: int(arrays[key]) for key in arrays
                                      if key.startswith(prefix)}
-            elif item.name in ("compensated", "compensation_queries", "queries_total",
-                               "calls_total"):
+            elif item.type == "int":
                 values[item.name] = int(arrays[item.name])
             else:
                 values[item.name] = np.asarray(arrays[item.name])
