@@ -1,6 +1,6 @@
 """Graph probe round trip vs a bare rclpy ping-pong of the same message sizes.
 
-Three server processes in one private domain (localhost discovery):
+Four server processes in one private domain (localhost discovery):
   * the real body node (``python -m sensorispace_ros.nodes.body``), which
     decodes each /body/motor_command, simulates the arm and retina, and
     publishes /body/sensation, /body/sensor_pose and /body/joint_states;

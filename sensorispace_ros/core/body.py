@@ -92,6 +92,7 @@ def _simulate_rows(motor, lights, receptors, sensations, poses):
 _simulate_rows_compiled = (None if numba is None
                            else numba.njit(nogil=True, cache=True)(_simulate_rows))
 
+
 def numba_available() -> bool:
     """True when the compiled simulator can be used."""
     return numba is not None

@@ -39,8 +39,8 @@ replayed reactions again (what a killed process published last may never
 have left it; the representation ignores duplicates, the analysis takes the
 first copy; the snapshot waits until its publishers' messages are
 acknowledged before it empties the journal), settling only changes without
-a marker; where the journal ends mid-change, it continues live: its next command carries the same ``cmd/<n>``
-as the one the dead agent sent (the body answers duplicates identically).
+a marker; where the journal ends mid-change, it continues live: its next
+command carries the same ``cmd/<n>`` as the one the dead agent sent (the body answers duplicates identically).
 Before its first publication it waits (<= 5 s) until the body's and the
 environment's subscriptions have matched (earlier messages are lost).
 Until the first new passive sensation arrives, whenever it is idle on a
