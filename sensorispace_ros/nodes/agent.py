@@ -3,8 +3,8 @@
 It subscribes to ``/body/sensation`` and nothing else, and meets its body
 through ``BodyOverTopics``, whose ``sense(batch)`` publishes one
 ``/body/motor_command`` (frame ``cmd/<n>``) and spins until the sensation
-with that frame id arrives (``nodes.SubscriptionSpinner``, in this thread;
-MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and answers travel
+with that frame id arrives (the node's SingleThreadedExecutor, in this
+thread; MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and answers travel
 as serialized bytes (``messages.CloudCdrPacker`` / ``cloud_from_cdr``).
 
 Passive sensations (``change/<k>``) are queued by the subscription callback;
