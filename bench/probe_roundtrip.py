@@ -7,15 +7,16 @@ Four server processes in one private domain (localhost discovery):
   * ``bench/rclpy_echo.py``, which answers a ``rows x 4`` float64
     PointCloud2 with a prebuilt ``rows x 6`` one (one publication, no work),
     spun by rclpy's stock SingleThreadedExecutor: the bare baseline;
-  * ``bench/rclpy_echo.py --lean``: the same, spun by the graph's own loop
-    (``nodes.SubscriptionSpinner``, as the body node): the floor;
+  * ``bench/rclpy_echo.py --lean``: the same with serialized bytes, spun by
+    the graph's executor (``nodes.make_executor``, as the body node): the
+    floor;
   * ``bench/rclpy_echo.py --simulate``: decode + simulate + pack, one
     publication (diagnostic: where the graph's excess goes), reporting its
     own simulation time per answer.
 The client (this process, one node) probes the body exactly as the agent
 node does - ``nodes.agent.BodyOverTopics`` with the contract's publisher,
 commands and answers as serialized bytes (``messages.CloudCdrPacker``,
-``cloud_from_cdr``), waiting with ``nodes.SubscriptionSpinner`` - and pings
+``cloud_from_cdr``), waiting in the graph's executor - and pings
 the echoes with prebuilt messages, waiting the same way: the client's side is
 the same for every kind. All are measured in the same run, interleaved in
 rounds so load changes hit them alike. Servers are stopped by PID.
@@ -66,14 +67,13 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import PointCloud2
 
     from bench import rclpy_echo
     from sensorispace_ros import config as config_mod
     from sensorispace_ros import contracts, launcher, messages
-    from sensorispace_ros.nodes import SubscriptionSpinner, build_world, frame
+    from sensorispace_ros.nodes import build_world, frame, make_executor
     from sensorispace_ros.nodes.agent import BodyOverTopics
 
     per_round = per_round or {1: 100, batch_rows: 20}
@@ -106,10 +106,11 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     context = Context()
     rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("bench_probe_client", context=context)
-    executor = SingleThreadedExecutor(context=context)
+    executor, _ = make_executor(context=context)
     executor.add_node(node)
-    spinner = SubscriptionSpinner(node, executor)
-    spin = spinner.spin_once
+
+    def spin(timeout_s):
+        executor.spin_once(timeout_sec=timeout_s)
     try:
         command_columns = contracts.contract("/body/motor_command").columns
         sensation_columns = contracts.contract("/body/sensation").columns
@@ -291,7 +292,6 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
             }
         return out
     finally:
-        spinner.destroy()
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()

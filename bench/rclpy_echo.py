@@ -9,17 +9,18 @@ the request header. No decoding, no computation, one publication per request.
 
 The bare echo spins the stock ``SingleThreadedExecutor``: what a plain rclpy
 node costs (the baseline of issue #6's bar). ``--lean``: the same echo on
-``bench/lean_ping`` / ``bench/lean_pong``, spun by the graph's own loop
-(``nodes.SubscriptionSpinner``, as the body and agent nodes): the floor of a
-Python ping-pong over rclpy, reported next to the baseline.
+``bench/lean_ping`` / ``bench/lean_pong``, spun by the graph's executor
+(``nodes.make_executor``, as the body and agent nodes), the request taken as
+serialized bytes: the floor of a Python ping-pong over rclpy, reported next to
+the baseline.
 
 ``--simulate``: a diagnostic middle ground, on ``bench/sim_ping`` /
 ``bench/sim_pong``: take the request's serialized bytes and decode them with
 ``messages``, simulate the arm and retina (``SimulatedBody.sense_with_poses``),
 pack the reply's bytes - the body node's work without its two extra
-ground-truth publications and node machinery. The reply's header stamp
-reports the time this took in the echo process (ns: ``sec`` = decoding,
-``nanosec`` = simulation).
+ground-truth publications and node machinery - spun by the graph's executor.
+The reply's header stamp reports the time this took in the echo process (ns:
+``sec`` = decoding, ``nanosec`` = simulation).
 
 Runs until SIGTERM/SIGINT.
 """
@@ -100,15 +101,15 @@ def main(argv=None) -> int:
                                     decode_ns * 1_000_000_000 + simulate_ns))
 
         node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS, raw=True)
-    executor = SingleThreadedExecutor()
+    if args.lean or args.simulate:
+        from sensorispace_ros.nodes import make_executor
+        executor, _ = make_executor()
+    else:
+        executor = SingleThreadedExecutor()
     executor.add_node(node)
-    spin = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)  # noqa: E731
-    if args.lean:
-        from sensorispace_ros.nodes import SubscriptionSpinner
-        spin = SubscriptionSpinner(node, executor).spin_once
     try:
         while rclpy.ok():
-            spin(0.2)
+            executor.spin_once(timeout_sec=0.2)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

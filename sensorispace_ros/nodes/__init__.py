@@ -15,12 +15,10 @@ import time
 from typing import Callable
 
 import rclpy
-from rclpy.event_handler import EventHandler
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.signals import SignalHandlerGuardCondition
 
 from .. import config, contracts, messages
 
@@ -38,7 +36,11 @@ GRAPH_DEFAULTS = {
     # The agent re-sends a motor command the body has not answered within this
     # time (a restarted body lost it); a late duplicate answer is dropped.
     "graph.command_timeout_s": 2.0,
+    # What spins each node's process (make_executor): "events", rclpy's
+    # EventsExecutor (C++), or "single_threaded", rclpy's SingleThreadedExecutor.
+    "graph.executor": "events",
 }
+EXECUTORS = ("events", "single_threaded")
 # Parameters every rclpy node has; not part of the run configuration.
 _ROS_OWN = {"use_sim_time", "start_type_description_service"}
 # How long publish() keeps retrying after "cannot publish data" (RCLError): a
@@ -95,6 +97,9 @@ class GraphNode(Node):
                 flat[pname] = value
         self.cfg = config.load_config(None, overrides=flat)
         self.graph = {key[len(GRAPH_PREFIX):]: value for key, value in graph.items()}
+        if self.graph["executor"] not in EXECUTORS:
+            raise config.ConfigError(f"graph.executor: must be one of {', '.join(EXECUTORS)}, "
+                                     f"got {self.graph['executor']!r}")
         self.dropped: dict[str, int] = {}
         # Set by whoever spins the node (run_node, tests): lets a node that
         # waits for an answer keep the executor turning (see nodes.agent).
@@ -183,112 +188,29 @@ class GraphNode(Node):
                                   throttle_duration_sec=5.0)
 
 
-class SubscriptionSpinner:
-    """``spin_once`` for one node, without rclpy's executor machinery.
+def make_executor(kind: str = "events", context=None):
+    """The executor that spins a node's process: ``(executor, kind used)``.
 
-    ``SingleThreadedExecutor.spin_once`` builds a new wait set from every
-    entity of its nodes at each call and runs each callback as a Task; a
-    graph run spins ~130,000 times in the agent and as often in the body.
-    This keeps one rcl wait set (cleared and refilled at each wait: entities
-    come and go) of the node's subscriptions, timers, QoS event handlers and
-    the SIGINT guard condition, and runs what is ready in this thread: a
-    message taken and handed to its callback, a ready timer called, a QoS
-    event taken and handed to its handler. Measured on a 1-row ping-pong,
-    both ends alike: 0.36 ms per round trip with the executor, 0.23 ms with
-    this.
-
-    The graph's nodes do not use it (``run_node`` spins the executor): in
-    the recorder-kill restart test the body, spun by it, sat idle in its wait
-    while the agent re-sent a command for 30 s, in about 1 of 6 runs; not
-    understood. The probe benchmark uses it for its lean echo and client.
-
-    It must be the node's only spinner: interleaving the executor's
-    ``spin_once`` with these waits lost wake-ups (a ready answer unnoticed
-    until the 0.5 s timeout, 22 times in a smoke run). It uses the
-    wait-set binding rclpy's own ``wait_for_message`` uses
-    (``rclpy_implementation.WaitSet``); where that is missing, or the node
-    has a waitable other than a QoS event handler, ``spin_once`` is the
-    executor's.
+    "events" is rclpy's EventsExecutor (``rclpy.experimental``, in C++; Jazzy's
+    rclpy has it from 7.1): it hands each message to its callback from the
+    middleware's new-message events, where ``SingleThreadedExecutor`` rebuilds
+    a wait set from every entity of its nodes at each ``spin_once`` and runs
+    each callback as a Task. A paper run spins ~130,000 times in the agent and
+    as often in the body. Measured (bench/RESULTS.md): mean round trip of the
+    paper run 0.49 ms with it, 0.67 ms (smoke) with "single_threaded"; the
+    body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms. Without it (an older rclpy)
+    "events" falls back to "single_threaded".
     """
-
-    def __init__(self, node: Node, executor):
-        self.node = node
-        self.executor = executor
-        self._sigint = None
-        self.lean = hasattr(_rclpy, "WaitSet")
-        if self.lean:
-            self._sigint = SignalHandlerGuardCondition(node.context)
-        self._wait_set = None
-        self._size = None
-
-    def spin_once(self, timeout_s: float) -> None:
-        waitables = list(self.node.waitables)
-        if not self.lean or not all(isinstance(w, EventHandler) for w in waitables):
-            self.executor.spin_once(timeout_sec=timeout_s)
-            return
-        context = self.node.context
-        if not context.ok():
-            raise ExternalShutdownException()
-        subscriptions = list(self.node.subscriptions)
-        timers = [timer for timer in self.node.timers if not timer.is_canceled()]
-        size = (len(subscriptions), len(timers), len(waitables))
-        if size != self._size:
-            self._wait_set = _rclpy.WaitSet(size[0], 1, size[1], 0, 0, size[2], context.handle)
-            self._size = size
-        wait_set = self._wait_set
-        wait_set.clear_entities()
-        for subscription in subscriptions:
-            wait_set.add_subscription(subscription.handle)
-        for timer in timers:
-            wait_set.add_timer(timer.handle)
-        for handler in waitables:
-            handler.add_to_wait_set(wait_set)
-        wait_set.add_guard_condition(self._sigint.handle)
+    if kind not in EXECUTORS:
+        raise ValueError(f"executor: must be one of {', '.join(EXECUTORS)}, got {kind!r}")
+    if kind == "events":
         try:
-            wait_set.wait(int(timeout_s * 1e9) if timeout_s >= 0 else -1)
-        except _rclpy.RCLError:
-            if context.ok():
-                raise
-            raise ExternalShutdownException() from None     # shut down while waiting
-        if not context.ok():
-            raise ExternalShutdownException()
-        ready = wait_set.get_ready_entities("timer")
-        for timer in timers:
-            if timer.handle.pointer in ready:
-                with timer.handle:
-                    # cancelled since the wait: rcl still reports it (rclpy checks too)
-                    if not timer.handle.is_timer_ready():
-                        continue
-                    timer.handle.call_timer()
-                timer.callback()
-        ready = wait_set.get_ready_entities("subscription")
-        for subscription in subscriptions:
-            if subscription.handle.pointer in ready:
-                with subscription.handle:
-                    taken = subscription.handle.take_message(subscription.msg_type,
-                                                             subscription.raw)
-                if taken is not None:
-                    subscription.callback(taken[0])
-        for handler in waitables:
-            if handler.is_ready(wait_set):
-                _run_to_completion(handler.execute(handler.take_data()))
-
-    def destroy(self) -> None:
-        if self._sigint is not None:
-            self._sigint.destroy()
-            self._sigint = None
-
-
-def _run_to_completion(coroutine) -> None:
-    """Run a coroutine that never awaits anything pending (a QoS event
-    handler's ``execute`` with a plain callback) to its end, here."""
-    try:
-        coroutine.send(None)
-    except StopIteration:
-        return
-    coroutine.close()
-    raise RuntimeError("a QoS event callback awaited something; SubscriptionSpinner "
-                       "runs plain callbacks only")
+            from rclpy.experimental import EventsExecutor
+        except ImportError:
+            kind = "single_threaded"
+        else:
+            return EventsExecutor(context=context), kind
+    return SingleThreadedExecutor(context=context), kind
 
 
 def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
@@ -306,11 +228,11 @@ def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
         except config.ConfigError as exc:
             print(f"{name}: invalid parameter {exc}", file=sys.stderr)
             return 2
-        executor = SingleThreadedExecutor()
+        executor, kind = make_executor(node.graph["executor"])
+        if kind != node.graph["executor"]:
+            node.get_logger().warning(f"graph.executor {node.graph['executor']!r} is not "
+                                      f"available in this rclpy: spinning {kind!r}")
         executor.add_node(node)
-        # The executor, not SubscriptionSpinner: with the spinner the body once in
-        # ~6 recorder-kill restart runs sat idle in its wait while the agent's
-        # re-sent commands went unanswered (a wake-up lost for good); 0 of 8 so.
         node.spin_once = lambda timeout_s: executor.spin_once(timeout_sec=timeout_s)
         while rclpy.ok() and not getattr(node, "finished", False):
             executor.spin_once(timeout_sec=0.2)

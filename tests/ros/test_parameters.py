@@ -12,6 +12,7 @@ from .conftest import SMOKE
     ("environment", "world.redistribution_probability:=1.5", "world.redistribution_probability"),
     ("agent", "pov.n_sampels:=3", "pov.n_sampels"),
     ("representation", "graph.results_dirr:=x", "graph.results_dirr"),
+    ("body", "graph.executor:=multi_threaded", "graph.executor: must be one of"),
 ])
 def test_invalid_parameter_stops_node_with_its_name(node, override, name, node_env):
     done = subprocess.run(
