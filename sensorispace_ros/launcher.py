@@ -61,6 +61,9 @@ def free_domain_id(start: int | None = None) -> int:
     raise RuntimeError("no free ROS_DOMAIN_ID in 1..100")
 
 
+# How often a node that exits with nodes.RESTART_EXIT_CODE is started again.
+ASKED_RESTARTS = 3
+
 # Participant liveliness of the graph's Fast DDS participants (issue #7). With
 # Fast DDS's default 20 s lease a kill -9'd reader stays matched for 20 s and
 # never acknowledges, so a RELIABLE + KEEP_ALL writer to it fills its history and
@@ -238,12 +241,13 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     ``failed_node`` names the node if one dies. ``respawn``: how many times a
     node killed by a signal is started again (same command line; it resumes
     from ``<results>/checkpoints``, issue #7) before the run fails; a node
-    that exits with an error code is never respawned.
+    that exits with an error code is never respawned, except one that asks
+    for it (``nodes.RESTART_EXIT_CODE``), up to ASKED_RESTARTS times a node.
     """
     if respawn < 0:
         raise ValueError(f"respawn must be >= 0, got {respawn}")
     from . import config
-    from .nodes import build_world
+    from .nodes import RESTART_EXIT_CODE, build_world
     stream = sys.stderr if stream is None else stream
     config_path = Path(config_path) if config_path else default_config()
     cfg = config.load_config(config_path)
@@ -274,7 +278,7 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     started = time.monotonic()
     try:
-        commands, respawned = {}, {}
+        commands, respawned, asked = {}, {}, {}
         for name in nodes:
             parameters = {"graph.results_dir": str(results_dir),
                           "graph.checkpoint_dir": str(checkpoint_dir)}
@@ -302,7 +306,14 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                 break
             dead = {n: c for n, c in exited.items() if not (n == "representation" and c == 0)}
             for name, code in list(dead.items()):
-                if code < 0 and respawned.get(name, 0) < respawn:
+                if code == RESTART_EXIT_CODE and asked.get(name, 0) < ASKED_RESTARTS:
+                    asked[name] = asked.get(name, 0) + 1
+                    graph.start(name, commands[name], log_name=f"{name}.restart-{asked[name]}")
+                    del dead[name]
+                    print(f"[launch] {name} asked to be restarted (exit code {code}); started "
+                          f"again ({asked[name]}/{ASKED_RESTARTS}, pid "
+                          f"{graph.children[name].pid})", file=stream, flush=True)
+                elif code < 0 and respawned.get(name, 0) < respawn:
                     respawned[name] = respawned.get(name, 0) + 1
                     graph.start(name, commands[name],
                                 log_name=f"{name}.respawn-{respawned[name]}")

@@ -49,6 +49,10 @@ _ROS_OWN = {"use_sim_time", "start_type_description_service"}
 # (launcher.LEASE_DURATION_S = 3 s; Fast DDS's default is 20 s).
 PUBLISH_RETRY_S = 25.0
 PUBLISH_RETRY_PAUSE_S = 0.05
+# Exit code of a node that asks whoever runs it (the launcher) to start it
+# again with the same command line (EX_TEMPFAIL); it resumes from its
+# checkpoint. The body does so when its answers stop reaching the agent.
+RESTART_EXIT_CODE = 75
 
 
 def frame(kind: str, number: int) -> str:

@@ -16,7 +16,9 @@ first; each re-delivered one is answered with a passive sensation, which the
 agent ignores when old); until the change applied before the kill is back,
 commands are dropped (the agent re-sends them), so none is answered in an old
 layout. Every well-formed command is answered, duplicates too (the answer
-depends only on the commanded rows and the lights).
+depends only on the commanded rows and the lights); the third answer to one
+command ends the process with RESTART_EXIT_CODE, to be started again
+(``note_repeated_command``).
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ import numpy as np
 from .. import contracts, messages
 from ..core import arm, retina
 from ..core.body import SimulatedBody
-from . import GraphNode, build_world, run_node
+from . import RESTART_EXIT_CODE, GraphNode, build_world, run_node
 
 
 class RestingStateFile:
@@ -81,6 +83,9 @@ class BodyNode(GraphNode):
         # lights of the history instead of change 61's.
         self.lights_before_kill: int | None = None
         self.lights_number = -1
+        # Times the latest command was asked for (the agent re-sends a command it
+        # has had no answer to after graph.command_timeout_s).
+        self.command_asked: tuple[str, int] = ("", 0)
         if self.graph["checkpoint_dir"]:
             # [m0..m3, k]: the resting state and the number of the last lights applied
             self.resting_file = RestingStateFile(
@@ -150,7 +155,32 @@ class BodyNode(GraphNode):
         if len(motor) == 0:
             self.drop("/body/motor_command", "empty batch")
             return
+        self.note_repeated_command(msg.header.frame_id)
         self.answer(motor, msg.header)
+
+    def note_repeated_command(self, frame_id: str) -> None:
+        """When a command is to be answered a third time (the agent asked again
+        twice: two answers have not reached it), say so and, with a checkpoint
+        to resume from, stop with RESTART_EXIT_CODE after this answer: the
+        launcher starts the body again. Seen after the recorder was killed with
+        SIGKILL (README, Known limitations): this process's Fast DDS shared
+        memory had no room left for a large answer while small ones still went
+        out, for good; a new process has a new segment."""
+        name, times = self.command_asked
+        times = times + 1 if name == frame_id else 1
+        self.command_asked = (frame_id, times)
+        if times != 3:
+            return
+        restart = self.resting_file is not None
+        self.get_logger().error(
+            f"{frame_id} asked for a third time: the answers sent do not reach the agent "
+            "(if a subscriber was killed with kill -9, this process's shared memory "
+            "transport may have no room left for large messages); "
+            + ("exiting to be restarted (it resumes from its checkpoint)" if restart
+               else "restart the body node"))
+        if restart:
+            self.exit_code = RESTART_EXIT_CODE
+            self.finished = True
 
     def answer(self, motor: np.ndarray, header) -> None:
         # One forward model per row for both replies (it was run twice: sense + sensor_pose);

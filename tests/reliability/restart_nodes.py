@@ -30,6 +30,7 @@ else:
     from . import node_processes as np_mod
 
 from sensorispace_ros import launcher   # noqa: E402
+from sensorispace_ros.nodes import RESTART_EXIT_CODE   # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "config" / "smoke.yaml"
@@ -140,6 +141,13 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
                 state = "completed"
                 break
             dead = {n: c for n, c in exited.items() if n != "representation" or c != 0}
+            for name in [n for n, c in dead.items() if c == RESTART_EXIT_CODE]:
+                # as the launcher does: a node that asks for it is started again
+                asked = outcome.setdefault("asked_restarts", [])
+                asked.append(name)
+                processes.start(name, command(name), env,
+                                log_name=f"{name}.restart-{len(asked)}")
+                del dead[name]
             if dead:
                 state = f"died {dead}"
                 break

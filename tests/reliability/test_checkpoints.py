@@ -166,7 +166,7 @@ def test_a_repeated_settle_of_the_previous_change_gets_the_current_lights_again(
 @pytest.mark.graph
 @pytest.mark.timeout(60)
 def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_kill_are_back(
-        tmp_path, domain_id):
+        tmp_path, domain_id, capfd):
     """The lights history (transient_local) reaches a restarted body interleaved with the
     agent's re-sent command; answering it in an old change's lights made the agent diverge
     (seen once in ~12 body restarts). The body persists the number of the lights it last
@@ -178,7 +178,7 @@ def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_ki
 
     from sensorispace_ros import contracts, launcher, messages
     from sensorispace_ros.core.body import SimulatedBody
-    from sensorispace_ros.nodes import build_world, frame
+    from sensorispace_ros.nodes import RESTART_EXIT_CODE, build_world, frame
     from sensorispace_ros.nodes.body import BodyNode
 
     from .conftest import SMOKE
@@ -238,6 +238,18 @@ def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_ki
         assert np.array_equal(answers["cmd/7"][0], expected)
         wrong = SimulatedBody(world.receptors, old_lights, world.m0.copy()).sense(motor)
         assert not np.allclose(answers["cmd/7"][0], wrong)
+        # Held copies are not answers: asked for once so far. Two more re-sends of
+        # an answered command mean two answers were lost: the body says so.
+        assert body.command_asked == ("cmd/7", 1)
+        send_command()
+        spin(0.3)
+        assert "asked for a third time" not in capfd.readouterr().err
+        send_command()
+        spin(0.5)
+        assert len(answers["cmd/7"]) == 3 and body.command_asked == ("cmd/7", 3)
+        assert "cmd/7 asked for a third time" in capfd.readouterr().err
+        # It has a checkpoint: it stops (after answering) to be started again.
+        assert body.finished and body.exit_code == RESTART_EXIT_CODE
     finally:
         executor.shutdown()
         body.destroy_node()

@@ -3,6 +3,7 @@ short-lease Fast DDS profile, and GraphNode publishers that retry instead of
 raising when a dead reader filled a KEEP_ALL history."""
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -153,3 +154,39 @@ def test_launch_refuses_a_negative_respawn_count(capsys):
     assert "--respawn must be >= 0, got -1" in capsys.readouterr().err
     with pytest.raises(ValueError, match="respawn must be >= 0"):
         launcher.launch_graph(SMOKE, respawn=-1)
+
+
+# Exits with RESTART_EXIT_CODE the first time (leaving a marker), then runs the node.
+_ASK_ONCE = ("import os, sys\n"
+             "marker, code, command = sys.argv[1], int(sys.argv[2]), sys.argv[3:]\n"
+             "if not os.path.exists(marker):\n"
+             "    open(marker, 'w').close()\n"
+             "    sys.exit(code)\n"
+             "os.execv(command[0], command)\n")
+
+
+@pytest.mark.graph
+@pytest.mark.timeout(240)
+def test_launch_starts_again_a_node_that_asks_for_it(tmp_path, monkeypatch, domain_id):
+    import io
+
+    from sensorispace_ros.nodes import RESTART_EXIT_CODE
+    real_command = launcher.node_command
+    marker = tmp_path / "body.asked"
+
+    def node_command(name, config_path, parameters):
+        command = real_command(name, config_path, parameters)
+        if name != "body":
+            return command
+        return [sys.executable, "-c", _ASK_ONCE, str(marker), str(RESTART_EXIT_CODE), *command]
+
+    monkeypatch.setattr(launcher, "node_command", node_command)
+    log = io.StringIO()
+    result = launcher.launch_graph(SMOKE, run="asked", domain_id=domain_id, record=False,
+                                   results_root=tmp_path / "results", timeout_s=200,
+                                   stream=log)
+    assert marker.is_file()
+    assert "body asked to be restarted (exit code 75); started again (1/3" in log.getvalue()
+    assert result.exit_code == 0, log.getvalue()
+    assert (result.results_dir / "logs" / "body.restart-1.log").is_file()
+    assert json.loads((result.results_dir / "metrics.json").read_text())["pov"]["count"] > 3
