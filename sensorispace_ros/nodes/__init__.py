@@ -195,14 +195,14 @@ class GraphNode(Node):
 def make_executor(kind: str = "events", context=None):
     """The executor that spins a node's process: ``(executor, kind used)``.
 
-    "events" is rclpy's EventsExecutor (``rclpy.experimental``, in C++; Jazzy's
-    rclpy has it from 7.1): it hands each message to its callback from the
+    "events" is rclpy's EventsExecutor (``rclpy.experimental``, in C++; the pinned
+    rclpy 7.1.6 has it): it hands each message to its callback from the
     middleware's new-message events, where ``SingleThreadedExecutor`` rebuilds
     a wait set from every entity of its nodes at each ``spin_once`` and runs
     each callback as a Task. A paper run spins ~130,000 times in the agent and
-    as often in the body. Measured (bench/RESULTS.md): mean round trip of the
-    paper run 0.49 ms with it, 0.67 ms (smoke) with "single_threaded"; the
-    body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms. Without it (an older rclpy)
+    as often in the body. Measured (bench/RESULTS.md): mean round trip of a
+    smoke run 0.53 ms with it, ~0.67 ms with "single_threaded" (paper run
+    with it: 0.49-0.50 ms); the body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms. Without it (an older rclpy)
     "events" falls back to "single_threaded".
     """
     if kind not in EXECUTORS:
