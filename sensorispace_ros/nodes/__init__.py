@@ -202,8 +202,8 @@ def make_executor(kind: str = "events", context=None):
     each callback as a Task. A paper run spins ~130,000 times in the agent and
     as often in the body. Measured (bench/RESULTS.md): mean round trip of a
     smoke run 0.53 ms with it, ~0.67 ms with "single_threaded" (paper run
-    with it: 0.49-0.50 ms); the body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms. Without it (an older rclpy)
-    "events" falls back to "single_threaded".
+    with it: 0.49-0.50 ms); the body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms.
+    Without it (an older rclpy) "events" falls back to "single_threaded".
     """
     if kind not in EXECUTORS:
         raise ValueError(f"executor: must be one of {', '.join(EXECUTORS)}, got {kind!r}")
