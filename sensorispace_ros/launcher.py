@@ -306,21 +306,22 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                 break
             dead = {n: c for n, c in exited.items() if not (n == "representation" and c == 0)}
             for name, code in list(dead.items()):
-                if code == RESTART_EXIT_CODE and asked.get(name, 0) < ASKED_RESTARTS:
-                    asked[name] = asked.get(name, 0) + 1
-                    graph.start(name, commands[name], log_name=f"{name}.restart-{asked[name]}")
-                    del dead[name]
-                    print(f"[launch] {name} asked to be restarted (exit code {code}); started "
-                          f"again ({asked[name]}/{ASKED_RESTARTS}, pid "
-                          f"{graph.children[name].pid})", file=stream, flush=True)
-                elif code < 0 and respawned.get(name, 0) < respawn:
-                    respawned[name] = respawned.get(name, 0) + 1
-                    graph.start(name, commands[name],
-                                log_name=f"{name}.respawn-{respawned[name]}")
-                    del dead[name]
-                    print(f"[launch] {name} was killed by signal {-code}; respawned "
-                          f"({respawned[name]}/{respawn}, pid {graph.children[name].pid})",
-                          file=stream, flush=True)
+                # started again: a node that asks for it, or one killed by a signal
+                if code == RESTART_EXIT_CODE:
+                    kind, counts, limit = "restart", asked, ASKED_RESTARTS
+                    happened, done = f"asked to be restarted (exit code {code})", "started again"
+                elif code < 0:
+                    kind, counts, limit = "respawn", respawned, respawn
+                    happened, done = f"was killed by signal {-code}", "respawned"
+                else:
+                    continue
+                if counts.get(name, 0) >= limit:
+                    continue
+                counts[name] = counts.get(name, 0) + 1
+                graph.start(name, commands[name], log_name=f"{name}.{kind}-{counts[name]}")
+                del dead[name]
+                print(f"[launch] {name} {happened}; {done} ({counts[name]}/{limit}, pid "
+                      f"{graph.children[name].pid})", file=stream, flush=True)
             if dead:
                 name, code = next(iter(dead.items()))
                 result.failed_node = name

@@ -3,9 +3,10 @@
 It subscribes to ``/body/sensation`` and nothing else, and meets its body
 through ``BodyOverTopics``, whose ``sense(batch)`` publishes one
 ``/body/motor_command`` (frame ``cmd/<n>``) and spins until the sensation
-with that frame id arrives (the node's SingleThreadedExecutor, in this
-thread; MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and answers travel
-as serialized bytes (``messages.CloudCdrPacker`` / ``cloud_from_cdr``).
+with that frame id arrives (the node's executor, ``nodes.make_executor``, in
+this thread; MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and
+answers travel as serialized bytes (``messages.CloudCdrPacker`` /
+``cloud_from_cdr``).
 
 Passive sensations (``change/<k>``) are queued by the subscription callback;
 ``step()``, called by the spinning loop between callbacks (never inside
@@ -40,7 +41,8 @@ have left it; the representation ignores duplicates, the analysis takes the
 first copy; the snapshot waits until its publishers' messages are
 acknowledged before it empties the journal), settling only changes without
 a marker; where the journal ends mid-change, it continues live: its next
-command carries the same ``cmd/<n>`` as the one the dead agent sent (the body answers duplicates identically).
+command carries the same ``cmd/<n>`` as the one the dead agent sent (the body
+answers duplicates identically).
 Before its first publication it waits (<= 5 s) until the body's and the
 environment's subscriptions have matched (earlier messages are lost).
 Until the first new passive sensation arrives, whenever it is idle on a
