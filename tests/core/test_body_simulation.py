@@ -183,6 +183,53 @@ def test_simulate_kernels_give_the_numpy_bits(kernel, n):
     assert np.isfinite(got[0]).all() and (n == 1 or (np.isnan(pose[1]).all() and not got[1].any()))
 
 
+def test_exp_is_exactly_zero_where_the_compiled_loop_skips_it():
+    # The loop adds nothing for exponents >= _EXP_ZERO: exp must round to +0.0 there
+    # (C library, as NumPy and numba call it) and not just below 745.1332.
+    threshold = body_module._EXP_ZERO
+    past = threshold + np.array([0.0, 1e-9, 0.5, 54.0, 1e6, np.inf])
+    assert not np.exp(-past).any() and not np.signbit(np.exp(-past)).any()
+    assert all(math.exp(-x) == 0.0 for x in past)
+    assert np.exp(-745.13) > 0.0        # the skipped range is not wider than exp's zeros
+
+
+@pytest.mark.parametrize("kernel", ["numba", "python"])
+def test_terms_around_the_underflow_keep_the_numpy_bits(kernel):
+    # The eye at the origin looking along +x; a light at depth 1 and lateral v projects
+    # at v, so a receptor at 0 gets exp(-v**2) / hypot(1, v). Exponents straddle exp's
+    # last subnormals and the skip threshold, alone (the sum must stay +0.0, not -0.0)
+    # and added to a light in view.
+    if kernel == "numba" and not body_module.numba_available():
+        pytest.skip("numba is not installed")
+    exponents = np.array([700.0, 745.0, 745.13, 745.1332, 745.14, 745.9,
+                          body_module._EXP_ZERO, 746.5, 800.0, 1e4])
+    receptors = np.array([0.0])
+    motor = np.zeros((1, 4))
+    motor[0, 3] = -np.sum(np.cumsum(motor[0, :3]))      # alpha = 0
+    pose = arm.forward(motor)
+    singles, sums = [], []
+    for exponent in exponents:
+        far = pose[0, :2] + [1.0, math.sqrt(exponent)]
+        singles.append(np.array([far]))
+        sums.append(np.array([far, pose[0, :2] + [2.0, 0.1], far]))
+    for lights in singles + sums:
+        expected = retina.sensation(pose, lights, receptors)
+        got = np.empty_like(expected)
+        got_pose = np.empty_like(pose)
+        if kernel == "numba":
+            got, got_pose = body_module.simulate(motor, lights, receptors, kernel="numba")
+        else:
+            body_module._simulate_rows(motor, lights, receptors, got, got_pose)
+        if kernel == "numba":
+            assert got.tobytes() == expected.tobytes(), (lights, got, expected)
+        else:           # Python's own math.hypot: last-bit differences (see above)
+            np.testing.assert_allclose(got, expected, rtol=4e-16, atol=0)
+            assert (got == 0.0).tolist() == (expected == 0.0).tolist()
+            assert not np.signbit(got).any()
+    zeros = [retina.sensation(pose, lights, receptors)[0, 0] for lights in singles]
+    assert zeros[0] > 0.0 and zeros[-1] == 0.0 and not np.signbit(zeros).any()
+
+
 @needs_numba
 def test_compiled_simulator_on_the_paper_world_and_an_empty_batch():
     from sensorispace_ros.core import exploration
