@@ -14,12 +14,12 @@ names) raises ``MessageError``; nodes log and drop such messages.
 The probe topics (/body/motor_command, /body/sensation, /body/sensor_pose,
 /body/joint_states) travel as serialized bytes both ways: ``CloudCdrPacker``
 writes a cloud's CDR bytes for ``Publisher.publish(bytes)`` and
-``cloud_from_cdr`` reads those of a ``raw=True`` subscription. rclpy's own conversion of a PointCloud2 costs ~14 us
-per publication and ~30 us per message taken (measured); a graph run sends
-~63,000 commands and as many answers. ``cloud_to_matrix`` / ``cloud_to_table``
-check a ``SerializedCloud`` exactly as a PointCloud2, and rclpy reads the
-bytes written as the messages ``matrix_to_cloud`` / ``motor_to_joint_state``
-build (tests/ros/test_messages.py checks both ways with
+``cloud_from_cdr`` reads those of a ``raw=True`` subscription. rclpy's own
+conversion of a PointCloud2 costs ~14 us per publication and ~30 us per
+message taken (measured); a graph run sends ~63,000 commands and as many
+answers. ``cloud_to_matrix`` / ``cloud_to_table`` check a ``SerializedCloud``
+exactly as a PointCloud2, and rclpy reads the bytes written as the messages
+``matrix_to_cloud`` / ``motor_to_joint_state`` build (tests/ros/test_messages.py checks both ways with
 ``rclpy.serialization``; padding bytes are zero here, unset in rclpy's).
 """
 from __future__ import annotations
@@ -201,6 +201,7 @@ _CDR_LE = b"\x00\x01"
 _ENCAPSULATION = b"\x00\x01\x00\x00"
 _UINT32 = struct.Struct("<I")
 _THREE_UINT32 = struct.Struct("<III")
+_STAMP = struct.Struct("<iI")                    # stamp.sec, stamp.nanosec
 _STAMP_AND_LENGTH = struct.Struct("<iII")       # stamp.sec, stamp.nanosec, len(frame_id) + 1
 _FIELD_TAIL = struct.Struct("<IB3xI")            # offset, datatype, (pad), count
 
@@ -222,12 +223,9 @@ def _cdr_header(frame_id: str, stamp_ns: int) -> bytes:
     """Encapsulation and ``std_msgs/Header`` (stamp, frame_id), padded so that
     what follows is 4-aligned: how both packers' messages begin."""
     stamp_ns = int(stamp_ns)
-    frame = frame_id.encode("utf-8") + b"\x00"
-    end = len(_ENCAPSULATION) + _STAMP_AND_LENGTH.size + len(frame)
-    return b"".join((_ENCAPSULATION,
-                     _STAMP_AND_LENGTH.pack(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000,
-                                            len(frame)),
-                     frame, b"\x00" * (_aligned(end) - end)))
+    stamp = _STAMP.pack(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
+    return b"".join((_ENCAPSULATION, stamp,
+                     _cdr_string(frame_id, len(_ENCAPSULATION) + len(stamp))))
 
 
 def _cdr_fields(fields: tuple) -> bytes:
