@@ -142,8 +142,11 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
                 break
             dead = {n: c for n, c in exited.items() if n != "representation" or c != 0}
             for name in [n for n, c in dead.items() if c == RESTART_EXIT_CODE]:
-                # as the launcher does: a node that asks for it is started again
+                # as the launcher does: a node that asks for it is started again,
+                # up to launcher.ASKED_RESTARTS times
                 asked = outcome.setdefault("asked_restarts", [])
+                if asked.count(name) >= launcher.ASKED_RESTARTS:
+                    continue
                 asked.append(name)
                 processes.start(name, command(name), env,
                                 log_name=f"{name}.restart-{len(asked)}")
