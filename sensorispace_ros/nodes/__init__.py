@@ -105,6 +105,7 @@ class GraphNode(Node):
             raise config.ConfigError(f"graph.executor: must be one of {', '.join(EXECUTORS)}, "
                                      f"got {self.graph['executor']!r}")
         self.dropped: dict[str, int] = {}
+        self._cloud_readers: dict[str, messages.CloudCdrReader] = {}
         # Set by whoever spins the node (run_node, tests): lets a node that
         # waits for an answer keep the executor turning (see nodes.agent).
         self.spin_once: Callable[[float], None] | None = None
@@ -150,6 +151,14 @@ class GraphNode(Node):
                                           f"retrying: {exc}", throttle_duration_sec=2.0)
                 time.sleep(PUBLISH_RETRY_PAUSE_S)
 
+    def now_ns(self) -> int:
+        """The node clock's time in ns (ROS time: the simulated time with
+        ``use_sim_time``), as ``get_clock().now().nanoseconds`` without building
+        an rclpy ``Time``: 3.3 -> 0.7 us in a hot loop, for every command.
+        rclpy's ``Clock.now`` also enters the handle's use guard; a clock's
+        handle is never destroyed while its node lives."""
+        return self.get_clock().handle.get_now().nanoseconds
+
     def step(self) -> None:
         """Work to do between callbacks (never inside one); called after every spin."""
 
@@ -160,9 +169,8 @@ class GraphNode(Node):
         data is a float matrix, or a structured copy with ``as_table``. ``msg``
         is a PointCloud2 or, from a ``raw=True`` subscription, what
         ``read_serialized`` made of its bytes."""
-        parsed = parse_frame(msg.header.frame_id)
-        if parsed is None or parsed[0] not in kinds:
-            self.drop(topic, f"frame id {msg.header.frame_id!r}")
+        parsed = self.frame_of(topic, msg.header.frame_id, kinds)
+        if parsed is None:
             return None
         columns = contracts.contract(topic).columns
         try:
@@ -172,6 +180,40 @@ class GraphNode(Node):
             self.drop(topic, str(exc))
             return None
         return parsed, data
+
+    def frame_of(self, topic: str, frame_id: str,
+                 kinds: tuple[str, ...]) -> tuple[str, int] | None:
+        """``(kind, number)`` of a frame id of one of ``kinds``, or None once the
+        message has been dropped."""
+        parsed = parse_frame(frame_id)
+        if parsed is None or parsed[0] not in kinds:
+            self.drop(topic, f"frame id {frame_id!r}")
+            return None
+        return parsed
+
+    def read_float_cloud(self, topic: str, msg, kinds: tuple[str, ...]
+                         ) -> tuple[tuple[str, int], messages.FloatCloud] | None:
+        """``(kind, number), cloud`` of a ``raw=True`` subscription's message on
+        ``topic`` (all-float64 columns) whose frame id is one of ``kinds``, or
+        None once it has been dropped: ``read_serialized`` then ``decode``, the
+        same checks and drop reasons, with ``messages.CloudCdrReader``'s fast
+        path for the bytes ``CloudCdrPacker`` writes (the probe topics: ~63,000
+        messages each way in a paper run)."""
+        reader = self._cloud_readers.get(topic)
+        if reader is None:
+            reader = self._cloud_readers[topic] = messages.CloudCdrReader(
+                contracts.contract(topic).columns)
+        cloud = reader.read_packed(msg)
+        if cloud is not None:
+            parsed = self.frame_of(topic, cloud.frame_id, kinds)
+            return None if parsed is None else (parsed, cloud)
+        msg = self.read_serialized(topic, msg)
+        decoded = None if msg is None else self.decode(topic, msg, kinds)
+        if decoded is None:
+            return None
+        parsed, matrix = decoded
+        return parsed, messages.FloatCloud(msg.header.frame_id, messages.stamp_ns(msg.header),
+                                           matrix)
 
     def read_serialized(self, topic: str, msg):
         """A ``raw=True`` subscription's bytes as a ``messages.SerializedCloud``

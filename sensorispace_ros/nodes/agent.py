@@ -6,7 +6,7 @@ through ``BodyOverTopics``, whose ``sense(batch)`` publishes one
 with that frame id arrives (the node's executor, ``nodes.make_executor``, in
 this thread; MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and
 answers travel as serialized bytes (``messages.CloudCdrPacker`` /
-``cloud_from_cdr``).
+``GraphNode.read_float_cloud``).
 
 Passive sensations (``change/<k>``) are queued by the subscription callback;
 ``step()``, called by the spinning loop between callbacks (never inside
@@ -194,8 +194,8 @@ class AgentNode(GraphNode):
             "/agent/compensation_records", "/agent/stage_counters")}
         self.command_pub = contracts.create_publisher(self, "/body/motor_command")
         # Commands go out and answers come in as serialized bytes (messages.CloudCdrPacker,
-        # cloud_from_cdr): rclpy's message conversions cost ~14 us a publication and
-        # ~30 us a message taken, ~63,000 times each way in a paper run.
+        # GraphNode.read_float_cloud): rclpy's message conversions cost ~14 us a
+        # publication and ~30 us a message taken, ~63,000 times each way in a paper run.
         self.command_packer = messages.CloudCdrPacker(self.columns["/body/motor_command"])
         self.pov_pub = contracts.create_publisher(self, "/agent/points_of_view")
         self.compensation_pub = contracts.create_publisher(self, "/agent/compensations")
@@ -353,15 +353,13 @@ class AgentNode(GraphNode):
         self.body.aborted = True
 
     def on_sensation(self, msg) -> None:
-        msg = self.read_serialized("/body/sensation", msg)
-        if msg is None:
+        read = self.read_float_cloud("/body/sensation", msg, kinds=("cmd", "change", "end"))
+        if read is None:
             return
-        decoded = self.decode("/body/sensation", msg, kinds=("cmd", "change", "end"))
-        if decoded is None:
-            return
-        (kind, number), sensations = decoded
+        (kind, number), cloud = read
+        sensations = cloud.matrix
         if kind == "cmd":
-            if self.body.deliver(msg.header.frame_id, sensations):
+            if self.body.deliver(cloud.frame_id, sensations):
                 return
             if number < self.body.requests or number <= self.predecessor_sent \
                     or (number == self.body.requests and self.body.pending_number is None):
@@ -369,7 +367,7 @@ class AgentNode(GraphNode):
                 # copy), or the answer to a command of the agent that died.
                 self.late_answers += 1
             else:
-                self.drop("/body/sensation", f"{msg.header.frame_id} answers no pending "
+                self.drop("/body/sensation", f"{cloud.frame_id} answers no pending "
                           f"command (or has {len(sensations)} rows)")
             return
         if len(sensations) != 1:
@@ -520,8 +518,7 @@ class AgentNode(GraphNode):
 
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
         self.await_peers()
-        self.command_pub.publish(self.command_packer.pack(
-            motor_states, frame_id, self.get_clock().now().nanoseconds))
+        self.command_pub.publish(self.command_packer.pack(motor_states, frame_id, self.now_ns()))
 
 
 def main(args=None) -> int:

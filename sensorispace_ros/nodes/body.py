@@ -6,23 +6,27 @@ one-row passive sensation of the resting arm (frame ``change/<k>`` or
 ``end/<k>``). Ground truth for the evaluator goes to ``/body/sensor_pose``
 and ``/body/joint_states``; the agent never subscribes to those.
 
-Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor
-state and the number of the last lights applied are written on every command
-and change into ``<dir>/body.state`` (a memory-mapped file: survives kill -9
-in the page cache, no fsync) and read back at start, so a restarted body
-computes passive sensations at the right pose. The lights come back by
-themselves (``/environment/lights`` keeps 100 changes for late joiners, oldest
-first; each re-delivered one is answered with a passive sensation, which the
-agent ignores when old); until the change applied before the kill is back,
-commands are dropped (the agent re-sends them), so none is answered in an old
-layout. Every well-formed command is answered, duplicates too (the answer
-depends only on the commanded rows and the lights); the third answer to one
-command ends the process with RESTART_EXIT_CODE, to be started again
-(``note_repeated_command``).
+Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor state
+and the number of the last lights applied are written on every command and
+change into ``<dir>/body.state`` (``RestingStateFile``: one ``os.pwrite``, in
+the page cache before the answer is published, survives kill -9, no fsync) and
+read back at start, so a restarted body computes passive sensations at the
+right pose. The lights come back by themselves (``/environment/lights`` keeps
+100 changes for late joiners, oldest first; each re-delivered one is answered
+with a passive sensation, which the agent ignores when old); until the change
+applied before the kill is back, commands are dropped (the agent re-sends
+them), so none is answered in an old layout. Every well-formed command is
+answered, duplicates too (the answer depends only on the commanded rows and
+the lights); the third answer to one command ends the process with
+RESTART_EXIT_CODE, to be started again (``note_repeated_command``).
 """
 from __future__ import annotations
 
+import os
+import struct
+import weakref
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -34,13 +38,17 @@ from . import RESTART_EXIT_CODE, GraphNode, build_world, run_node
 
 class RestingStateFile:
     """A short float vector (the body's: resting motor state, then the number of
-    the last lights applied) in a small memory-mapped file.
+    the last lights applied) in a small file of native float64s.
 
     Two slots written alternately, each ``[seq, values..., seq]``: a kill -9 in the
     middle of a write leaves the slot's two sequence numbers unequal, and
     ``load`` takes the newest slot whose numbers agree (seqlock). No fsync, no
     rename: the page cache keeps what a killed process wrote (a machine crash
-    is out of scope).
+    is out of scope). ``slots`` maps the file (what ``load`` reads); ``save``
+    writes a slot with one ``os.pwrite`` of its packed bytes, in the page cache
+    when it returns as the mapping's stores were: writing through the memmap
+    (np.append, a memmap slot view, three assignments) cost 27 us a command in
+    the graph, 7 us in a hot loop.
     """
 
     def __init__(self, path: Path, size: int):
@@ -50,6 +58,10 @@ class RestingStateFile:
         fresh = not self.path.is_file() or self.path.stat().st_size != 8 * shape[0] * shape[1]
         self.slots = np.memmap(self.path, dtype=np.float64, mode="w+" if fresh else "r+",
                                shape=shape)
+        self.size = size
+        self._slot = struct.Struct(f"={shape[1]}d")      # one row of ``slots``, same bytes
+        self._fd = os.open(self.path, os.O_RDWR)
+        weakref.finalize(self, os.close, self._fd)
         self.seq = int(max((row[0] for row in self._valid_slots()), default=0))
 
     def _valid_slots(self) -> list[np.ndarray]:
@@ -62,12 +74,16 @@ class RestingStateFile:
             return None
         return np.array(max(valid, key=lambda row: row[0])[1:-1])
 
-    def save(self, values: np.ndarray) -> None:
-        self.seq += 1
-        slot = self.slots[self.seq % 2]
-        slot[0] = self.seq
-        slot[1:-1] = values
-        slot[-1] = self.seq
+    def save(self, values: Sequence[float]) -> None:
+        """Write ``values`` (``size`` numbers) over the older slot."""
+        seq = self.seq + 1
+        try:
+            data = self._slot.pack(seq, *values, seq)
+        except struct.error as exc:
+            raise ValueError(f"values: {self.size} numbers expected ({exc})") from None
+        if os.pwrite(self._fd, data, (seq % 2) * self._slot.size) != len(data):
+            raise OSError(f"{self.path}: short write")
+        self.seq = seq
 
 
 class BodyNode(GraphNode):
@@ -99,9 +115,9 @@ class BodyNode(GraphNode):
         self.columns = {topic: contracts.contract(topic).columns for topic in (
             "/environment/lights", "/body/motor_command", "/body/sensation", "/body/sensor_pose")}
         # Replies go out, and commands come in, as serialized bytes (messages.
-        # CloudCdrPacker, cloud_from_cdr): rclpy's message conversions cost ~14 us a
-        # publication and ~30 us a message taken; the body answers ~63,000 commands
-        # in a paper run, with three publications each.
+        # CloudCdrPacker, GraphNode.read_float_cloud): rclpy's message conversions
+        # cost ~14 us a publication and ~30 us a message taken; the body answers
+        # ~63,000 commands in a paper run, with three publications each.
         self.sensation_packer = messages.CloudCdrPacker(self.columns["/body/sensation"])
         self.pose_packer = messages.CloudCdrPacker(self.columns["/body/sensor_pose"])
         self.joint_packer = messages.JointStateCdrPacker()
@@ -128,10 +144,10 @@ class BodyNode(GraphNode):
         if self.lights_before_kill is not None and number >= self.lights_before_kill:
             self.lights_before_kill = None
         if self.resting_file is not None and self.lights_before_kill is None:
-            self.resting_file.save(np.append(self.body.motor_state, number))
-        self.publish_passive(msg.header)
+            self.resting_file.save((*self.body.motor_state.tolist(), number))
+        self.publish_passive(msg.header.frame_id, messages.stamp_ns(msg.header))
 
-    def publish_passive(self, header) -> None:
+    def publish_passive(self, frame_id: str, stamp_ns: int) -> None:
         """What the resting eye sees after a change. Not a query of the agent's: computed
         for the single resting pose exactly as the offline driver does
         (core.naive_evaluation._passive_sensation), so both runs see the same bits."""
@@ -139,24 +155,21 @@ class BodyNode(GraphNode):
         pose = arm.forward(rest)
         sensation = retina.sensation(pose, self.body.lights_world, self.body.receptor_positions)
         self.publish_answer(np.reshape(sensation, (1, -1)), np.reshape(pose, (1, 3)), rest,
-                            header)
+                            frame_id, stamp_ns)
 
     def on_command(self, msg) -> None:
-        msg = self.read_serialized("/body/motor_command", msg)
-        if msg is None:
+        read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd",))
+        if read is None:
             return
-        decoded = self.decode("/body/motor_command", msg, kinds=("cmd",))
-        if decoded is None:
-            return
-        _, motor = decoded
+        _, command = read
         if self.body.lights_world is None or self.lights_before_kill is not None:
             self.drop("/body/motor_command", "no current lights yet (the agent re-sends it)")
             return
-        if len(motor) == 0:
+        if len(command.matrix) == 0:
             self.drop("/body/motor_command", "empty batch")
             return
-        self.note_repeated_command(msg.header.frame_id)
-        self.answer(motor, msg.header)
+        self.note_repeated_command(command.frame_id)
+        self.answer(command.matrix, command.frame_id, command.stamp_ns)
 
     def note_repeated_command(self, frame_id: str) -> None:
         """When a command is to be answered a third time (the agent asked again
@@ -182,23 +195,22 @@ class BodyNode(GraphNode):
             self.exit_code = RESTART_EXIT_CODE
             self.finished = True
 
-    def answer(self, motor: np.ndarray, header) -> None:
+    def answer(self, motor: np.ndarray, frame_id: str, stamp_ns: int) -> None:
         # One forward model per row for both replies (it was run twice: sense + sensor_pose);
         # the sensation goes first so the waiting agent proceeds while the ground truth is sent.
         sensations, poses = self.body.sense_with_poses(motor)
         if self.resting_file is not None:
             # before the answer: once the agent has it, a restart rests where it did
-            self.resting_file.save(np.append(self.body.motor_state, self.lights_number))
-        self.publish_answer(sensations, poses, self.body.motor_state, header)
+            self.resting_file.save((*self.body.motor_state.tolist(), self.lights_number))
+        self.publish_answer(sensations, poses, self.body.motor_state, frame_id, stamp_ns)
 
     def publish_answer(self, sensations: np.ndarray, poses: np.ndarray, rest: np.ndarray,
-                       header) -> None:
-        """The sensation first (the agent waits for it), then the ground truth;
-        ``header`` (the command's or the change's) is copied into all three."""
-        frame_id, stamp = header.frame_id, messages.stamp_ns(header)
-        self.sensation_pub.publish(self.sensation_packer.pack(sensations, frame_id, stamp))
-        self.pose_pub.publish(self.pose_packer.pack(poses, frame_id, stamp))
-        self.joint_pub.publish(self.joint_packer.pack(rest, frame_id, stamp))
+                       frame_id: str, stamp_ns: int) -> None:
+        """The sensation first (the agent waits for it), then the ground truth; the
+        header (frame id and stamp of the command or the change) of all three."""
+        self.sensation_pub.publish(self.sensation_packer.pack(sensations, frame_id, stamp_ns))
+        self.pose_pub.publish(self.pose_packer.pack(poses, frame_id, stamp_ns))
+        self.joint_pub.publish(self.joint_packer.pack(rest, frame_id, stamp_ns))
 
 
 def main(args=None) -> int:

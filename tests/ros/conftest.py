@@ -1,4 +1,5 @@
-"""Every graph a test starts discovers on localhost only, in its own domain."""
+"""Every graph a test starts discovers on localhost only, in its own domain;
+``context`` is a private rclpy Context there, for in-process nodes."""
 import os
 from pathlib import Path
 
@@ -20,3 +21,14 @@ def domain_id():
 def node_env(domain_id):
     from sensorispace_ros.launcher import graph_environment
     return graph_environment(domain_id)
+
+
+@pytest.fixture
+def context(domain_id):
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+    yield ctx
+    ctx.try_shutdown()

@@ -12,9 +12,6 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, launcher, messages
@@ -88,14 +85,6 @@ class RecordingPublisher:
 
     def publish(self, msg):
         self.sent.append(msg)
-
-
-@pytest.fixture
-def context(domain_id):
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    yield ctx
-    ctx.try_shutdown()
 
 
 def _passive(kind, number, value=0.5):

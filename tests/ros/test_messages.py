@@ -1,5 +1,6 @@
 """messages.py: numpy <-> ROS message round trips and strict rejections (no graph, fast)."""
 import array
+import struct
 
 import numpy as np
 import pytest
@@ -246,3 +247,184 @@ def test_cloud_from_cdr_rejects_malformed_bytes_with_message_error_only():
         except MessageError:
             pass
     assert decoded > 0          # flips in the data or the padding still decode
+
+
+# ------------------------------------------------ CloudCdrReader (fast path + general path)
+
+MOTOR_FIELDS = tuple((name, 8 * j, 8, 1) for j, name in enumerate(MOTOR))   # FLOAT64 = 8
+MOTOR_ROWS = np.arange(12.0).reshape(3, 4) - 5.5
+
+
+def _packer_layout(frame_id=b"cmd/1", stamp=(0, 5), height=1, width=3, fields=MOTOR_FIELDS,
+                   is_bigendian=0, point_step=32, row_step=96, data=MOTOR_ROWS.tobytes(),
+                   n_data=None, is_dense=1, frame_padding=b"\x00", patch=(b"", b""),
+                   cut=0):
+    """Bytes laid out as CloudCdrPacker writes them, any member set to anything
+    (frame_id as raw bytes; the packer's own bytes with the defaults); then the
+    first ``patch[0]`` replaced with ``patch[1]``, and ``cut`` bytes cut off the end."""
+    frame = struct.pack("<iII", *stamp, len(frame_id) + 1) + frame_id + b"\x00"
+    frame += frame_padding * (-len(frame) % 4)
+    return b"".join((b"\x00\x01\x00\x00", frame, struct.pack("<II", height, width),
+                     messages._cdr_fields(fields), bytes([is_bigendian, 0, 0, 0]),
+                     struct.pack("<III", point_step, row_step,
+                                 len(data) if n_data is None else n_data),
+                     data, bytes([is_dense]))).replace(*patch, 1)[:-cut or None]
+
+
+def _general(raw, columns=MOTOR):
+    """What the general path makes of ``raw``: (frame_id, stamp_ns, matrix bytes) or
+    the MessageError's text."""
+    try:
+        cloud = messages.cloud_from_cdr(raw)
+        matrix = messages.cloud_to_matrix(cloud, columns)
+    except MessageError as exc:
+        return str(exc)
+    return cloud.header.frame_id, messages.stamp_ns(cloud.header), matrix.tobytes()
+
+
+def _read(reader, raw):
+    try:
+        cloud = reader.read(raw)
+    except MessageError as exc:
+        return str(exc)
+    assert cloud.matrix.dtype == np.float64 and cloud.matrix.flags.writeable
+    assert cloud.matrix.flags.c_contiguous and cloud.matrix.base is None    # the caller's
+    return cloud.frame_id, cloud.stamp_ns, cloud.matrix.tobytes()
+
+
+def _with_value(row, column, value):
+    rows = MOTOR_ROWS.copy()
+    rows[row, column] = value
+    return rows.tobytes()
+
+
+def _fields_with(index, **member):
+    fields = [dict(zip(("name", "offset", "datatype", "count"), f)) for f in MOTOR_FIELDS]
+    fields[index].update(member)
+    return tuple(tuple(f.values()) for f in fields)
+
+
+# Each breaks one thing the fast path checks (the rest as the packer writes it);
+# the general path rejects every one of them.
+PACKED_BAD = {
+    "field_name": dict(fields=_fields_with(2, name="x")),
+    "field_name_utf8": dict(patch=(b"m2\x00", b"\xff2\x00")),
+    "field_type": dict(fields=_fields_with(0, datatype=7)),
+    "field_offset": dict(fields=_fields_with(3, offset=25)),
+    "field_count": dict(fields=_fields_with(1, count=2)),
+    "field_missing": dict(fields=MOTOR_FIELDS[:-1]),
+    "point_step": dict(point_step=48),
+    "row_step": dict(row_step=7),
+    "width": dict(width=7),
+    "height": dict(height=2),
+    "height_0": dict(height=0),
+    "bigendian": dict(is_bigendian=1),
+    "bigendian_bool": dict(is_bigendian=2),
+    "dense_bool": dict(is_dense=2),
+    "short_data": dict(data=MOTOR_ROWS.tobytes()[:-1]),
+    "long_data": dict(data=MOTOR_ROWS.tobytes() + b"\x00"),
+    "data_overrun": dict(n_data=97),
+    # is_dense cut off, the data's last byte (a float's top byte) 0x01 as it would be
+    "no_dense_last_data_byte_1": dict(data=MOTOR_ROWS.tobytes()[:-1] + b"\x01", cut=1),
+    "frame_not_utf8": dict(frame_id=b"cmd/\xff"),
+    **{f"{name}_{column}": dict(data=_with_value(1, j, value))
+       for j, column in enumerate(MOTOR) for name, value in
+       (("nan", np.nan), ("inf", np.inf), ("minus_inf", -np.inf))},
+}
+# Not as the packer writes them, yet within the contract: the general path's result.
+PACKED_ACCEPTED = {
+    "as_packed": {},
+    "padding_after_frame_id": dict(frame_padding=b"\xab"),
+    "not_dense": dict(is_dense=0),
+    "empty_height_0": dict(height=0, width=0, row_step=0, data=b""),
+    "empty": dict(width=0, row_step=0, data=b""),
+    "negative_stamp": dict(stamp=(-3, 999_999_999)),
+    "largest_floats": dict(data=np.full((3, 4), np.finfo(float).max).tobytes()),
+}
+
+
+def test_packer_layout_helper_writes_the_packers_bytes():
+    # The variants below differ from the packer's output only where they say.
+    assert _packer_layout() == messages.CloudCdrPacker(MOTOR).pack(MOTOR_ROWS, "cmd/1", 5)
+
+
+@pytest.mark.parametrize("columns", [MOTOR, SENSATION, POSE], ids=["motor", "sensation", "pose"])
+def test_cloud_reader_reads_what_the_general_path_reads_bit_for_bit(columns):
+    rng = np.random.default_rng(7)
+    reader, packer = messages.CloudCdrReader(columns), messages.CloudCdrPacker(columns)
+    for rows in (0, 1, 5, 600):
+        matrix = rng.normal(size=(rows, len(columns))) * 1e3
+        matrix[0:1, 0] = -0.0                                    # sign of zero kept
+        for frame_id in FRAME_IDS:
+            for stamp in (0, 123_456_789_012, 2**31 * 1_000_000_000 - 1):
+                ours = packer.pack(matrix, frame_id, stamp)
+                theirs = serialize_message(messages.matrix_to_cloud(
+                    matrix, columns, messages.make_header(frame_id, stamp)))
+                # The packer's bytes take the fast path (else it is silently gone).
+                assert reader.read_packed(ours) is not None
+                for raw in (ours, theirs, bytearray(ours)):
+                    expected = (frame_id, stamp, matrix.tobytes())
+                    assert _general(raw, columns) == expected
+                    assert _read(reader, raw) == expected
+    with pytest.raises(ValueError, match="float64"):
+        messages.CloudCdrReader(EVENT)
+
+
+def test_cloud_reader_result_is_a_copy():
+    raw = messages.CloudCdrPacker(MOTOR).pack(MOTOR_ROWS, "cmd/1")
+    reader = messages.CloudCdrReader(MOTOR)
+    reader.read(raw).matrix[:] = 0.0
+    assert np.array_equal(reader.read(raw).matrix, MOTOR_ROWS)
+
+
+@pytest.mark.parametrize("changes", PACKED_BAD.values(), ids=PACKED_BAD.keys())
+def test_cloud_reader_rejects_what_the_general_path_rejects_with_its_message(changes):
+    raw = _packer_layout(**changes)
+    expected = _general(raw)
+    assert isinstance(expected, str), f"the general path accepts {changes}"
+    assert messages.CloudCdrReader(MOTOR).read_packed(raw) is None
+    assert _read(messages.CloudCdrReader(MOTOR), raw) == expected
+
+
+@pytest.mark.parametrize("changes", PACKED_ACCEPTED.values(), ids=PACKED_ACCEPTED.keys())
+def test_cloud_reader_accepts_what_the_general_path_accepts(changes):
+    raw = _packer_layout(**changes)
+    expected = _general(raw)
+    assert not isinstance(expected, str), expected
+    assert _read(messages.CloudCdrReader(MOTOR), raw) == expected
+
+
+@pytest.mark.parametrize("bad", BAD_LAYOUTS.values(), ids=BAD_LAYOUTS.keys())
+def test_cloud_reader_rejects_the_bad_layouts_as_the_general_path(bad):
+    # BAD_LAYOUTS's tampering, on a cloud of float64 columns (the reader's kind).
+    float_cloud = messages.matrix_to_cloud(np.ones((6, 6)), SENSATION,
+                                           messages.make_header("cmd/3"))
+    for key in ("point_step", "row_step", "width", "height", "is_bigendian", "data"):
+        setattr(float_cloud, key, getattr(bad, key))
+    float_cloud.fields = [f for f in bad.fields]
+    raw = serialize_message(float_cloud)
+    expected = _general(raw, SENSATION)
+    assert isinstance(expected, str)
+    assert _read(messages.CloudCdrReader(SENSATION), raw) == expected
+
+
+def test_cloud_reader_on_malformed_bytes_says_what_the_general_path_says():
+    raw = messages.CloudCdrPacker(MOTOR).pack(np.ones((3, 4)), "cmd/12", 5)
+    reader = messages.CloudCdrReader(MOTOR)
+    variants = [raw[:length] for length in range(len(raw))]            # every truncation
+    variants += [b"\x00\x00\x00\x00" + raw[4:], raw + b"\x00", np.frombuffer(raw, np.uint8)]
+    no_nul = bytearray(raw)
+    no_nul[4 + 12 + 6] = ord("x")                                      # frame_id's NUL
+    variants.append(bytes(no_nul))
+    rng = np.random.default_rng(11)
+    for _ in range(3000):                                              # random corruption
+        mutated = bytearray(raw)
+        for where in rng.integers(0, len(raw), rng.integers(1, 4)):
+            mutated[where] = rng.integers(0, 256)
+        variants.append(bytes(mutated))
+    accepted = 0
+    for variant in variants:
+        expected = _general(variant)
+        assert _read(reader, variant) == expected
+        accepted += not isinstance(expected, str)
+    assert 0 < accepted < len(variants)
