@@ -31,8 +31,7 @@ from typing import Sequence
 import numpy as np
 
 from .. import contracts, messages
-from ..core import arm, retina
-from ..core.body import SimulatedBody
+from ..core.body import SimulatedBody, simulate
 from . import RESTART_EXIT_CODE, GraphNode, build_world, run_node
 
 
@@ -150,12 +149,13 @@ class BodyNode(GraphNode):
     def publish_passive(self, frame_id: str, stamp_ns: int) -> None:
         """What the resting eye sees after a change. Not a query of the agent's: computed
         for the single resting pose exactly as the offline driver does
-        (core.naive_evaluation._passive_sensation), so both runs see the same bits."""
+        (core.naive_evaluation._passive_sensation), so both runs see the same bits;
+        by ``core.body.simulate`` (those bits, 2 instead of 54 us: the agent waits
+        for this on every change)."""
         rest = self.body.motor_state
-        pose = arm.forward(rest)
-        sensation = retina.sensation(pose, self.body.lights_world, self.body.receptor_positions)
-        self.publish_answer(np.reshape(sensation, (1, -1)), np.reshape(pose, (1, 3)), rest,
-                            frame_id, stamp_ns)
+        sensation, pose = simulate(rest[None], self.body.lights_world,
+                                   self.body.receptor_positions, self.body.kernel)
+        self.publish_answer(sensation, pose, rest, frame_id, stamp_ns)
 
     def on_command(self, msg) -> None:
         read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd",))

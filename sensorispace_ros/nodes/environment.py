@@ -199,15 +199,18 @@ class EnvironmentNode(GraphNode):
         self.current = k
         self._save_progress()
         header = messages.make_header(frame("change", k), self.get_clock().now().nanoseconds)
-        if k > 0:
-            event = self.world.events[k - 1]
+        event = self.world.events[k - 1] if k > 0 else None
+        if event is not None:
             self.lights = event.lights
+        # The lights first: the body (then the agent) waits for them, the
+        # ground truth only goes to the recorder (a hand-over per change).
+        self.publish_lights(header.frame_id, header)
+        if event is not None:
             self.event_pub.publish(messages.table_to_cloud(
                 {"index": event.index, "kind": KIND_CODES[event.kind],
                  "center_x": event.center[0], "center_y": event.center[1],
                  "grid_index": event.grid_index},
                 contracts.contract("/environment/event").columns, header))
-        self.publish_lights(header.frame_id, header)
 
     def publish_current_lights(self) -> None:
         self.publish_lights(frame("end" if self.current > self.n_changes else "change",
