@@ -16,7 +16,7 @@ Four server processes in one private domain (localhost discovery):
 The client (this process, one node) probes the body exactly as the agent
 node does - ``nodes.agent.BodyOverTopics`` with the contract's publisher,
 commands and answers as serialized bytes (``messages.CloudCdrPacker``,
-``cloud_from_cdr``), waiting in the graph's executor - and pings
+``CloudCdrReader``), waiting in the graph's executor - and pings
 the echoes with prebuilt messages, waiting the same way: the client's side is
 the same for every kind. All are measured in the same run, interleaved in
 rounds so load changes hit them alike. Servers are stopped by PID.
@@ -122,19 +122,20 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
 
         def publish_command(motor_states, frame_id):     # as AgentNode.publish_command
             command_pub.publish(command_packer.pack(
-                motor_states, frame_id, node.get_clock().now().nanoseconds))
+                motor_states, frame_id, node.get_clock().handle.get_now().nanoseconds))
 
         body = BodyOverTopics(publish_command, spin, n_motors=len(command_columns),
                               n_sensors=len(sensation_columns))
         passive = []
 
+        sensation_reader = messages.CloudCdrReader(sensation_columns)
+
         def on_sensation(raw):                            # as AgentNode.on_sensation
-            msg = messages.cloud_from_cdr(raw)
-            sensations = messages.cloud_to_matrix(msg, sensation_columns)
-            if msg.header.frame_id.startswith("cmd/"):
-                body.deliver(msg.header.frame_id, sensations)
+            cloud = sensation_reader.read(raw)
+            if cloud.frame_id.startswith("cmd/"):
+                body.deliver(cloud.frame_id, cloud.matrix)
             else:
-                passive.append(msg.header.frame_id)
+                passive.append(cloud.frame_id)
 
         contracts.create_subscription(node, "/body/sensation", on_sensation, raw=True)
         ping_pub = node.create_publisher(PointCloud2, rclpy_echo.PING, rclpy_echo.QOS)

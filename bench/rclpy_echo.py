@@ -86,18 +86,19 @@ def main(argv=None) -> int:
         sensation = contracts.contract("/body/sensation").columns
         pub = node.create_publisher(PointCloud2, SIM_PONG, QOS)
         packer = messages.CloudCdrPacker(sensation)       # as the body node
+        reader = messages.CloudCdrReader(command)
 
         def on_ping(raw: bytes) -> None:                   # serialized, as the body node
             started = time.perf_counter_ns()
-            msg = messages.cloud_from_cdr(raw)
-            motor = messages.cloud_to_matrix(msg, command)
+            cloud = reader.read(raw)
+            motor = cloud.matrix
             simulated = time.perf_counter_ns()
             sensations = body.sense_with_poses(motor)[0]
             # The reply's stamp carries this node's own work (ns): decoding in
             # ``sec``, simulation in ``nanosec`` (< 1 s), for the bench to report.
             simulate_ns = time.perf_counter_ns() - simulated
             decode_ns = simulated - started
-            pub.publish(packer.pack(sensations, msg.header.frame_id,
+            pub.publish(packer.pack(sensations, cloud.frame_id,
                                     decode_ns * 1_000_000_000 + simulate_ns))
 
         node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS, raw=True)
