@@ -48,6 +48,9 @@ class SensingBody(Protocol):
         probed one after the other in a static environment; the arm rests at
         the last row afterwards."""
 
+    # Optional: ``move(motor_states)``, the same command when the caller
+    # already has its sensations (``SensingOnly`` falls back to ``sense``).
+
 
 # exp(-x) rounds to +0.0 from x = 745.1332... on (below half the smallest subnormal,
 # 2**-1075); checked against the C library in tests/core/test_body_simulation.py.
@@ -180,6 +183,19 @@ class SimulatedBody:
             self.motor_state = motor_states[-1].copy()
         return simulate(motor_states, self.lights_world, self.receptor_positions, self.kernel)
 
+    def move(self, motor_states: np.ndarray) -> None:
+        """The command ``sense`` answers, for a caller that already has the
+        sensations (the naive agent resting at a state it sensed since the
+        last change): the arm ends at the last row; counted as a call."""
+        motor_states = np.asarray(motor_states, dtype=float)
+        if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
+            raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
+                             f"got {motor_states.shape}")
+        self.queries += len(motor_states)
+        self.calls += 1
+        if len(motor_states):
+            self.motor_state = motor_states[-1].copy()
+
     def sensor_pose(self, motor_states: np.ndarray) -> np.ndarray:
         """Ground truth pose of the eye (evaluation only)."""
         return arm.forward(np.asarray(motor_states, dtype=float))
@@ -188,12 +204,20 @@ class SimulatedBody:
 class SensingOnly:
     """Expose only ``sense`` and the vector sizes of a body: what a naive agent may touch."""
 
-    __slots__ = ("_sense", "n_motors", "n_sensors")
+    __slots__ = ("_sense", "_move", "n_motors", "n_sensors")
 
     def __init__(self, body: SensingBody):
         self._sense = body.sense
+        self._move = getattr(body, "move", None)
         self.n_motors = int(body.n_motors)
         self.n_sensors = int(body.n_sensors)
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         return self._sense(motor_states)
+
+    def move(self, motor_states: np.ndarray) -> None:
+        """The body's ``move``; a body without one senses and the answer is dropped."""
+        if self._move is None:
+            self._sense(motor_states)
+        else:
+            self._move(motor_states)

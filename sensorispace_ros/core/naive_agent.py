@@ -88,6 +88,9 @@ class NaiveParams:
     ``_frontier_requests``). Matches of the ``equality_snapshots`` most
     recent snapshots are all rank-tested and become equality sets; older
     snapshots are confirmed with at most ``confirm_checks`` rank tests.
+    ``remember_sensations``: a call asking only for motor states already
+    sensed since the last change is answered from memory (the same bits; see
+    ``_SensedSinceChange``); false sends every call, as before.
     """
 
     n_samples: int = 100
@@ -115,6 +118,7 @@ class NaiveParams:
     frontier_attempts: int = 8
     equality_snapshots: int = 2
     confirm_checks: int = 3
+    remember_sensations: bool = True
 
     def __post_init__(self):
         positive_reals = ("fd_step", "pov_initial_step", "pov_min_step", "pov_max_step",
@@ -139,6 +143,9 @@ class NaiveParams:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
                     or value < minimum:
                 raise ValueError(f"naive.{name}: must be an integer >= {minimum}, got {value!r}")
+        if not isinstance(self.remember_sensations, (bool, np.bool_)):
+            raise ValueError(f"naive.remember_sensations: must be true or false, got "
+                             f"{self.remember_sensations!r}")
         if not self.pov_min_step <= self.pov_initial_step <= self.pov_max_step:
             raise ValueError("naive.pov_initial_step: must lie in [pov_min_step, pov_max_step], "
                              f"got {self.pov_initial_step!r}")
@@ -221,20 +228,84 @@ class _Snapshot:
     fails: int = 0
 
 
+class _SensedSinceChange:
+    """The motor states sensed since the environment last changed, with their
+    sensations. The environment is static between two changes and the body
+    answers each row on its own, so a state sensed again would sense the same
+    bits: ``recall`` gives them without a ``sense`` call. Measured on the
+    paper config: 6,257 of 63,124 calls (the resting state after every
+    change, rank tests and walk starts at states the search just probed)
+    asked only for states already sensed. Rows are matched bit for bit: a
+    key mixes a row's uint64 views (integer arithmetic, so a row has the same
+    key in any batch; a float dot product does not), candidates must then
+    have the same bits (-0.0 is not 0.0 here)."""
+
+    # Odd 64-bit constants (splitmix64's); rows whose keys collide are caught
+    # by the bitwise check.
+    _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
+                     0xD6E8FEB86659FD93], dtype=np.uint64)
+
+    def __init__(self, n_motors: int, n_sensors: int):
+        self._mix = np.resize(self._MIX, n_motors)
+        self._keys = np.empty(1024, dtype=np.uint64)
+        self._motor_states = np.empty((1024, n_motors))
+        self._sensations = np.empty((1024, n_sensors))
+        self.count = 0
+
+    def clear(self) -> None:
+        self.count = 0
+
+    def recall(self, motor_states: np.ndarray) -> np.ndarray | None:
+        """Sensations of ``motor_states`` if every row was sensed, else None."""
+        if self.count == 0 or len(motor_states) == 0:
+            return None
+        keys = self._keys[:self.count]
+        wanted = motor_states.view(np.uint64) @ self._mix
+        if not (keys == wanted[0]).any():
+            return None                          # the usual case: a new state
+        equal = keys[None, :] == wanted[:, None]
+        if not equal.any(axis=1).all():
+            return None
+        where = equal.argmax(axis=1)
+        if not np.array_equal(self._motor_states[where].view(np.uint64),
+                              motor_states.view(np.uint64)):
+            return None
+        return self._sensations[where]
+
+    def store(self, motor_states: np.ndarray, sensations: np.ndarray) -> None:
+        end = self.count + len(motor_states)
+        if end > len(self._keys):
+            size = max(2 * len(self._keys), end)
+            for name in ("_keys", "_motor_states", "_sensations"):
+                old = getattr(self, name)
+                grown = np.empty((size,) + old.shape[1:], dtype=old.dtype)
+                grown[:self.count] = old[:self.count]
+                setattr(self, name, grown)
+        self._keys[self.count:end] = motor_states.view(np.uint64) @ self._mix
+        self._motor_states[self.count:end] = motor_states
+        self._sensations[self.count:end] = sensations
+        self.count = end
+
+
 class _CountingBody:
     """Counts rows, calls and wall time per stage of the agent; exposes only
     what the body exposes. A stage lasts from its ``stage = name`` to the
-    next one (or to ``pause()``)."""
+    next one (or to ``pause()``). With ``remember``, a call whose motor
+    states were all sensed since the last ``forget()`` is answered from
+    ``_SensedSinceChange`` (counted in ``remembered``, not in ``calls``)."""
 
-    def __init__(self, body):
+    def __init__(self, body, remember: bool = True):
         self._body = body
         self.n_motors = int(body.n_motors)
         self.n_sensors = int(body.n_sensors)
+        self._move = getattr(body, "move", None)
         self._stage = None
         self._since = 0.0
         self.rows: dict[str, int] = {}
         self.calls: dict[str, int] = {}
         self.seconds: dict[str, float] = {}
+        self.remembered: dict[str, int] = {}
+        self._sensed = _SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
 
     @property
     def stage(self) -> str | None:
@@ -250,14 +321,47 @@ class _CountingBody:
     def pause(self) -> None:
         self.stage = None
 
-    def sense(self, motor_states):
-        motor_states = np.asarray(motor_states, dtype=float)
-        self.rows[self.stage] = self.rows.get(self.stage, 0) + len(motor_states)
+    def forget(self) -> None:
+        """The environment changed: what was sensed before says nothing now."""
+        if self._sensed is not None:
+            self._sensed.clear()
+
+    def _recall(self, motor_states: np.ndarray) -> np.ndarray | None:
+        return None if self._sensed is None else self._sensed.recall(motor_states)
+
+    def _count(self, n_rows: int) -> None:
+        self.rows[self.stage] = self.rows.get(self.stage, 0) + n_rows
         self.calls[self.stage] = self.calls.get(self.stage, 0) + 1
+
+    def sense(self, motor_states):
+        motor_states = np.ascontiguousarray(motor_states, dtype=float)
+        known = self._recall(motor_states)
+        if known is not None:
+            self.remembered[self.stage] = self.remembered.get(self.stage, 0) + 1
+            return known
+        return self._command(motor_states)
+
+    def rest(self, motor_state: np.ndarray) -> np.ndarray:
+        """Move the arm to ``motor_state`` and return its sensation: always a
+        command (the arm must end there). When the state was sensed since the
+        last change and the body can ``move`` (the ROS agent collects that
+        answer before it settles), the agent goes on without waiting."""
+        row = np.ascontiguousarray(motor_state, dtype=float).reshape(1, -1)
+        known = self._recall(row) if self._move is not None else None
+        if known is None:
+            return self._command(row)[0]
+        self._count(1)
+        self._move(row)
+        return known[0].copy()
+
+    def _command(self, motor_states: np.ndarray) -> np.ndarray:
+        self._count(len(motor_states))
         answer = np.asarray(self._body.sense(motor_states), dtype=float)
         if answer.shape != (len(motor_states), self.n_sensors):
             raise ValueError(f"body.sense returned shape {answer.shape}, expected "
                              f"({len(motor_states)}, {self.n_sensors})")
+        if self._sensed is not None:
+            self._sensed.store(motor_states, answer)
         return answer
 
     @property
@@ -314,7 +418,7 @@ class NaiveAgent:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
         self.seed = int(seed)
-        self._body = _CountingBody(body)
+        self._body = _CountingBody(body, bool(self.params.remember_sensations))
         self.n_motors = self._body.n_motors
         self._store = _PovStore(self.params.n_samples, self.n_motors)
         self.pov_queries: list[int] = []           # walk queries of each POV
@@ -364,6 +468,12 @@ class NaiveAgent:
         return dict(self._body.calls)
 
     @property
+    def remembered_by_stage(self) -> dict:
+        """Calls answered from what was sensed since the last change
+        (``remember_sensations``), per stage: not sent, not in ``calls_by_stage``."""
+        return dict(self._body.remembered)
+
+    @property
     def seconds_by_stage(self) -> dict:
         """Wall time spent in each stage (sense calls and the agent's own
         computation between them)."""
@@ -388,7 +498,8 @@ class NaiveAgent:
             attributes["_sweep"] = {name: value for name, value in vars(sweep).items()
                                     if name != "body"}
         counters = {"rows": dict(self._body.rows), "calls": dict(self._body.calls),
-                    "seconds": dict(self._body.seconds)}
+                    "seconds": dict(self._body.seconds),
+                    "remembered": dict(self._body.remembered)}
         return {"attributes": attributes, "counters": counters}
 
     @classmethod
@@ -416,12 +527,13 @@ class NaiveAgent:
             raise ValueError(f"initial_motor_state: must be {self.n_motors} finite numbers, "
                              f"got {initial_motor_state!r}")
         self._event = 0
+        self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
         new, sensations = self._sample_povs(m0[None])
         self._rest = m0.copy()
         self._rest_pov = new[0] if new else -1
         self._body.stage = "rest"
-        rest_sensation = self._body.sense(m0[None])[0]
+        rest_sensation = self._body.rest(m0)
         current = np.asarray(sensations).reshape(-1, self._body.n_sensors)
         self._pool = [_Snapshot(0, current, np.full(len(current), RANK_FULL), rest_sensation,
                                 m0.copy(), self._rest_pov,
@@ -442,6 +554,7 @@ class NaiveAgent:
         if passive.shape != (self._body.n_sensors,) or not np.all(np.isfinite(passive)):
             raise ValueError(f"passive_sensation: must be {self._body.n_sensors} finite numbers")
         self._event += 1
+        self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
         if self.phase == EQUALITY_PASS:
             reaction = self._react_equality_pass()
@@ -460,6 +573,7 @@ class NaiveAgent:
         if self._event < 0:
             raise RuntimeError("begin_equality_pass() before start()")
         self.phase = EQUALITY_PASS
+        self._body.forget()
         self._body.stage = "equality_pass"
         self._sweep = EqualitySetSweep(
             self._body, self._store.samples, fd_step=self.params.fd_step,
@@ -468,7 +582,7 @@ class NaiveAgent:
         self._sweep.sets = self._sets
         self._sweep.observe()       # the sweep "before" the first change
         self._body.stage = "rest"
-        self._body.sense(self._rest[None])
+        self._body.rest(self._rest)
         self._body.pause()
 
     # ------------------------------------------------------------ internals
@@ -478,7 +592,7 @@ class NaiveAgent:
         self._body.stage = "equality_pass"
         self._sweep.observe()
         self._body.stage = "rest"
-        self._body.sense(self._rest[None])
+        self._body.rest(self._rest)
         return Reaction(event=self._event, compensated=False, rest_motor_state=self._rest.copy(),
                         new_pov_ids=np.zeros(0, dtype=int),
                         new_povs=np.zeros((0, self.params.n_samples, self.n_motors)),
@@ -623,7 +737,7 @@ class NaiveAgent:
             if self._rest_pov >= 0:
                 rank_now[self._rest_pov] = rest_rank
         self._body.stage = "rest"
-        rest_sensation = self._body.sense(self._rest[None])[0]
+        rest_sensation = self._body.rest(self._rest)
         if records:
             self.events_compensated += 1
             self.compensation_queries.append(self._body.total_rows - rows_at_start - pov_rows)

@@ -4,7 +4,9 @@ It subscribes to ``/body/sensation`` and nothing else, and meets its body
 through ``BodyOverTopics``, whose ``sense(batch)`` publishes one
 ``/body/motor_command`` (frame ``cmd/<n>``) and spins until the sensation
 with that frame id arrives (the node's executor, ``nodes.make_executor``, in
-this thread; MultiThreadedExecutor had 0.1-0.6 s outliers). Commands and
+this thread; MultiThreadedExecutor had 0.1-0.6 s outliers); its ``move``
+(the rest after a change, when the agent already sensed that state) does
+not wait: the answer is taken before the next command or the settle. Commands and
 answers travel as serialized bytes (``messages.CloudCdrPacker`` /
 ``GraphNode.read_float_cloud``).
 
@@ -64,6 +66,7 @@ from __future__ import annotations
 import collections
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from rclpy.duration import Duration
@@ -83,6 +86,16 @@ AGENT_RECORDS_FILE = "agent_records.npz"
 
 class RunAborted(RuntimeError):
     """The node is shutting down while the agent waits for its body."""
+
+
+class _Sent(NamedTuple):
+    """A command published (or, after a restart, answered from the journal)."""
+    number: int
+    check: int
+    motor_states: np.ndarray
+    frame_id: str
+    started: float
+    replayed: np.ndarray | None
 
 
 class BodyOverTopics:
@@ -106,6 +119,7 @@ class BodyOverTopics:
         self._on_retransmit = on_retransmit
         self._pending: tuple[str, int] | None = None
         self._reply: np.ndarray | None = None
+        self._moving: _Sent | None = None    # a move's command, its answer not taken yet
         self.requests = 0
         self.retransmits = 0
         self.aborted = False
@@ -117,39 +131,74 @@ class BodyOverTopics:
         self.journal: AgentJournal | None = None
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
+        motor_states = self._checked(motor_states)
+        self.await_move()
+        sent = self._send(motor_states)
+        return self._receive(sent, sent.started)
+
+    def move(self, motor_states: np.ndarray) -> None:
+        """The command ``sense`` sends, when the agent already has its
+        sensations (it rests at a state sensed since the last change,
+        ``core.naive_agent._SensedSinceChange``): sent now, its answer taken
+        before the next command or by ``await_move``, which the node calls
+        before it settles: the arm rests there before the environment moves,
+        and the answer is journaled as any other."""
+        motor_states = self._checked(motor_states)
+        self.await_move()
+        self._moving = self._send(motor_states)
+
+    def await_move(self) -> None:
+        """Take the answer of the command ``move`` sent, if not taken yet."""
+        if self._moving is not None:
+            sent, self._moving = self._moving, None
+            self._receive(sent, time.perf_counter())
+
+    def _checked(self, motor_states: np.ndarray) -> np.ndarray:
         motor_states = np.asarray(motor_states, dtype=float)
         if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
             raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
                              f"got {motor_states.shape}")
+        return motor_states
+
+    def _send(self, motor_states: np.ndarray) -> "_Sent":
         self.requests += 1
         number = self.requests
         check = command_check(motor_states) if self.journal is not None else 0
         if self.replay:
             recorded = self.replay.pop(number, None)
             if recorded is not None:
-                return self._replayed(number, check, recorded, len(motor_states))
+                return _Sent(number, check, motor_states, "", 0.0,
+                             self._replayed(number, check, recorded, len(motor_states)))
             self.replay.clear()     # answers are journaled in order: the rest is live
         frame_id = frame("cmd", number)
         self._pending = (frame_id, len(motor_states))
         self._reply = None
-        started = sent = time.perf_counter()
+        started = time.perf_counter()
         self._publish_command(motor_states, frame_id)
+        return _Sent(number, check, motor_states, frame_id, started, None)
+
+    def _receive(self, sent: "_Sent", since: float) -> np.ndarray:
+        """Spin until ``sent`` is answered (re-sent every ``command_timeout_s``);
+        ``since``: when the agent began to wait (``round_trip_s``)."""
+        if sent.replayed is not None:
+            return sent.replayed
+        last_sent = sent.started
         wait_s = min(0.5, self.command_timeout_s)
         while self._reply is None:
             if self.aborted:
                 raise RunAborted("shutting down while waiting for the body")
             self._spin_once(wait_s)
             now = time.perf_counter()
-            if self._reply is None and now - sent >= self.command_timeout_s:
+            if self._reply is None and now - last_sent >= self.command_timeout_s:
                 self.retransmits += 1
                 if self._on_retransmit is not None:
-                    self._on_retransmit(frame_id, now - started)
-                self._publish_command(motor_states, frame_id)
-                sent = now
-        self.round_trip_s += time.perf_counter() - started
+                    self._on_retransmit(sent.frame_id, now - sent.started)
+                self._publish_command(sent.motor_states, sent.frame_id)
+                last_sent = now
+        self.round_trip_s += time.perf_counter() - since
         reply, self._reply = self._reply, None
         if self.journal is not None:
-            self.journal.answer(number, check, reply)
+            self.journal.answer(sent.number, sent.check, reply)
         return reply
 
     def _replayed(self, number: int, check: int, recorded, n_rows: int) -> np.ndarray:
@@ -449,7 +498,10 @@ class AgentNode(GraphNode):
 
     def settle(self, number: int, published: bool) -> None:
         """Journal that change ``number``'s reaction is out, then settle it; a
-        snapshot when one is due."""
+        snapshot when one is due. The agent's last command (its rest, a
+        ``BodyOverTopics.move``) is answered first: the arm is where it rests
+        before the environment moves."""
+        self.body.await_move()
         self.last_settled = number
         if published:
             return

@@ -365,3 +365,39 @@ def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_i
             (want.event, want.anchor_event, want.pov, want.searched)
         np.testing.assert_array_equal(got.motor_state, want.motor_state)
         np.testing.assert_array_equal(got.anchor_motor_state, want.anchor_motor_state)
+
+
+# ------------------------------------------------------------- move
+
+def test_a_move_is_answered_before_the_next_command_and_before_await_move_returns():
+    published, delivered = [], []
+    body = BodyOverTopics(lambda m, f: published.append((f, np.array(m))), lambda t: None,
+                          n_motors=4, n_sensors=6, command_timeout_s=0.05)
+
+    def answer_last(timeout_s):
+        frame_id, motor = published[-1]
+        if body.deliver(frame_id, np.tile(motor[:, :1], (1, 6))):
+            delivered.append(frame_id)
+    body._spin_once = answer_last
+    body.move(np.full((1, 4), 0.5))
+    assert [f for f, _ in published] == ["cmd/1"] and delivered == []   # sent, not awaited
+    answer = body.sense(np.full((2, 4), 0.25))
+    # cmd/1's answer was taken before cmd/2 went out, and cmd/2's is the one returned
+    assert [f for f, _ in published] == ["cmd/1", "cmd/2"] and delivered == ["cmd/1", "cmd/2"]
+    np.testing.assert_array_equal(answer, np.full((2, 6), 0.25))
+    body.move(np.zeros((1, 4)))
+    body.await_move()
+    assert delivered[-1] == "cmd/3"
+    body.await_move()                                    # nothing pending: no spin, no send
+    assert len(published) == 3 and body.retransmits == 0
+
+
+def test_an_unanswered_move_is_sent_again_by_await_move():
+    fake = SilentOnce()
+    body = BodyOverTopics(fake.publish, fake.spin_once, n_motors=4, n_sensors=6,
+                          command_timeout_s=0.05, on_retransmit=lambda *a: None)
+    fake.body = body
+    body.move(np.full((1, 4), 0.25))
+    assert fake.published == ["cmd/1"]
+    body.await_move()
+    assert fake.published == ["cmd/1", "cmd/1"] and body.retransmits == 1

@@ -1,0 +1,165 @@
+"""The naive agent answers a call from what it sensed since the last change
+(``remember_sensations``): same results, fewer calls, the arm still rests."""
+import types
+
+import numpy as np
+import pytest
+
+from sensorispace_ros.core.body import SensingOnly, SimulatedBody
+from sensorispace_ros.core.exploration import build_world
+from sensorispace_ros.core.naive_agent import (NaiveParams, _CountingBody,
+                                               _SensedSinceChange)
+from sensorispace_ros.core.naive_evaluation import run_naive
+
+
+class CountingFake:
+    """A deterministic body (row -> its own function) recording each call."""
+
+    n_motors, n_sensors = 4, 6
+
+    def __init__(self, with_move: bool):
+        self.sent: list[np.ndarray] = []
+        self.moved: list[np.ndarray] = []
+        if with_move:
+            self.move = lambda rows: self.moved.append(np.array(rows))
+
+    def sense(self, motor_states):
+        motor_states = np.asarray(motor_states, dtype=float)
+        self.sent.append(motor_states.copy())
+        return np.sin(motor_states @ np.arange(1.0, 25.0).reshape(4, 6))
+
+
+def test_recall_gives_the_stored_bits_only_for_rows_all_stored():
+    rng = np.random.default_rng(0)
+    memory = _SensedSinceChange(4, 6)
+    rows, sensations = rng.normal(size=(7, 4)), rng.normal(size=(7, 6))
+    assert memory.recall(rows[:1]) is None                         # empty
+    memory.store(rows, sensations)
+    picked = [5, 0, 5, 3]
+    got = memory.recall(rows[picked])
+    assert got is not None and np.array_equal(got.view(np.uint64),
+                                              sensations[picked].view(np.uint64))
+    got[:] = 0.0                                                    # a copy, not the memory
+    np.testing.assert_array_equal(memory.recall(rows[picked]), sensations[picked])
+    assert memory.recall(np.vstack([rows[2], rng.normal(size=4)])) is None   # one unknown row
+    assert memory.recall(rng.normal(size=(1, 4))) is None
+    nudged = rows[4:5].copy()
+    nudged[0, 2] = np.nextafter(nudged[0, 2], np.inf)               # one ulp away
+    assert memory.recall(nudged) is None
+    memory.clear()
+    assert memory.recall(rows[:1]) is None
+
+
+def test_rows_are_matched_by_their_bits():
+    memory = _SensedSinceChange(4, 6)
+    memory.store(np.array([[0.0, 1.0, 2.0, 3.0]]), np.ones((1, 6)))
+    assert memory.recall(np.array([[-0.0, 1.0, 2.0, 3.0]])) is None   # == 0.0, other bits
+    assert memory.recall(np.array([[0.0, 1.0, 2.0, 3.0]])) is not None
+    assert memory.recall(np.array([[1.0, 0.0, 2.0, 3.0]])) is None     # same values, swapped
+
+
+def test_a_row_has_the_same_key_alone_and_in_any_batch():
+    rng = np.random.default_rng(2)
+    memory = _SensedSinceChange(4, 6)
+    rows = rng.normal(size=(600, 4))
+    memory.store(rows, rng.normal(size=(600, 6)))
+    for i in range(0, 600, 37):                       # one row, then the batch reversed
+        assert memory.recall(np.ascontiguousarray(rows[i:i + 1])) is not None
+    assert memory.recall(np.ascontiguousarray(rows[::-1])) is not None
+
+
+def test_keys_that_collide_are_not_taken_for_the_row():
+    memory = _SensedSinceChange(4, 6)
+    stored = np.array([[1.0, 2.0, 3.0, 4.0]])
+    memory.store(stored, np.ones((1, 6)))
+    other = np.array([[5.0, 6.0, 7.0, 8.0]])
+    memory._keys[0] = other.view(np.uint64) @ memory._mix      # force a collision
+    assert memory.recall(other) is None
+
+
+def test_memory_grows_and_keeps_the_first_rows():
+    rng = np.random.default_rng(1)
+    memory = _SensedSinceChange(4, 6)
+    rows, sensations = rng.normal(size=(3000, 4)), rng.normal(size=(3000, 6))
+    for chunk in range(0, 3000, 700):
+        memory.store(rows[chunk:chunk + 700], sensations[chunk:chunk + 700])
+    assert memory.count == 3000
+    picked = [0, 699, 700, 2999]
+    np.testing.assert_array_equal(memory.recall(rows[picked]), sensations[picked])
+
+
+def test_counting_body_sends_a_call_once_per_change():
+    fake = CountingFake(with_move=False)
+    body = _CountingBody(fake)
+    body.stage = "rank"
+    rows = np.arange(8.0).reshape(2, 4)
+    first = body.sense(rows)
+    second = body.sense(rows[::-1])
+    assert len(fake.sent) == 1 and body.calls == {"rank": 1} and body.remembered == {"rank": 1}
+    np.testing.assert_array_equal(second, first[::-1])
+    body.sense(np.vstack([rows[0], rows[0] + 1.0]))               # half new: sent whole
+    assert len(fake.sent) == 2
+    body.forget()                                                   # the environment moved
+    body.sense(rows)
+    assert len(fake.sent) == 3 and body.calls == {"rank": 3}
+
+
+@pytest.mark.parametrize("with_move", [True, False])
+def test_rest_always_commands_the_arm_and_waits_only_without_move(with_move):
+    fake = CountingFake(with_move)
+    body = _CountingBody(fake)
+    body.stage = "rest"
+    state = np.array([0.1, -1.5, 2.2, -3.0])
+    sensed = body.sense(state[None])[0]
+    rested = body.rest(state)
+    np.testing.assert_array_equal(rested, sensed)
+    assert body.calls == {"rest": 2} and body.rows == {"rest": 2}
+    if with_move:                       # remembered: moved there without waiting for it
+        assert len(fake.sent) == 1 and len(fake.moved) == 1
+        np.testing.assert_array_equal(fake.moved[0], state[None])
+    else:                               # no move: the command is a sense, the arm ends there
+        assert len(fake.sent) == 2
+        np.testing.assert_array_equal(fake.sent[-1], state[None])
+    fresh = np.array([0.3, 0.2, 0.1, 0.0])
+    body.rest(fresh)                    # never sensed: a sense, whatever the body
+    np.testing.assert_array_equal(fake.sent[-1], fresh[None])
+
+
+def test_simulated_body_move_puts_the_arm_there_and_counts_a_call():
+    world = build_world(0, {"grid_count": 4})
+    body = SimulatedBody(world.receptors, world.initial_lights, world.m0.copy())
+    body.move(np.array([[0.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5]]))
+    np.testing.assert_array_equal(body.motor_state, [0.5, 0.5, 0.5, 0.5])
+    assert body.calls == 1 and body.queries == 2
+    with pytest.raises(ValueError, match="shape"):
+        body.move(np.zeros((1, 3)))
+    sense_only = types.SimpleNamespace(n_motors=4, n_sensors=6, sensed=[],
+                                       sense=lambda rows: sense_only.sensed.append(rows))
+    SensingOnly(sense_only).move(np.ones((1, 4)))                  # no move: senses
+    assert len(sense_only.sensed) == 1
+
+
+def test_remembering_changes_no_result_only_the_calls():
+    world = build_world(0, {"grid_count": 12})
+    runs = {remember: run_naive(world, NaiveParams(remember_sensations=remember), seed=0,
+                                paper_positions=np.zeros((0, 2)))
+            for remember in (True, False)}
+    on, off = runs[True], runs[False]
+    np.testing.assert_array_equal(on.povs, off.povs)
+    np.testing.assert_array_equal(on.pairs, off.pairs)
+    np.testing.assert_array_equal(on.set_ids, off.set_ids)
+    records_on = [(r.event, r.anchor_event, r.pov, r.searched, r.motor_state.tobytes())
+                  for r in on.agent.compensations]
+    records_off = [(r.event, r.anchor_event, r.pov, r.searched, r.motor_state.tobytes())
+                   for r in off.agent.compensations]
+    assert records_on == records_off and len(records_on) > 10
+    remembered = sum(on.agent.remembered_by_stage.values())
+    assert remembered > 0 and off.agent.remembered_by_stage == {}
+    assert off.agent.calls_total - on.agent.calls_total == remembered
+    # every rest is still a command: as many as changes (+ the start)
+    assert on.agent.calls_by_stage["rest"] == off.agent.calls_by_stage["rest"]
+
+
+def test_remember_sensations_must_be_a_bool():
+    with pytest.raises(ValueError, match="naive.remember_sensations"):
+        NaiveParams(remember_sensations="yes")
