@@ -174,13 +174,7 @@ class SimulatedBody:
         if self.lights_world is None:
             raise RuntimeError("SimulatedBody.sense called before any lights were set")
         motor_states = np.asarray(motor_states, dtype=float)
-        if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
-            raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
-                             f"got {motor_states.shape}")
-        self.queries += len(motor_states)
-        self.calls += 1
-        if len(motor_states):
-            self.motor_state = motor_states[-1].copy()
+        self.move(motor_states)
         return simulate(motor_states, self.lights_world, self.receptor_positions, self.kernel)
 
     def move(self, motor_states: np.ndarray) -> None:
