@@ -281,7 +281,8 @@ class AgentNode(GraphNode):
         self.journal: AgentJournal | None = None
         self.published_before_restart: set[int] = set()
         self.checkpoint_stats = {"snapshots": 0, "snapshot_bytes": 0, "snapshot_s": 0.0,
-                                 "last_snapshot_s": 0.0, "replayed_passives": 0}
+                                 "last_snapshot_s": 0.0, "replayed_passives": 0,
+                                 "ack_timeouts": 0}
         self._last_snapshot = time.monotonic()
         self._resume_timer = None
         self._await_peers = False
@@ -369,10 +370,12 @@ class AgentNode(GraphNode):
     def take_snapshot(self) -> None:
         started = time.perf_counter()
         # The journal about to be emptied is what re-publishes, after a kill,
-        # reactions that never left the process: wait until they were received.
+        # reactions that never left the process: wait until they were received
+        # (readers acknowledge at the writer's heartbeat: launcher.HEARTBEAT_PERIOD_NS).
         for publisher in (self.pov_pub, self.compensation_pub, self.pov_record_pub,
                           self.compensation_record_pub, self.settled_pub):
-            publisher.wait_for_all_acked(Duration(seconds=1.0))
+            if not publisher.wait_for_all_acked(Duration(seconds=1.0)):
+                self.checkpoint_stats["ack_timeouts"] += 1
         size = write_snapshot(self.journal.path.with_name(SNAPSHOT_FILE), {
             "config": self.cfg, "agent": self.agent.state(),
             "node": {"last_passive": self.last_passive, "last_settled": self.last_settled,
@@ -485,7 +488,8 @@ class AgentNode(GraphNode):
                 f"{self.checkpoint_stats['replayed_passives']} passive sensations replayed, "
                 f"{self.checkpoint_stats['snapshots']} snapshots "
                 f"({self.checkpoint_stats['snapshot_s']:.2f} s, last "
-                f"{self.checkpoint_stats['snapshot_bytes'] / 1e6:.1f} MB)")
+                f"{self.checkpoint_stats['snapshot_bytes'] / 1e6:.1f} MB, "
+                f"{self.checkpoint_stats['ack_timeouts']} acknowledgement waits timed out)")
             return
         if number == 0:
             reaction = self.agent.start(self.initial_motor_state)

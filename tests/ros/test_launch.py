@@ -116,6 +116,12 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
     assert metrics["pov"]["count"] == metrics["agent"]["points_of_view"] > 3
     assert metrics["exploration"]["compensated"] == metrics["agent"]["compensated"] > 0
     assert "after" in metrics["quality"]["2d"]
+    # The snapshot's wait for its reactions to be acknowledged ends with the
+    # acknowledgements (the graph's writers heartbeat every 100 ms), not at its 1 s timeout.
+    run_over = [line for line in (smoke_launch["results"] / "logs" / "agent.log").read_text()
+                .splitlines() if "run over" in line]
+    assert run_over and re.search(r"\b[1-9]\d* snapshots", run_over[0]), run_over
+    assert " 0 acknowledgement waits timed out" in run_over[0], run_over
     for pid in re.findall(r"started \w+ \(pid (\d+)\)", output):
         with pytest.raises(ProcessLookupError):
             os.kill(int(pid), 0)        # every child was stopped
