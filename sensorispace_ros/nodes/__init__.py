@@ -106,6 +106,9 @@ class GraphNode(Node):
                                      f"got {self.graph['executor']!r}")
         self.dropped: dict[str, int] = {}
         self._cloud_readers: dict[str, messages.CloudCdrReader] = {}
+        # Messages read_float_cloud could not take by the fast path, per topic:
+        # 0 in a healthy graph (the probe topics carry CloudCdrPacker's bytes).
+        self.general_reads: dict[str, int] = {}
         # Set by whoever spins the node (run_node, tests): lets a node that
         # waits for an answer keep the executor turning (see nodes.agent).
         self.spin_once: Callable[[float], None] | None = None
@@ -207,6 +210,7 @@ class GraphNode(Node):
         if cloud is not None:
             parsed = self.frame_of(topic, cloud.frame_id, kinds)
             return None if parsed is None else (parsed, cloud)
+        self.general_reads[topic] = self.general_reads.get(topic, 0) + 1
         msg = self.read_serialized(topic, msg)
         decoded = None if msg is None else self.decode(topic, msg, kinds)
         if decoded is None:

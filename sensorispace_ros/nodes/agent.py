@@ -489,7 +489,9 @@ class AgentNode(GraphNode):
                 f"{self.checkpoint_stats['snapshots']} snapshots "
                 f"({self.checkpoint_stats['snapshot_s']:.2f} s, last "
                 f"{self.checkpoint_stats['snapshot_bytes'] / 1e6:.1f} MB, "
-                f"{self.checkpoint_stats['ack_timeouts']} acknowledgement waits timed out)")
+                f"{self.checkpoint_stats['ack_timeouts']} acknowledgement waits timed out), "
+                f"{self.general_reads.get('/body/sensation', 0)} sensations not read by the "
+                "fast path")
             return
         if number == 0:
             reaction = self.agent.start(self.initial_motor_state)

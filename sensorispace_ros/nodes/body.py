@@ -171,6 +171,11 @@ class BodyNode(GraphNode):
         self.note_repeated_command(command.frame_id)
         self.answer(command.matrix, command.frame_id, command.stamp_ns)
 
+    def close(self) -> None:
+        self.get_logger().info(
+            f"answered {self.body.calls} commands, "
+            f"{self.general_reads.get('/body/motor_command', 0)} not read by the fast path")
+
     def note_repeated_command(self, frame_id: str) -> None:
         """When a command is to be answered a third time (the agent asked again
         twice: two answers have not reached it), say so and, with a checkpoint

@@ -122,6 +122,12 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
                 .splitlines() if "run over" in line]
     assert run_over and re.search(r"\b[1-9]\d* snapshots", run_over[0]), run_over
     assert " 0 acknowledgement waits timed out" in run_over[0], run_over
+    # Every probe message took CloudCdrReader's fast path both ways (between
+    # processes the payloads arrive padded; the general path read them all once).
+    assert run_over[0].endswith(" 0 sensations not read by the fast path"), run_over
+    body_log = (smoke_launch["results"] / "logs" / "body.log").read_text()
+    assert re.search(r"answered [1-9]\d* commands, 0 not read by the fast path", body_log), \
+        body_log[-2000:]
     for pid in re.findall(r"started \w+ \(pid (\d+)\)", output):
         with pytest.raises(ProcessLookupError):
             os.kill(int(pid), 0)        # every child was stopped
