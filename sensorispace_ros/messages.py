@@ -12,7 +12,8 @@ Decoding is strict: anything that does not match the expected layout exactly
 names) raises ``MessageError``; nodes log and drop such messages.
 
 The probe topics (/body/motor_command, /body/sensation, /body/sensor_pose,
-/body/joint_states) travel as serialized bytes both ways: ``CloudCdrPacker``
+/body/joint_states) and /environment/lights (one per change, which the agent
+waits for) travel as serialized bytes both ways: ``CloudCdrPacker``
 writes a cloud's CDR bytes for ``Publisher.publish(bytes)`` and
 ``cloud_from_cdr`` reads those of a ``raw=True`` subscription. rclpy's own
 conversion of a PointCloud2 costs ~14 us per publication and ~30 us per

@@ -49,6 +49,10 @@ class EnvironmentNode(GraphNode):
         self.world = build_world(self.cfg)
         self.n_changes = len(self.world.events)
         self.lights_pub = contracts.create_publisher(self, "/environment/lights")
+        # Published as serialized bytes (the body takes them raw, issue #4): the
+        # hand-over of every change waits for them.
+        self.lights_packer = messages.CloudCdrPacker(contracts.contract("/environment/lights")
+                                                     .columns)
         self.event_pub = contracts.create_publisher(self, "/environment/event")
         contracts.create_subscription(self, "/agent/settled", self.on_settled)
         self.current = -1              # number of the last change published (end = n + 1)
@@ -198,14 +202,15 @@ class EnvironmentNode(GraphNode):
     def publish_change(self, k: int) -> None:
         self.current = k
         self._save_progress()
-        header = messages.make_header(frame("change", k), self.get_clock().now().nanoseconds)
+        frame_id, stamp_ns = frame("change", k), self.now_ns()
         event = self.world.events[k - 1] if k > 0 else None
         if event is not None:
             self.lights = event.lights
         # The lights first: the body (then the agent) waits for them, the
         # ground truth only goes to the recorder (a hand-over per change).
-        self.publish_lights(header.frame_id, header)
+        self.publish_lights(frame_id, stamp_ns)
         if event is not None:
+            header = messages.make_header(frame_id, stamp_ns)
             self.event_pub.publish(messages.table_to_cloud(
                 {"index": event.index, "kind": KIND_CODES[event.kind],
                  "center_x": event.center[0], "center_y": event.center[1],
@@ -216,10 +221,9 @@ class EnvironmentNode(GraphNode):
         self.publish_lights(frame("end" if self.current > self.n_changes else "change",
                                   self.current))
 
-    def publish_lights(self, frame_id: str, header=None) -> None:
-        header = header or messages.make_header(frame_id, self.get_clock().now().nanoseconds)
-        self.lights_pub.publish(messages.matrix_to_cloud(
-            np.asarray(self.lights), contracts.contract("/environment/lights").columns, header))
+    def publish_lights(self, frame_id: str, stamp_ns: int | None = None) -> None:
+        self.lights_pub.publish(self.lights_packer.pack(
+            np.asarray(self.lights), frame_id, self.now_ns() if stamp_ns is None else stamp_ns))
 
 
 def main(args=None) -> int:

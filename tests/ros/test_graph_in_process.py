@@ -148,8 +148,8 @@ def _broken_clouds(topic: str, frame_id: str) -> list:
     return broken
 
 
-# Topics whose graph subscribers take serialized bytes (the probe topics).
-SERIALIZED_TOPICS = ("/body/motor_command", "/body/sensation")
+# Topics whose graph subscribers take serialized bytes (the probe topics, the lights).
+SERIALIZED_TOPICS = ("/environment/lights", "/body/motor_command", "/body/sensation")
 
 
 HOSTILE_FRAMES = {
