@@ -295,9 +295,15 @@ def cca_params(cfg: dict) -> dict:
 
 def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray, cfg: dict,
                          seed: int, progress=None, processes: int | None = None,
-                         executor: Executor | None = None) -> Representation:
+                         executor: Executor | None = None,
+                         distance: np.ndarray | None = None) -> Representation:
     """Hausdorff metric, CCA before regularisation and the regularisation
     iterations, in 2-D and 3-D, from the agent's data only.
+
+    ``distance``: the Hausdorff matrix of ``povs`` when the caller already has
+    it (the representation node grows it while the POVs arrive,
+    ``core.hausdorff.GrowingHausdorffMatrix``: the same bits); computed here
+    otherwise.
 
     ``processes``: how many processes run the 2-D and 3-D chains (default:
     2 on a multi-core machine, when the caller can fork safely: see
@@ -320,9 +326,15 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
         workers = int(processes)
         if workers < 1:
             raise ValueError(f"processes must be >= 1, got {processes!r}")
+    if distance is not None:
+        distance = np.asarray(distance, dtype=float)
+        if distance.shape != (len(povs), len(povs)):
+            raise ValueError(f"distance must have shape ({len(povs)}, {len(povs)}), "
+                             f"got {distance.shape}")
     timings: dict = {}
     with _stage(progress, "hausdorff", timings):
-        distance = hausdorff_matrix(povs, progress=progress)
+        if distance is None:
+            distance = hausdorff_matrix(povs, progress=progress)
 
     # The 2-D and 3-D chains (CCA, then regularise -> CCA) are independent and
     # each draws from its own seeded streams, so two processes give the same

@@ -291,13 +291,14 @@ def _nearest_within(R, steps, a_pov, i, b_pov, start, cmax):
     return cmin, best
 
 
-def _pruned_rows(R, steps, rows, landmarks, H2):
-    """Squared Hausdorff distances H2[p, q], q > p, for p in ``rows``; rows
-    p >= ``landmarks`` use the rows r < ``landmarks``, which must be done."""
+def _pruned_rows(R, steps, rows, landmarks, H2, first_column=0):
+    """Squared Hausdorff distances H2[p, q], q > p and q >= ``first_column``,
+    for p in ``rows``; rows p >= ``landmarks`` use the rows r < ``landmarks``,
+    which must be done (for every q they are used with)."""
     P, N, _ = R.shape
     for r in range(rows.shape[0]):
         p = rows[r]
-        for q in range(p + 1, P):
+        for q in range(max(p + 1, first_column), P):
             lower = 0.0
             for m in range(landmarks if p >= landmarks else 0):
                 gap = abs(math.sqrt(H2[m, p]) - math.sqrt(H2[m, q]))
@@ -353,7 +354,8 @@ def _pruned_matrix(R, n_jobs=1, progress=None, rows_per_task=8, landmarks=None):
     done = 0
     with ThreadPoolExecutor(max_workers=n_jobs) as pool:
         for tasks in phases:
-            futures = [pool.submit(_pruned_rows, R, steps, rows, landmarks, H2) for rows in tasks]
+            futures = [pool.submit(_pruned_rows, R, steps, rows, landmarks, H2, 0)
+                       for rows in tasks]
             for fut in futures:
                 fut.result()
                 done += 1
@@ -361,6 +363,78 @@ def _pruned_matrix(R, n_jobs=1, progress=None, rows_per_task=8, landmarks=None):
                     progress(done, total)
     H2 = np.triu(H2, 1)
     return np.sqrt(H2 + H2.T)
+
+
+class GrowingHausdorffMatrix:
+    """The Hausdorff matrix of POVs that arrive a few at a time (the
+    representation node receives them during the exploration): ``add`` computes
+    the distances of the new POVs to every POV held, so that at the end only
+    the last ones are left to do. ``matrix(order)`` equals ``hausdorff_matrix``
+    of the same POVs in that order to the bit: every entry is the exact sup-inf
+    (the compiled kernel's bounds only skip work), whatever the order or the
+    batches it was computed in.
+
+    Needs the compiled kernel (``numba_available()``); the landmarks are the
+    first ``_LANDMARKS`` POVs added. Storage grows by doubling: ~8 * P**2 bytes
+    at most twice over (paper: 650 POVs, 3.4 MB).
+    """
+
+    def __init__(self, n_samples: int, n_motors: int = 4):
+        if not numba_available():
+            raise RuntimeError("GrowingHausdorffMatrix needs numba (the compiled kernel)")
+        self._shape = (int(n_samples), int(n_motors))
+        self.n_samples, self.n_motors = self._shape
+        self._R = np.zeros((0,) + self._shape)
+        self._steps = np.zeros((0, self._shape[0]))
+        self._H2 = np.zeros((0, 0))
+        self.count = 0
+
+    def _reserve(self, size: int) -> None:
+        if size <= len(self._R):
+            return
+        capacity = max(size, 2 * len(self._R), 16)
+        for name, shape in (("_R", (capacity,) + self._shape),
+                            ("_steps", (capacity, self._shape[0])),
+                            ("_H2", (capacity, capacity))):
+            old = getattr(self, name)
+            grown = np.zeros(shape)
+            grown[tuple(slice(0, n) for n in old.shape)] = old
+            setattr(self, name, grown)
+
+    def add(self, povs) -> None:
+        """Append POVs ``(B, N, K)`` and compute their distances to all held."""
+        povs = np.asarray(povs, dtype=float)
+        if povs.ndim != 3 or povs.shape[1:] != self._shape:
+            raise ValueError(f"povs must have shape (B, {self._shape[0]}, {self._shape[1]}), "
+                             f"got {povs.shape}")
+        if len(povs) == 0:
+            return
+        if not np.all(np.isfinite(povs)):
+            raise ValueError("povs contain NaN or infinite angles")
+        first, end = self.count, self.count + len(povs)
+        self._reserve(end)
+        self._R[first:end] = _reduced(povs)
+        R = self._R[:end]                   # contiguous: the first rows of a C array
+        self._steps[first:end] = _loop_steps(np.ascontiguousarray(R[first:end]))
+        landmarks = min(_LANDMARKS, end)
+        # The landmark rows' new columns first (the other rows' bounds use them),
+        # then every other row's new columns.
+        _pruned_rows(R, self._steps, np.arange(0, landmarks), landmarks, self._H2, first)
+        _pruned_rows(R, self._steps, np.arange(landmarks, end), landmarks, self._H2, first)
+        self.count = end
+
+    def matrix(self, order=None) -> np.ndarray:
+        """``(P, P)`` matrix of the POVs held, rows in the order they were
+        added, or in ``order`` (indices into that order, e.g. a sort by id)."""
+        H2 = np.triu(self._H2[:self.count, :self.count], 1)
+        if order is not None:
+            order = np.asarray(order, dtype=int)
+            if sorted(order.tolist()) != list(range(self.count)):
+                raise ValueError(f"order must be a permutation of 0..{self.count - 1}")
+            # Entries of the lower triangle after the permutation are the upper's mirror.
+            H2 = H2 + H2.T
+            H2 = np.triu(H2[np.ix_(order, order)], 1)
+        return np.sqrt(H2 + H2.T)
 
 
 def hausdorff_matrix(povs, *, block: int | None = None, progress=None,

@@ -15,12 +15,19 @@ The 2-D and 3-D chains run in two worker processes of a forkserver pool
 (``pipeline.start_chain_pool``; a process with DDS threads must not fork),
 started with the node so that their start-up overlaps the exploration, and
 stopped with it (``destroy_node``), on SIGTERM too.
+
+The Hausdorff matrix grows while the POVs arrive (``core.hausdorff.
+GrowingHausdorffMatrix``, one thread): at /agent/done only the last POVs'
+distances are left to compute (paper config: ~1.6 s of the final build was
+the whole matrix). The same bits as computing it at the end; without numba,
+or if a POV message did not hold whole POVs, it is computed at the end.
 """
 from __future__ import annotations
 
 import json
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +80,12 @@ class RepresentationNode(GraphNode):
         self.chain_pool_starter = threading.Thread(target=self._start_chain_pool,
                                                    name="chain-pool", daemon=True)
         self.chain_pool_starter.start()
+        # The growing Hausdorff matrix: POV ids in the order added, and the one
+        # thread that adds them (in order); None once given up (computed at the end).
+        self.hausdorff = None
+        self.hausdorff_ids: list[int] = []
+        self.hausdorff_worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hausdorff")
+        self.hausdorff_failed = False
 
     def _start_chain_pool(self) -> None:
         from .. import pipeline
@@ -114,7 +127,61 @@ class RepresentationNode(GraphNode):
             key = f"{key}#{len(self.pov_tables)}"
         self.pov_tables[key] = table
         self.pov_ids.update(int(pov) for pov in np.unique(table["pov"]))
+        self.grow_hausdorff(table)
         self.maybe_start()
+
+    def grow_hausdorff(self, table: np.ndarray) -> None:
+        """Queue the distances of this table's POVs to those held (see the module
+        docstring); gives the growing matrix up for one computed at the end when
+        the table does not hold whole POVs or numba is missing."""
+        from ..core.hausdorff import GrowingHausdorffMatrix, numba_available
+        if self.hausdorff_failed:
+            return
+        try:
+            ids, povs = assemble_points_of_view([table])
+        except ValueError as exc:
+            self.give_up_hausdorff(f"a message holds part of a POV ({exc})")
+            return
+        if self.hausdorff is None:
+            if not numba_available():
+                self.give_up_hausdorff("numba is not installed")
+                return
+            self.hausdorff = GrowingHausdorffMatrix(povs.shape[1], povs.shape[2])
+        elif povs.shape[1:] != (self.hausdorff.n_samples, self.hausdorff.n_motors):
+            self.give_up_hausdorff(f"POVs of {povs.shape[1]} samples after POVs of "
+                                   f"{self.hausdorff.n_samples}")
+            return
+        try:
+            self.hausdorff_worker.submit(self._add_to_hausdorff, povs)
+        except RuntimeError:                # after the build took the matrix (shut down)
+            self.give_up_hausdorff("a POV arrived after the representation was started")
+            return
+        self.hausdorff_ids.extend(ids.tolist())
+
+    def _add_to_hausdorff(self, povs: np.ndarray) -> None:
+        if self.hausdorff_failed or self.closing:
+            return
+        try:
+            self.hausdorff.add(povs)
+        except Exception as exc:            # computed at the end instead
+            self.give_up_hausdorff(f"{type(exc).__name__}: {exc}")
+
+    def give_up_hausdorff(self, reason: str) -> None:
+        self.hausdorff_failed = True
+        self.get_logger().warning(f"the Hausdorff matrix will be computed at the end: {reason}")
+
+    def grown_hausdorff(self, ids: np.ndarray) -> np.ndarray | None:
+        """The grown matrix for POVs ``ids`` (sorted), once every add is done;
+        None if it was given up or does not hold exactly those POVs."""
+        self.hausdorff_worker.shutdown(wait=True)
+        if self.hausdorff_failed or self.hausdorff is None:
+            return None
+        added = np.asarray(self.hausdorff_ids, dtype=np.int64)
+        if len(added) != self.hausdorff.count or not np.array_equal(np.sort(added), ids):
+            self.get_logger().warning("the grown Hausdorff matrix does not hold the POVs "
+                                      "received; computing it at the end")
+            return None
+        return self.hausdorff.matrix(np.argsort(added, kind="stable"))
 
     def on_compensations(self, msg) -> None:
         table = self._decode("/agent/compensations", msg)
@@ -158,8 +225,9 @@ class RepresentationNode(GraphNode):
             set_ids = rows["set"].astype(np.int64)
             self.get_logger().info(f"building the representation of {len(ids)} points of view, "
                                    f"{len(rows)} equality rows")
+            distance = self.grown_hausdorff(ids)
             self.chain_pool_starter.join()
-            representation = self._build_representation(povs, pairs, set_ids)
+            representation = self._build_representation(povs, pairs, set_ids, distance)
             # Same array names as pipeline.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
                       "hausdorff": representation.distance}
@@ -186,26 +254,28 @@ class RepresentationNode(GraphNode):
         self.finished = bool(self.graph["exit_when_done"])
 
     def _build_representation(self, povs: np.ndarray, pairs: np.ndarray,
-                              set_ids: np.ndarray):
+                              set_ids: np.ndarray, distance: np.ndarray | None = None):
         from concurrent.futures.process import BrokenProcessPool
 
         from .. import pipeline
         if self.chain_pool is not None:
             try:
                 return pipeline.build_representation(povs, pairs, set_ids, self.cfg,
-                                                     self.cfg["seed"], executor=self.chain_pool)
+                                                     self.cfg["seed"], executor=self.chain_pool,
+                                                     distance=distance)
             except BrokenProcessPool as exc:
                 if self.closing:
                     raise
                 self.get_logger().warning(f"the chain pool broke ({exc}); "
                                           "building again with the chains in turn")
         return pipeline.build_representation(povs, pairs, set_ids, self.cfg, self.cfg["seed"],
-                                             processes=1)
+                                             processes=1, distance=distance)
 
     def destroy_node(self):
         """Stops the chain pool first: none of its workers outlives the node."""
         from .. import pipeline
         self.closing = True
+        self.hausdorff_worker.shutdown(wait=True, cancel_futures=True)
         self.chain_pool_starter.join()
         pool, self.chain_pool = self.chain_pool, None
         if pool is not None:

@@ -203,3 +203,51 @@ def test_unknown_kernel_raises(monkeypatch):
     monkeypatch.setattr(hausdorff_module, "numba", None)
     with pytest.raises(ValueError, match="numba"):
         hausdorff_matrix(np.zeros((2, 3, 4)), kernel="numba")
+
+
+# ---------------------------------------------- the growing matrix (issue #4)
+
+needs_numba = pytest.mark.skipif(not hausdorff_module.numba_available(),
+                                 reason="numba is not installed")
+
+
+@needs_numba
+@pytest.mark.parametrize("chunks", [[150], [1] * 5 + [40, 30, 1, 74], [63, 1, 1, 85],
+                                    [10] * 15], ids=["one", "ragged", "landmarks", "tens"])
+def test_growing_matrix_is_bitwise_the_whole_matrix(chunks):
+    # More POVs than landmarks (64), added in batches that cross that boundary.
+    povs = paper_like_loops(np.random.default_rng(5), P=sum(chunks), N=30)
+    growing = hausdorff_module.GrowingHausdorffMatrix(30, 4)
+    start = 0
+    for size in chunks:
+        growing.add(povs[start:start + size])
+        start += size
+    assert growing.count == len(povs)
+    expected = hausdorff_matrix_bruteforce(povs)
+    assert np.array_equal(growing.matrix(), expected)
+    # Any order of the rows (the node sorts by POV id) is the whole matrix of
+    # the POVs in that order.
+    order = np.random.default_rng(1).permutation(len(povs))
+    assert np.array_equal(growing.matrix(order), hausdorff_matrix_bruteforce(povs[order]))
+
+
+@needs_numba
+def test_growing_matrix_keeps_earlier_distances_and_checks_input():
+    povs = paper_like_loops(np.random.default_rng(9), P=70, N=12)
+    growing = hausdorff_module.GrowingHausdorffMatrix(12, 4)
+    growing.add(povs[:40])
+    first = growing.matrix()
+    growing.add(povs[40:])
+    assert np.array_equal(growing.matrix()[:40, :40], first)
+    assert np.array_equal(first, hausdorff_matrix(povs[:40]))
+    growing.add(povs[:0])                           # nothing to add
+    assert growing.count == 70
+    with pytest.raises(ValueError, match="shape"):
+        growing.add(povs[:2, :11])
+    bad = povs[:1].copy()
+    bad[0, 3, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        growing.add(bad)
+    with pytest.raises(ValueError, match="permutation"):
+        growing.matrix(np.zeros(70, dtype=int))
+    assert growing.count == 70
