@@ -40,6 +40,7 @@ PROGRESS_BYTES = 64       # environment.json: one in-place record, well inside a
 # One participant announcement period of the launcher's Fast DDS profile
 # (launcher.LEASE_ANNOUNCEMENT_S = 1 s) plus a margin; see _peers_ready.
 RECORDER_DISCOVERY_S = 1.5
+PEER_POLL_S = 0.02
 
 
 class EnvironmentNode(GraphNode):
@@ -71,6 +72,9 @@ class EnvironmentNode(GraphNode):
         # not be matched yet; volatile messages sent before are lost, so the
         # start is re-sent (the agent ignores duplicates).
         self.timer = self.create_timer(float(self.graph["resend_period_s"]), self.on_timer)
+        # The graph is usually complete a few hundred ms after the nodes' start-up:
+        # look for it every PEER_POLL_S, not only every resend period.
+        self.start_timer = self.create_timer(PEER_POLL_S, self.on_start_timer)
         self.get_logger().info(f"{self.n_changes} environmental changes scheduled")
 
     def _load_progress(self) -> bool:
@@ -149,6 +153,13 @@ class EnvironmentNode(GraphNode):
         else:                      # killed between the settle and the next change
             self.settled = k - 1
             self.on_settled_number(k)
+
+    def on_start_timer(self) -> None:
+        if self.current >= 0 or self.resuming:
+            self.start_timer.cancel()
+        elif self._peers_ready():
+            self.start_timer.cancel()
+            self.publish_change(0)
 
     def on_timer(self) -> None:
         if self.resuming:

@@ -47,7 +47,7 @@ class EnvironmentProbe:
     """An EnvironmentNode (smoke config, private context) with a listener on its
     lights and events and a publisher of /agent/settled."""
 
-    def __init__(self, domain_id: int, checkpoint_dir):
+    def __init__(self, domain_id: int, checkpoint_dir, resend_period_s: float = 0.05):
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -64,7 +64,7 @@ class EnvironmentProbe:
                                    parameter_overrides(SMOKE, {
                                        "graph.checkpoint_dir": str(checkpoint_dir),
                                        "graph.wait_for_nodes": ["environment_probe"],
-                                       "graph.resend_period_s": 0.05}))
+                                       "graph.resend_period_s": resend_period_s}))
         self.probe = rclpy.create_node("environment_probe", context=self.context)
         self.lights, self.events = [], []
         contracts.create_subscription(self.probe, "/environment/lights",
@@ -91,6 +91,20 @@ class EnvironmentProbe:
         self.env.destroy_node()
         self.probe.destroy_node()
         self.context.try_shutdown()
+
+
+@pytest.mark.graph
+@pytest.mark.timeout(60)
+def test_the_environment_starts_when_its_peers_are_there_not_at_its_next_resend(
+        tmp_path, domain_id):
+    # The start polls the graph every PEER_POLL_S; the resend timer (30 s here)
+    # only repeats what was sent.
+    probe = EnvironmentProbe(domain_id, tmp_path, resend_period_s=30.0)
+    try:
+        probe.spin(3.0)
+        assert probe.lights[:1] == ["change/0"] and probe.events == [], probe.lights
+    finally:
+        probe.close()
 
 
 @pytest.mark.graph
