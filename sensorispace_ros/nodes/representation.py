@@ -36,6 +36,7 @@ from .. import contracts, messages
 from . import GraphNode, run_node
 
 RESULT_FILE = "representation.npz"
+CHAIN_POOL_DELAY_S = 3.0
 
 
 def assemble_points_of_view(tables: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -77,6 +78,7 @@ class RepresentationNode(GraphNode):
         self.results_dir = Path(self.graph["results_dir"])
         self.chain_pool = None
         self.closing = False
+        self._start_pool_now = threading.Event()
         self.chain_pool_starter = threading.Thread(target=self._start_chain_pool,
                                                    name="chain-pool", daemon=True)
         self.chain_pool_starter.start()
@@ -91,6 +93,13 @@ class RepresentationNode(GraphNode):
         from .. import pipeline
         from ..core.hausdorff import hausdorff_matrix
 
+        # After the other nodes' start-up (or at once when the run is over, or
+        # the node closing): the forkserver and its two workers import numpy,
+        # scipy, scikit-learn and numba (~2 s of CPU), which slowed the graph's
+        # start on two cores; the exploration leaves CPU to spare.
+        self._start_pool_now.wait(CHAIN_POOL_DELAY_S)
+        if self.closing:
+            return
         started = time.monotonic()
         # Loads numba's cached Hausdorff kernels now rather than after
         # /agent/done (import and first call: ~0.5 s).
@@ -201,6 +210,7 @@ class RepresentationNode(GraphNode):
             self.drop("/agent/done", f"{len(table)} rows")
             return
         self.totals = {name: int(table[name][0]) for name in table.dtype.names}
+        self._start_pool_now.set()
         self.maybe_start()
 
     def maybe_start(self) -> None:
@@ -275,6 +285,7 @@ class RepresentationNode(GraphNode):
         """Stops the chain pool first: none of its workers outlives the node."""
         from .. import pipeline
         self.closing = True
+        self._start_pool_now.set()
         self.hausdorff_worker.shutdown(wait=True, cancel_futures=True)
         self.chain_pool_starter.join()
         pool, self.chain_pool = self.chain_pool, None

@@ -78,6 +78,41 @@ def test_destroying_the_node_ends_its_pool_workers(domain_id, tmp_path):
         context.try_shutdown()
 
 
+def test_the_pool_starts_late_or_as_soon_as_the_run_is_over(domain_id, tmp_path, monkeypatch):
+    # Started CHAIN_POOL_DELAY_S after the node (the other nodes' start-up
+    # first), or at once when /agent/done arrives.
+    import numpy as np
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.launcher import parameter_overrides
+    from sensorispace_ros.nodes import representation
+
+    monkeypatch.setattr(representation, "CHAIN_POOL_DELAY_S", 3600.0)
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id,
+               signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = representation.RepresentationNode(context=context, parameter_overrides=
+                                                 parameter_overrides(SMOKE, {
+                                                     "graph.results_dir": str(tmp_path)}))
+        node.build = lambda: None
+        node.chain_pool_starter.join(timeout=2.0)
+        assert node.chain_pool_starter.is_alive() and node.chain_pool is None
+        node.on_done(messages.table_to_cloud(
+            {"changes": np.array([3]), "points_of_view": np.array([4]),
+             "compensation_rows": np.array([4]), "compensated": np.array([2]),
+             "queries": np.array([1]), "calls": np.array([1])},
+            contracts.contract("/agent/done").columns, messages.make_header("end/3")))
+        node.chain_pool_starter.join(timeout=120)
+        assert node.chain_pool is not None, "the pool did not start at /agent/done"
+        node.destroy_node()
+    finally:
+        context.try_shutdown()
+
+
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGKILL], ids=["sigterm", "sigkill"])
 def test_no_process_of_the_node_outlives_it(stop, node_env, tmp_path):
     """Started as the launcher starts it; its process tree (forkserver,
