@@ -382,10 +382,9 @@ class GrowingHausdorffMatrix:
     def __init__(self, n_samples: int, n_motors: int = 4):
         if not numba_available():
             raise RuntimeError("GrowingHausdorffMatrix needs numba (the compiled kernel)")
-        self._shape = (int(n_samples), int(n_motors))
-        self.n_samples, self.n_motors = self._shape
-        self._R = np.zeros((0,) + self._shape)
-        self._steps = np.zeros((0, self._shape[0]))
+        self.n_samples, self.n_motors = int(n_samples), int(n_motors)
+        self._R = np.zeros((0, self.n_samples, self.n_motors))
+        self._steps = np.zeros((0, self.n_samples))
         self._H2 = np.zeros((0, 0))
         self.count = 0
 
@@ -393,8 +392,8 @@ class GrowingHausdorffMatrix:
         if size <= len(self._R):
             return
         capacity = max(size, 2 * len(self._R), 16)
-        for name, shape in (("_R", (capacity,) + self._shape),
-                            ("_steps", (capacity, self._shape[0])),
+        for name, shape in (("_R", (capacity, self.n_samples, self.n_motors)),
+                            ("_steps", (capacity, self.n_samples)),
                             ("_H2", (capacity, capacity))):
             old = getattr(self, name)
             grown = np.zeros(shape)
@@ -404,8 +403,8 @@ class GrowingHausdorffMatrix:
     def add(self, povs) -> None:
         """Append POVs ``(B, N, K)`` and compute their distances to all held."""
         povs = np.asarray(povs, dtype=float)
-        if povs.ndim != 3 or povs.shape[1:] != self._shape:
-            raise ValueError(f"povs must have shape (B, {self._shape[0]}, {self._shape[1]}), "
+        if povs.ndim != 3 or povs.shape[1:] != (self.n_samples, self.n_motors):
+            raise ValueError(f"povs must have shape (B, {self.n_samples}, {self.n_motors}), "
                              f"got {povs.shape}")
         if len(povs) == 0:
             return
@@ -427,14 +426,13 @@ class GrowingHausdorffMatrix:
         """``(P, P)`` matrix of the POVs held, rows in the order they were
         added, or in ``order`` (indices into that order, e.g. a sort by id)."""
         H2 = np.triu(self._H2[:self.count, :self.count], 1)
-        if order is not None:
-            order = np.asarray(order, dtype=int)
-            if sorted(order.tolist()) != list(range(self.count)):
-                raise ValueError(f"order must be a permutation of 0..{self.count - 1}")
-            # Entries of the lower triangle after the permutation are the upper's mirror.
-            H2 = H2 + H2.T
-            H2 = np.triu(H2[np.ix_(order, order)], 1)
-        return np.sqrt(H2 + H2.T)
+        distance = np.sqrt(H2 + H2.T)
+        if order is None:
+            return distance
+        order = np.asarray(order, dtype=int)
+        if sorted(order.tolist()) != list(range(self.count)):
+            raise ValueError(f"order must be a permutation of 0..{self.count - 1}")
+        return distance[np.ix_(order, order)]
 
 
 def hausdorff_matrix(povs, *, block: int | None = None, progress=None,

@@ -173,10 +173,8 @@ class EnvironmentNode(GraphNode):
                 self.publish_current_lights()
             return
         if self.current < 0:
-            if not self._peers_ready():
-                return
-            self.publish_change(0)
-        elif self.settled < 0:
+            return                  # not started: on_start_timer's job
+        if self.settled < 0:
             self.publish_lights(frame("change", 0))
 
     def on_settled(self, msg) -> None:
