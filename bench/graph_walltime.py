@@ -2,41 +2,113 @@
 
     PYTHONPATH=. python bench/graph_walltime.py [--config config/smoke.yaml] [--processes]
 
-Offline: ``pipeline.run_naive_strategy`` + ``build_representation`` (what the
-graph computes, without evaluation). Graph: every node in one process on one
-executor (default) or ``sensorispace launch`` with one process per node
-(``--processes``; start-up and evaluation included). Prints both and the
-ratio (issue #4 target: <= 1.5), with CPU times next to wall times (the
-machine is shared: CPU time is the load-robust number).
+Both sides do the same work and are timed the same way (issue #4 target:
+graph <= 1.5x offline):
+
+* offline: a fresh Python process (``--offline-child``) that imports the
+  project, builds the world, steps the naive agent through the schedule
+  (``core.naive_evaluation.explore_naive``) and builds the representation
+  (``pipeline.build_representation``), timed from its spawn to its exit. No
+  ground-truth evaluation: ``run_naive`` / ``pipeline.run_naive_strategy``
+  also run the paper strategy for the coverage denominator (~3 s on
+  paper.yaml), which the graph does after its clock stops. Until session 8
+  this script timed ``run_naive_strategy`` in-process (imports excluded,
+  evaluation included); ``--legacy-offline`` prints that number as well.
+* graph: every node in one process on one executor (default) or ``sensorispace
+  launch`` with one process per node (``--processes``: node start-up
+  included, evaluation not).
+
+Prints both, the ratio, and CPU times next to wall times (the machine is
+shared: CPU time is the load-robust number).
 """
 import argparse
+import json
 import os
 import resource
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+REPO = Path(__file__).resolve().parent.parent
+
+
+def offline_child(config_path: str) -> int:
+    """The offline run, in this (fresh) process; prints its stage times as JSON."""
+    started = time.perf_counter()
+    from sensorispace_ros import config, pipeline
+    from sensorispace_ros.core.exploration import build_world
+    from sensorispace_ros.core.naive_agent import NaiveParams
+    from sensorispace_ros.core.naive_evaluation import explore_naive
+    imported = time.perf_counter()
+    cfg = config.load_config(config_path)
+    world = build_world(cfg["seed"], pipeline.world_params(cfg))
+    explored = explore_naive(world, NaiveParams(**cfg["naive"]), cfg["seed"])
+    agent = explored.agent
+    pairs, set_ids = agent.equality_sets()
+    explored_at = time.perf_counter()
+    pipeline.build_representation(agent.points_of_view, pairs, set_ids, cfg, cfg["seed"])
+    done = time.perf_counter()
+    print(json.dumps({"import_s": imported - started, "exploration_s": explored_at - imported,
+                      "representation_s": done - explored_at,
+                      "points_of_view": len(agent.points_of_view),
+                      "calls": agent.calls_total}))
+    return 0
+
+
+def run_offline(config_path: str) -> dict:
+    """Spawn ``offline_child``; its wall time from spawn to exit, CPU time and stages."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), env.get("PYTHONPATH")) if p)
+    started = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--offline-child",
+                             "--config", config_path], stdout=subprocess.PIPE, env=env, cwd=REPO)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall_s = time.perf_counter() - started
+    out = proc.stdout.read().decode()
+    proc.stdout.close()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"offline child failed (exit {os.waitstatus_to_exitcode(status)})")
+    stages = json.loads(out.strip().splitlines()[-1])
+    return {"wall_s": wall_s, "cpu_s": usage.ru_utime + usage.ru_stime, **stages}
+
+
+def legacy_offline(config_path: str) -> float:
+    """Session 1-7's offline number: ``run_naive_strategy`` (ground-truth
+    evaluation included) + representation, in this process, imports excluded."""
+    from sensorispace_ros import config, pipeline
+    cfg = config.load_config(config_path)
+    started = time.perf_counter()
+    produced = pipeline.run_naive_strategy(cfg, cfg["seed"])
+    pipeline.build_representation(produced.povs, produced.pairs, produced.set_ids, cfg,
+                                  cfg["seed"])
+    return time.perf_counter() - started
 
 
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--config", default="config/smoke.yaml")
     parser.add_argument("--processes", action="store_true")
+    parser.add_argument("--legacy-offline", action="store_true",
+                        help="also time the offline run as sessions 1-7 did")
+    parser.add_argument("--offline-child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.offline_child:
+        return offline_child(args.config)
 
-    from sensorispace_ros import config, launcher, pipeline
-    cfg = config.load_config(args.config)
-    started, cpu_started = time.perf_counter(), time.process_time()
-    produced = pipeline.run_naive_strategy(cfg, cfg["seed"])
-    pipeline.build_representation(produced.povs, produced.pairs, produced.set_ids, cfg,
-                                  cfg["seed"])
-    offline_s = time.perf_counter() - started
-    offline_cpu = time.process_time() - cpu_started
-    print(f"offline naive run + representation: {offline_s:.2f} s wall, {offline_cpu:.2f} s CPU "
-          f"({len(produced.povs)} POVs, {produced.metrics.get('naive.calls_total')} sense calls)")
+    offline = run_offline(args.config)
+    print(f"offline naive run + representation (fresh process, no ground truth): "
+          f"{offline['wall_s']:.2f} s wall, {offline['cpu_s']:.2f} s CPU (imports "
+          f"{offline['import_s']:.2f} s, exploration {offline['exploration_s']:.2f} s, "
+          f"representation {offline['representation_s']:.2f} s; "
+          f"{offline['points_of_view']} POVs, {offline['calls']} sense calls)")
+    if args.legacy_offline:
+        print(f"legacy offline number (run_naive_strategy in-process, ground truth included): "
+              f"{legacy_offline(args.config):.2f} s")
 
+    from sensorispace_ros import launcher
     cpu_started = time.process_time()
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     children_before = children.ru_utime + children.ru_stime
@@ -64,7 +136,8 @@ def main() -> int:
     if round_trip:
         print(f"round trips: {round_trip[0]}, {1e3 * round_trip[1] / max(round_trip[0], 1):.3f} ms "
               f"each, {round_trip[1]:.2f} s in total")
-    print(f"ratio graph / offline: wall {graph_s / offline_s:.2f}, CPU {graph_cpu / offline_cpu:.2f}")
+    print(f"ratio graph / offline: wall {graph_s / offline['wall_s']:.2f}, "
+          f"CPU {graph_cpu / offline['cpu_s']:.2f}")
     return 0
 
 

@@ -71,20 +71,26 @@ class NaiveRunResult:
     agent: NaiveAgent = field(repr=False, default=None)
 
 
-def run_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=None, *,
-              equality_pass: bool = False, paper_positions: np.ndarray | None = None,
-              body_wrapper=SensingOnly) -> NaiveRunResult:
-    """Run the naive agent through ``world.events`` and evaluate it.
+@dataclass
+class NaiveExploration:
+    """The naive agent after it went through a world's schedule, with what the
+    evaluator saw at each of the agent's events (``centers``, ``layout``,
+    ``kinds``: see ``NaiveGroundTruth``); ``exploration_s`` /
+    ``equality_s`` wall time of the schedule and of the equality pass."""
 
-    ``equality_pass``: after exploring, replay the schedule once more with
-    the agent in simulation-2 mode (sweep and match only).
-    ``paper_positions`` ``(Q, 2)``: the sensor positions the paper strategy
-    compensates for this world (the coverage denominator); computed with
-    ``exploration.explore_paper`` when not given.
-    ``body_wrapper``: what the agent receives instead of the simulator
-    (default ``SensingOnly``: ``sense`` and the vector sizes).
-    ``progress(done, total)`` is called every 100 events.
-    """
+    agent: NaiveAgent
+    centers: list
+    layout: list
+    kinds: list
+    exploration_s: float
+    equality_s: float
+
+
+def explore_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=None, *,
+                  equality_pass: bool = False, body_wrapper=SensingOnly) -> NaiveExploration:
+    """Step the naive agent through ``world.events``: what the ROS graph
+    computes, without any evaluation (``run_naive`` adds it). Arguments as
+    ``run_naive``'s."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
     body = SimulatedBody(world.receptors, world.initial_lights)
@@ -114,18 +120,39 @@ def run_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=
             body.set_lights(event.lights)
             agent.react(_passive_sensation(body))
         equality_s = time.perf_counter() - t0
+    return NaiveExploration(agent, centers, layout, kinds, exploration_s, equality_s)
+
+
+def run_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=None, *,
+              equality_pass: bool = False, paper_positions: np.ndarray | None = None,
+              body_wrapper=SensingOnly) -> NaiveRunResult:
+    """Run the naive agent through ``world.events`` and evaluate it.
+
+    ``equality_pass``: after exploring, replay the schedule once more with
+    the agent in simulation-2 mode (sweep and match only).
+    ``paper_positions`` ``(Q, 2)``: the sensor positions the paper strategy
+    compensates for this world (the coverage denominator); computed with
+    ``exploration.explore_paper`` when not given.
+    ``body_wrapper``: what the agent receives instead of the simulator
+    (default ``SensingOnly``: ``sense`` and the vector sizes).
+    ``progress(done, total)`` is called every 100 events.
+    """
+    explored = explore_naive(world, params, seed, progress, equality_pass=equality_pass,
+                             body_wrapper=body_wrapper)
+    agent = explored.agent
 
     t0 = time.perf_counter()
     if paper_positions is None:
         paper_positions = paper_compensated_positions(world)
     metrics, true_poses, grid_index = evaluate_naive_run(
-        agent, world, np.asarray(centers), np.asarray(layout), kinds, paper_positions)
+        agent, world, np.asarray(explored.centers), np.asarray(explored.layout), explored.kinds,
+        paper_positions)
     evaluation_s = time.perf_counter() - t0
 
     pov_s = agent.seconds_by_stage.get("pov", 0.0)
     pairs, set_ids = agent.equality_sets()
-    timings = {"exploration": exploration_s - pov_s, "points_of_view": pov_s,
-               "equality_sets": equality_s, "evaluation": evaluation_s}
+    timings = {"exploration": explored.exploration_s - pov_s, "points_of_view": pov_s,
+               "equality_sets": explored.equality_s, "evaluation": evaluation_s}
     metrics.update({f"naive.timings_s.{k}": float(v) for k, v in timings.items()})
     metrics.update({f"naive.seconds_by_stage.{k}": float(v)
                     for k, v in agent.seconds_by_stage.items()})
