@@ -65,13 +65,21 @@ def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
     """
     motor_states = np.asarray(motor_states, dtype=float)
     n_batch, n_motors = motor_states.shape
-    stencil = np.repeat(motor_states[:, None, :], n_motors + 1, axis=1)
-    stencil[:, 1:, :] += fd_step * np.eye(n_motors)
-    answer = np.asarray(body.sense(stencil.reshape(-1, n_motors)), dtype=float)
+    answer = np.asarray(body.sense(jacobian_stencil(motor_states, fd_step)), dtype=float)
     answer = answer.reshape(n_batch, n_motors + 1, -1)
     sensations = answer[:, 0, :]
     jacobians = np.swapaxes(answer[:, 1:, :] - sensations[:, None, :], 1, 2) / fd_step
     return sensations, jacobians, n_batch * (n_motors + 1)
+
+
+def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:
+    """The rows ``sensory_jacobian`` senses for ``motor_states`` ``(B, M)``:
+    ``(B * (M + 1), M)``, each state then its ``M`` displaced copies."""
+    motor_states = np.asarray(motor_states, dtype=float)
+    n_batch, n_motors = motor_states.shape
+    stencil = np.repeat(motor_states[:, None, :], n_motors + 1, axis=1)
+    stencil[:, 1:, :] += fd_step * np.eye(n_motors)
+    return stencil.reshape(-1, n_motors)
 
 
 def rank3_report(jacobians: np.ndarray):

@@ -160,6 +160,56 @@ def test_remembering_changes_no_result_only_the_calls():
     assert on.agent.calls_by_stage["rest"] == off.agent.calls_by_stage["rest"]
 
 
+def test_lookahead_rows_ride_on_the_next_call_and_answer_a_later_one():
+    fake = CountingFake(with_move=False)
+    body = _CountingBody(fake, remember=True)
+    body.stage = "rank"
+    asked, ahead = np.full((2, 4), 0.1), np.arange(12.0).reshape(3, 4) / 10
+    with body.lookahead(ahead):
+        got = body.sense(asked)
+        assert got.shape == (2, 6)
+        np.testing.assert_array_equal(got, fake.sense(asked))
+        body.sense(asked[:1] + 1.0)                       # only the first call carries them
+    assert [len(rows) for rows in fake.sent[:3]] == [5, 2, 1]
+    np.testing.assert_array_equal(fake.sent[0][2:], ahead)
+    assert body.rows == {"rank": 6} and body.calls == {"rank": 2}
+    body.stage = "compensation"
+    n_sent = len(fake.sent)
+    np.testing.assert_array_equal(body.sense(ahead[[2, 0]]), fake.sense(ahead[[2, 0]]))
+    assert len(fake.sent) == n_sent + 1                   # the check above, not the agent
+    assert body.calls == {"rank": 2} and body.remembered == {"compensation": 1}
+    with body.lookahead(ahead + 5.0):
+        body.sense(asked)                                  # remembered: nothing is sent
+    body.sense(asked + 2.0)                                # after the block: nothing rides
+    assert len(fake.sent[-1]) == 2
+    forgetful = _CountingBody(CountingFake(with_move=False), remember=False)
+    with forgetful.lookahead(ahead):
+        forgetful.sense(asked)
+    assert len(forgetful._body.sent[0]) == 2              # nothing to remember them in
+
+
+def test_rank_call_carries_the_search_starts_same_results_fewer_calls(monkeypatch):
+    world = build_world(0, {"grid_count": 12})
+    with_lookahead = run_naive(world, NaiveParams(), seed=0, paper_positions=np.zeros((0, 2)))
+    # The same run with the lookahead rows dropped.
+    monkeypatch.setattr(_CountingBody, "lookahead", _no_lookahead)
+    without = run_naive(world, NaiveParams(), seed=0, paper_positions=np.zeros((0, 2)))
+    np.testing.assert_array_equal(with_lookahead.povs, without.povs)
+    np.testing.assert_array_equal(with_lookahead.pairs, without.pairs)
+    assert len(with_lookahead.povs) > 10
+    saved = without.agent.calls_total - with_lookahead.agent.calls_total
+    remembered = with_lookahead.agent.remembered_by_stage
+    assert saved > 20
+    assert remembered.get("compensation", 0) - without.agent.remembered_by_stage.get(
+        "compensation", 0) > 20
+    assert with_lookahead.agent.queries_total > without.agent.queries_total
+
+
+def _no_lookahead(self, motor_states):
+    import contextlib
+    return contextlib.nullcontext()
+
+
 def test_remember_sensations_must_be_a_bool():
     with pytest.raises(ValueError, match="naive.remember_sensations"):
         NaiveParams(remember_sensations="yes")
