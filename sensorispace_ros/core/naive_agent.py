@@ -585,6 +585,17 @@ class NaiveAgent:
         reaction.calls = self._body.total_calls - before_calls
         return reaction
 
+    def next_sweep(self) -> np.ndarray | None:
+        """The motor states the next ``react`` senses first, ``(K, M)``: one
+        sample of every known POV (its sweep), in the environment after the
+        next change; None when that call cannot be told now (the equality
+        pass sweeps through ``EqualitySetSweep``). A body that can hold a
+        command until the next change (the ROS agent's ``BodyOverTopics.
+        presend``) answers it with the change, saving a round trip."""
+        if self._event < 0 or self.phase != EXPLORING or self._store.count == 0:
+            return None
+        return self._store.samples[:, 0].copy()
+
     def begin_equality_pass(self) -> None:
         """Switch to simulation 2: from now on ``react`` only sweeps the known
         POVs and matches each sweep with the previous one (no compensation,

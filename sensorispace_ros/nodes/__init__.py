@@ -56,7 +56,7 @@ RESTART_EXIT_CODE = 75
 
 
 def frame(kind: str, number: int) -> str:
-    """Protocol frame id: ``change/<k>``, ``end/<k>``, ``cmd/<n>`` (topics.yaml)."""
+    """Protocol frame id: ``change/<k>``, ``end/<k>``, ``cmd/<n>``, ``next/<k>`` (topics.yaml)."""
     return f"{kind}/{int(number)}"
 
 
@@ -64,7 +64,7 @@ def parse_frame(frame_id: str) -> tuple[str, int] | None:
     kind, _, number = frame_id.partition("/")
     # ASCII digits only: str.isdigit() is also true for "²" (int() raises, which
     # killed a node on a fuzzed frame id) and for "٣" (int() reads 3).
-    if kind not in ("change", "end", "cmd") or not (number.isascii() and number.isdigit()):
+    if kind not in ("change", "end", "cmd", "next") or not (number.isascii() and number.isdigit()):
         return None
     return kind, int(number)
 

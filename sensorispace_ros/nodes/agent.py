@@ -8,7 +8,10 @@ this thread; MultiThreadedExecutor had 0.1-0.6 s outliers); its ``move``
 (the rest after a change, when the agent already sensed that state) does
 not wait: the answer is taken before the next command or the settle. Commands and
 answers travel as serialized bytes (``messages.CloudCdrPacker`` /
-``GraphNode.read_float_cloud``).
+``GraphNode.read_float_cloud``). With each settle it sends the first call of
+the next change (the sweep of the known POVs, ``NaiveAgent.next_sweep``) as
+``next/<k>`` (``presend``): the body answers it right after change k's passive
+sensation, so that call waits for no round trip.
 
 Passive sensations (``change/<k>``) are queued by the subscription callback;
 ``step()``, called by the spinning loop between callbacks (never inside
@@ -120,6 +123,8 @@ class BodyOverTopics:
         self._pending: tuple[str, int] | None = None
         self._reply: np.ndarray | None = None
         self._moving: _Sent | None = None    # a move's command, its answer not taken yet
+        self._ahead: _Sent | None = None     # a presend's command, its answer not taken yet
+        self.ahead_used = 0                  # presends that answered the agent's next call
         self.requests = 0
         self.retransmits = 0
         self.aborted = False
@@ -133,8 +138,29 @@ class BodyOverTopics:
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         motor_states = self._checked(motor_states)
         self.await_move()
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None:
+            answer = self._receive(ahead, time.perf_counter())
+            if ahead.motor_states.shape == motor_states.shape and np.array_equal(
+                    ahead.motor_states.view(np.uint64), motor_states.view(np.uint64)):
+                self.ahead_used += 1
+                return answer
+            # Not what the agent asks for after all: that answer is journaled (a
+            # replay takes it the same way) and the call goes out as usual.
         sent = self._send(motor_states)
         return self._receive(sent, sent.started)
+
+    def presend(self, motor_states: np.ndarray, change: int) -> None:
+        """Send now the command the agent expects to send first after change
+        ``change`` (``core.naive_agent.NaiveAgent.next_sweep``), as
+        ``next/<change>``: the body answers it once that change's lights are
+        applied, right after the passive sensation. If the agent's first call
+        asks for the same rows (bit for bit) that answer is returned without a
+        round trip; otherwise it is taken and dropped first."""
+        motor_states = self._checked(motor_states)
+        self.await_move()
+        self.await_ahead()
+        self._ahead = self._send(motor_states, frame("next", change))
 
     def move(self, motor_states: np.ndarray) -> None:
         """The command ``sense`` sends, when the agent already has its
@@ -145,12 +171,19 @@ class BodyOverTopics:
         and the answer is journaled as any other."""
         motor_states = self._checked(motor_states)
         self.await_move()
+        self.await_ahead()
         self._moving = self._send(motor_states)
 
     def await_move(self) -> None:
         """Take the answer of the command ``move`` sent, if not taken yet."""
         if self._moving is not None:
             sent, self._moving = self._moving, None
+            self._receive(sent, time.perf_counter())
+
+    def await_ahead(self) -> None:
+        """Take (and drop) the answer of a presend nobody asked for."""
+        if self._ahead is not None:
+            sent, self._ahead = self._ahead, None
             self._receive(sent, time.perf_counter())
 
     def _checked(self, motor_states: np.ndarray) -> np.ndarray:
@@ -160,7 +193,9 @@ class BodyOverTopics:
                              f"got {motor_states.shape}")
         return motor_states
 
-    def _send(self, motor_states: np.ndarray) -> "_Sent":
+    def _send(self, motor_states: np.ndarray, frame_id: str | None = None) -> "_Sent":
+        """Publish command ``requests + 1`` (frame ``cmd/<n>`` unless ``frame_id``),
+        or take its answer from the journal being replayed."""
         self.requests += 1
         number = self.requests
         check = command_check(motor_states) if self.journal is not None else 0
@@ -170,7 +205,7 @@ class BodyOverTopics:
                 return _Sent(number, check, motor_states, "", 0.0,
                              self._replayed(number, check, recorded, len(motor_states)))
             self.replay.clear()     # answers are journaled in order: the rest is live
-        frame_id = frame("cmd", number)
+        frame_id = frame_id or frame("cmd", number)
         self._pending = (frame_id, len(motor_states))
         self._reply = None
         started = time.perf_counter()
@@ -405,11 +440,18 @@ class AgentNode(GraphNode):
         self.body.aborted = True
 
     def on_sensation(self, msg) -> None:
-        read = self.read_float_cloud("/body/sensation", msg, kinds=("cmd", "change", "end"))
+        read = self.read_float_cloud("/body/sensation", msg,
+                                     kinds=("cmd", "next", "change", "end"))
         if read is None:
             return
         (kind, number), cloud = read
         sensations = cloud.matrix
+        if kind == "next":
+            # A presend's answer; one nobody waits for is from an agent that
+            # died, or came after the run's end.
+            if not self.body.deliver(cloud.frame_id, sensations):
+                self.late_answers += 1
+            return
         if kind == "cmd":
             if self.body.deliver(cloud.frame_id, sensations):
                 return
@@ -481,8 +523,9 @@ class AgentNode(GraphNode):
             self.write_records()
             self.get_logger().info(
                 f"run over: {self.n_povs} points of view, {self.n_rows} equality rows, "
-                f"{self.body.requests} round trips "
-                f"({1e3 * self.body.round_trip_s / max(self.body.requests, 1):.3f} ms each), "
+                f"{self.body.requests} commands ({self.body.ahead_used} sent ahead with a "
+                f"settle), {1e3 * self.body.round_trip_s / max(self.body.requests, 1):.3f} ms "
+                "waited for each, "
                 f"{self.body.retransmits} commands re-sent, {self.late_answers} late answers, "
                 f"{self.body.replayed} answers and "
                 f"{self.checkpoint_stats['replayed_passives']} passive sensations replayed, "
@@ -509,13 +552,17 @@ class AgentNode(GraphNode):
         before the environment moves."""
         self.body.await_move()
         self.last_settled = number
-        if published:
-            return
-        if self.journal is not None:
-            self.journal.settled(number)
-        self.settled_pub.publish(UInt64(data=number))
-        if self.journal is not None and not self.passive and self.snapshot_due():
-            self.take_snapshot()
+        if not published:
+            if self.journal is not None:
+                self.journal.settled(number)
+            self.settled_pub.publish(UInt64(data=number))
+            if self.journal is not None and not self.passive and self.snapshot_due():
+                self.take_snapshot()
+        # After the snapshot (whose command count it is not part of), and for a
+        # replayed change too (the dead agent sent it: the numbers stay in step).
+        sweep = None if self.run_over else self.agent.next_sweep()
+        if sweep is not None:
+            self.body.presend(sweep, number + 1)
 
     def snapshot_due(self) -> bool:
         last_cost = self.checkpoint_stats["last_snapshot_s"]

@@ -3,7 +3,9 @@
 Answers each ``/body/motor_command`` batch with one ``/body/sensation``
 carrying the same header (the request id), and after each lights message a
 one-row passive sensation of the resting arm (frame ``change/<k>`` or
-``end/<k>``). Ground truth for the evaluator goes to ``/body/sensor_pose``
+``end/<k>``). A ``next/<k>`` command (the agent's first call of change k, sent
+with its settle of k-1) that arrives before change k's lights is held and
+answered right after that change's passive sensation. Ground truth for the evaluator goes to ``/body/sensor_pose``
 and ``/body/joint_states``; the agent never subscribes to those.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor state
@@ -101,6 +103,11 @@ class BodyNode(GraphNode):
         # Times the latest command was asked for (the agent re-sends a command it
         # has had no answer to after graph.command_timeout_s).
         self.command_asked: tuple[str, int] = ("", 0)
+        # A ``next/<k>`` command that arrived before change k's lights: answered
+        # right after them (one at a time: the agent sends the next only after
+        # it has this one's answer).
+        self.held: "messages.FloatCloud | None" = None
+        self.held_for = -1
         if self.graph["checkpoint_dir"]:
             # [m0..m3, k]: the resting state and the number of the last lights applied
             self.resting_file = RestingStateFile(
@@ -148,6 +155,10 @@ class BodyNode(GraphNode):
         if self.resting_file is not None and self.lights_before_kill is None:
             self.resting_file.save((*self.body.motor_state.tolist(), number))
         self.publish_passive(cloud.frame_id, cloud.stamp_ns)
+        if self.held is not None and number >= self.held_for \
+                and self.lights_before_kill is None:
+            held, self.held = self.held, None
+            self.answer(held.matrix, held.frame_id, held.stamp_ns)
 
     def publish_passive(self, frame_id: str, stamp_ns: int) -> None:
         """What the resting eye sees after a change. Not a query of the agent's: computed
@@ -161,15 +172,19 @@ class BodyNode(GraphNode):
         self.publish_answer(sensation, pose, rest, frame_id, stamp_ns)
 
     def on_command(self, msg) -> None:
-        read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd",))
+        read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd", "next"))
         if read is None:
             return
-        _, command = read
-        if self.body.lights_world is None or self.lights_before_kill is not None:
-            self.drop("/body/motor_command", "no current lights yet (the agent re-sends it)")
-            return
+        (kind, number), command = read
         if len(command.matrix) == 0:
             self.drop("/body/motor_command", "empty batch")
+            return
+        if kind == "next" and (number > self.lights_number or self.lights_before_kill is not None):
+            # For a change not applied yet: sensed in its lights, once they come.
+            self.held, self.held_for = command, number
+            return
+        if self.body.lights_world is None or self.lights_before_kill is not None:
+            self.drop("/body/motor_command", "no current lights yet (the agent re-sends it)")
             return
         self.note_repeated_command(command.frame_id)
         self.answer(command.matrix, command.frame_id, command.stamp_ns)

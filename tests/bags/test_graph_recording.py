@@ -93,7 +93,11 @@ def test_graph_recording_drops_nothing(recorded_tiny_run):
     # The environment re-sends a change the agent has not settled yet (graph.resend_period_s),
     # so a message may be recorded twice: the identities hold on distinct frame ids.
     commands = frames(bag, "/body/motor_command")
-    assert len(commands) == len(set(commands)) == totals["calls"]
+    # With each settle the agent sends the next change's first call (next/<k>); the
+    # one sent with the last change's settle is answered after the end, never used.
+    assert len(commands) == len(set(commands)) == totals["calls"] + 1
+    assert f"next/{changes}" in commands
+    assert sum(f.startswith("next/") for f in commands) == changes
     sensations = set(frames(bag, "/body/sensation"))
     passive = {f for f in sensations if f.startswith(("change/", "end/"))}
     assert sensations - passive == set(commands)

@@ -392,6 +392,39 @@ def test_a_move_is_answered_before_the_next_command_and_before_await_move_return
     assert len(published) == 3 and body.retransmits == 0
 
 
+def test_a_presend_answers_the_next_call_without_another_command():
+    published = []
+    body = BodyOverTopics(lambda m, f: published.append((f, np.array(m))), lambda t: None,
+                          n_motors=4, n_sensors=6, command_timeout_s=0.05)
+
+    def answer_last(timeout_s):
+        frame_id, motor = published[-1]
+        body.deliver(frame_id, np.tile(motor[:, :1], (1, 6)))
+    body._spin_once = answer_last
+    sweep = np.full((3, 4), 0.25)
+    body.presend(sweep, 7)
+    assert [f for f, _ in published] == ["next/7"]
+    answer_last(0.0)            # the body answers right after change 7's passive sensation
+    answer = body.sense(sweep.copy())
+    assert [f for f, _ in published] == ["next/7"] and body.ahead_used == 1
+    np.testing.assert_array_equal(answer, np.full((3, 6), 0.25))
+    # Not answered yet when the agent asks: it waits for that answer, sends nothing.
+    body.presend(sweep + 0.25, 8)
+    np.testing.assert_array_equal(body.sense(sweep + 0.25), np.full((3, 6), 0.5))
+    assert [f for f, _ in published] == ["next/7", "next/8"] and body.ahead_used == 2
+    # A presend the agent does not ask for (other bits) is taken, dropped, then the call goes out.
+    body.presend(np.zeros((1, 4)), 9)
+    other = body.sense(np.full((1, 4), -0.0))
+    assert [f for f, _ in published] == ["next/7", "next/8", "next/9", "cmd/4"]
+    np.testing.assert_array_equal(other, np.full((1, 6), -0.0))
+    assert body.ahead_used == 2 and body.requests == 4
+    # ... and so is one still out when the agent moves the arm.
+    body.presend(np.ones((2, 4)), 10)
+    body.move(np.full((1, 4), 0.75))
+    assert [f for f, _ in published][-2:] == ["next/10", "cmd/6"]
+    assert body._pending == ("cmd/6", 1)
+
+
 def test_an_unanswered_move_is_sent_again_by_await_move():
     fake = SilentOnce()
     body = BodyOverTopics(fake.publish, fake.spin_once, n_motors=4, n_sensors=6,

@@ -86,6 +86,9 @@ def _assert_same_as_offline(result, offline):
 def test_graph_equals_offline_and_agent_is_naive(tmp_path, domain_id, offline):
     result, observer = _run(tmp_path, domain_id)
     _assert_same_as_offline(result, offline)
+    # Every change's sweep was sent with the settle before it and answered with the change.
+    agent_node = result["nodes"]["agent"]
+    assert agent_node.body.ahead_used == agent_node.agent.calls_by_stage["sweep"] > 100
     assert (tmp_path / "representation.npz").is_file()
     assert all(not node.dropped for node in result["nodes"].values()
                if hasattr(node, "dropped")), "an undisturbed run dropped messages"
