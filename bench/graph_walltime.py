@@ -1,6 +1,6 @@
 """Wall time of the ROS graph vs the offline naive run, and the round trip per probe.
 
-    PYTHONPATH=. python bench/graph_walltime.py [--config config/smoke.yaml] [--processes]
+    PYTHONPATH=. python bench/graph_walltime.py [--config config/smoke.yaml] [--processes] [--repeat N]
 
 Both sides do the same work and are timed the same way (issue #4 target:
 graph <= 1.5x offline):
@@ -25,6 +25,7 @@ import argparse
 import json
 import os
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -87,24 +88,15 @@ def legacy_offline(config_path: str) -> float:
     return time.perf_counter() - started
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--config", default="config/smoke.yaml")
-    parser.add_argument("--processes", action="store_true")
-    parser.add_argument("--legacy-offline", action="store_true",
-                        help="also time the offline run as sessions 1-7 did")
-    parser.add_argument("--offline-child", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
-    if args.offline_child:
-        return offline_child(args.config)
-
+def run_pair(args, legacy: bool = False) -> float:
+    """One offline run, then one graph run; prints both and returns the wall ratio."""
     offline = run_offline(args.config)
     print(f"offline naive run + representation (fresh process, no ground truth): "
           f"{offline['wall_s']:.2f} s wall, {offline['cpu_s']:.2f} s CPU (imports "
           f"{offline['import_s']:.2f} s, exploration {offline['exploration_s']:.2f} s, "
           f"representation {offline['representation_s']:.2f} s; "
           f"{offline['points_of_view']} POVs, {offline['calls']} sense calls)")
-    if args.legacy_offline:
+    if legacy:
         print(f"legacy offline number (run_naive_strategy in-process, ground truth included): "
               f"{legacy_offline(args.config):.2f} s")
 
@@ -138,6 +130,33 @@ def main() -> int:
               f"each, {round_trip[1]:.2f} s in total")
     print(f"ratio graph / offline: wall {graph_s / offline['wall_s']:.2f}, "
           f"CPU {graph_cpu / offline['cpu_s']:.2f}")
+    return graph_s / offline["wall_s"]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--config", default="config/smoke.yaml")
+    parser.add_argument("--processes", action="store_true")
+    parser.add_argument("--legacy-offline", action="store_true",
+                        help="also time the offline run as sessions 1-7 did")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="offline/graph pairs to run, alternated (the host's noise moves a "
+                             "single ratio by ~0.15 on paper.yaml)")
+    parser.add_argument("--offline-child", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.offline_child:
+        return offline_child(args.config)
+    if args.repeat < 1:
+        parser.error("--repeat: must be >= 1")
+
+    ratios = []
+    for pair in range(args.repeat):
+        if args.repeat > 1:
+            print(f"pair {pair + 1}/{args.repeat}: load {[round(v, 2) for v in os.getloadavg()]}")
+        ratios.append(run_pair(args, legacy=args.legacy_offline and pair == 0))
+    if len(ratios) > 1:
+        print("wall ratios: " + ", ".join(f"{r:.2f}" for r in ratios)
+              + f"; median {statistics.median(ratios):.2f}, worst {max(ratios):.2f}")
     return 0
 
 
