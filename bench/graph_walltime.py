@@ -1,6 +1,7 @@
 """Wall time of the ROS graph vs the offline naive run, and the round trip per probe.
 
-    PYTHONPATH=. python bench/graph_walltime.py [--config config/smoke.yaml] [--processes] [--repeat N]
+    PYTHONPATH=. python bench/graph_walltime.py [--config config/smoke.yaml] [--processes]
+        [--repeat N]
 
 Both sides do the same work and are timed the same way (issue #4 target:
 graph <= 1.5x offline):
@@ -26,14 +27,17 @@ import json
 import os
 import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-REPO = Path(__file__).resolve().parent.parent
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+from bench.child import child_environment, run_measured  # noqa: E402
 
 
 def offline_child(config_path: str) -> int:
@@ -60,20 +64,19 @@ def offline_child(config_path: str) -> int:
 
 
 def run_offline(config_path: str) -> dict:
-    """Spawn ``offline_child``; its wall time from spawn to exit, CPU time and stages."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), env.get("PYTHONPATH")) if p)
-    started = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--offline-child",
-                             "--config", config_path], stdout=subprocess.PIPE, env=env, cwd=REPO)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall_s = time.perf_counter() - started
-    out = proc.stdout.read().decode()
-    proc.stdout.close()
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"offline child failed (exit {os.waitstatus_to_exitcode(status)})")
-    stages = json.loads(out.strip().splitlines()[-1])
-    return {"wall_s": wall_s, "cpu_s": usage.ru_utime + usage.ru_stime, **stages}
+    """Spawn ``offline_child`` (``bench.child.run_measured``); its wall time from
+    spawn to exit, CPU time and stages."""
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "offline.log"
+        measured = run_measured([sys.executable, str(HERE / "graph_walltime.py"),
+                                 "--offline-child", "--config", config_path], log_path=log,
+                                env=child_environment())
+        output = log.read_text()
+    if measured["exit_code"] != 0:
+        raise SystemExit(f"offline child failed (exit {measured['exit_code']}):\n"
+                         f"{output[-2000:]}")
+    stages = json.loads([line for line in output.splitlines() if line.startswith("{")][-1])
+    return {"wall_s": measured["wall_s"], "cpu_s": measured["cpu_s"], **stages}
 
 
 def legacy_offline(config_path: str) -> float:

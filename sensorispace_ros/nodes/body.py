@@ -5,8 +5,9 @@ carrying the same header (the request id), and after each lights message a
 one-row passive sensation of the resting arm (frame ``change/<k>`` or
 ``end/<k>``). A ``next/<k>`` command (the agent's first call of change k, sent
 with its settle of k-1) that arrives before change k's lights is held and
-answered right after that change's passive sensation. Ground truth for the evaluator goes to ``/body/sensor_pose``
-and ``/body/joint_states``; the agent never subscribes to those.
+answered right after that change's passive sensation. Ground truth for the
+evaluator goes to ``/body/sensor_pose`` and ``/body/joint_states``; the agent
+never subscribes to those.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor state
 and the number of the last lights applied are written on every command and

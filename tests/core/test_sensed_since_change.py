@@ -1,5 +1,6 @@
 """The naive agent answers a call from what it sensed since the last change
 (``remember_sensations``): same results, fewer calls, the arm still rests."""
+import contextlib
 import types
 
 import numpy as np
@@ -206,7 +207,6 @@ def test_rank_call_carries_the_search_starts_same_results_fewer_calls(monkeypatc
 
 
 def _no_lookahead(self, motor_states):
-    import contextlib
     return contextlib.nullcontext()
 
 
