@@ -6,9 +6,8 @@ one-row passive sensation of the resting arm (frame ``change/<k>`` or
 ``end/<k>``). A ``next/<k>`` command (the agent's first call of change k, sent
 with its settle of k-1) that arrives before change k's lights is held and
 answered right after that change's passive sensation. Ground truth for the
-evaluator goes to ``/body/sensor_pose`` and ``/body/joint_states``, while they
-have a reader (the recorder; looked at with every change); the agent never
-subscribes to those.
+evaluator goes to ``/body/sensor_pose`` and ``/body/joint_states``; the agent
+never subscribes to those.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor state
 and the number of the last lights applied are written on every command and
@@ -136,11 +135,6 @@ class BodyNode(GraphNode):
         # they trigger at every change (rclpy's message took ~30 us of it).
         contracts.create_subscription(self, "/environment/lights", self.on_lights, raw=True)
         contracts.create_subscription(self, "/body/motor_command", self.on_command, raw=True)
-        # Whether the ground truth topics have readers (the recorder; none in a
-        # run without a bag), looked at with every change: a paper run answers
-        # ~60,000 commands, and each ground truth message nobody reads costs
-        # this process a pack and a publication.
-        self.ground_truth_readers = (True, True)
 
     def on_lights(self, msg) -> None:
         read = self.read_float_cloud("/environment/lights", msg, kinds=("change", "end"))
@@ -157,8 +151,6 @@ class BodyNode(GraphNode):
             self.drop("/environment/lights", "end of run before any lights")
             return
         self.lights_number = number
-        self.ground_truth_readers = (self.pose_pub.get_subscription_count() > 0,
-                                     self.joint_pub.get_subscription_count() > 0)
         if self.lights_before_kill is not None and number >= self.lights_before_kill:
             self.lights_before_kill = None
         if self.resting_file is not None and self.lights_before_kill is None:
@@ -238,15 +230,11 @@ class BodyNode(GraphNode):
 
     def publish_answer(self, sensations: np.ndarray, poses: np.ndarray, rest: np.ndarray,
                        frame_id: str, stamp_ns: int) -> None:
-        """The sensation first (the agent waits for it), then the ground truth if
-        anyone reads it; the header (frame id and stamp of the command or the
-        change) of all three."""
+        """The sensation first (the agent waits for it), then the ground truth; the
+        header (frame id and stamp of the command or the change) of all three."""
         self.sensation_pub.publish(self.sensation_packer.pack(sensations, frame_id, stamp_ns))
-        pose_read, joints_read = self.ground_truth_readers
-        if pose_read:
-            self.pose_pub.publish(self.pose_packer.pack(poses, frame_id, stamp_ns))
-        if joints_read:
-            self.joint_pub.publish(self.joint_packer.pack(rest, frame_id, stamp_ns))
+        self.pose_pub.publish(self.pose_packer.pack(poses, frame_id, stamp_ns))
+        self.joint_pub.publish(self.joint_packer.pack(rest, frame_id, stamp_ns))
 
 
 def main(args=None) -> int:
