@@ -594,7 +594,7 @@ class NaiveAgent:
         presend``) answers it with the change, saving a round trip."""
         if self._event < 0 or self.phase != EXPLORING or self._store.count == 0:
             return None
-        return self._store.samples[:, 0].copy()
+        return self._sweep_rows().copy()
 
     def begin_equality_pass(self) -> None:
         """Switch to simulation 2: from now on ``react`` only sweeps the known
@@ -792,7 +792,12 @@ class NaiveAgent:
         sample each: all samples of a POV share the eye's pose)."""
         if self._store.count == 0:
             return np.zeros((0, self._body.n_sensors))
-        return self._body.sense(self._store.samples[:, 0])
+        return self._body.sense(self._sweep_rows())
+
+    def _sweep_rows(self) -> np.ndarray:
+        """The motor states a sweep senses (``_sweep_known``; what ``next_sweep``
+        announces must be these rows, bit for bit)."""
+        return self._store.samples[:, 0]
 
     def _anchor_requests(self, matches, rest_hits, rank_now):
         """Anchors: matched by a known POV, or searched for. A snapshot none
