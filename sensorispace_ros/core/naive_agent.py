@@ -56,7 +56,7 @@ from .sensory_compensation import compensate
 from .sensory_equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
                                     EqualitySetCollection, EqualitySetSweep,
                                     check_pose_rank, match_sensations)
-from .sensory_points_of_view import jacobian_stencil, sample_sensory_points_of_view
+from .sensory_points_of_view import SPLIT, jacobian_stencil, sample_sensory_points_of_view
 
 EXPLORING = "exploring"
 EQUALITY_PASS = "equality_pass"
@@ -92,6 +92,10 @@ class NaiveParams:
     ``remember_sensations``: a call asking only for motor states already
     sensed since the last change is answered from memory (the same bits; see
     ``_SensedSinceChange``); false sends every call, as before.
+    ``remember_split_povs``: keep one motor state of every POV whose walk
+    came back split, sweep it with the known POVs, and do not walk again a
+    solution that senses what it senses (``NaiveAgent._search``); false
+    walks every new solution, as before. Same POVs and compensations.
     """
 
     n_samples: int = 100
@@ -120,6 +124,7 @@ class NaiveParams:
     equality_snapshots: int = 2
     confirm_checks: int = 3
     remember_sensations: bool = True
+    remember_split_povs: bool = True
 
     def __post_init__(self):
         positive_reals = ("fd_step", "pov_initial_step", "pov_min_step", "pov_max_step",
@@ -144,9 +149,10 @@ class NaiveParams:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
                     or value < minimum:
                 raise ValueError(f"naive.{name}: must be an integer >= {minimum}, got {value!r}")
-        if not isinstance(self.remember_sensations, (bool, np.bool_)):
-            raise ValueError(f"naive.remember_sensations: must be true or false, got "
-                             f"{self.remember_sensations!r}")
+        for name in ("remember_sensations", "remember_split_povs"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"naive.{name}: must be true or false, got "
+                                 f"{getattr(self, name)!r}")
         if not self.pov_min_step <= self.pov_initial_step <= self.pov_max_step:
             raise ValueError("naive.pov_initial_step: must lie in [pov_min_step, pov_max_step], "
                              f"got {self.pov_initial_step!r}")
@@ -441,6 +447,9 @@ class NaiveAgent:
         self._body = _CountingBody(body, bool(self.params.remember_sensations))
         self.n_motors = self._body.n_motors
         self._store = _PovStore(self.params.n_samples, self.n_motors)
+        # One motor state of every POV whose walk came back split (remember_split_povs).
+        self._split_states = np.zeros((0, self.n_motors))
+        self.split_walks_skipped = 0
         self.pov_queries: list[int] = []           # walk queries of each POV
         self.pov_events: list[int] = []            # the agent's event that found each POV
         self.compensation_queries: list[int] = []  # per event with an accepted compensation
@@ -461,6 +470,12 @@ class NaiveAgent:
     def points_of_view(self) -> np.ndarray:
         """``(P, N, M)`` samples of every POV found so far (a copy)."""
         return self._store.samples.copy()
+
+    @property
+    def split_motor_states(self) -> np.ndarray:
+        """``(Q, M)`` one motor state of every POV whose walk came back split
+        (``remember_split_povs``; a copy)."""
+        return self._split_states.copy()
 
     @property
     def compensated(self) -> int:
@@ -637,7 +652,7 @@ class NaiveAgent:
 
         # 1. Sweep the known POVs: this event's memory of (motor, sensation).
         self._body.stage = "sweep"
-        current = self._sweep_known()
+        current, split_now = self._sweep_known()
         rank_now = np.full(len(current), RANK_UNKNOWN)
         tree = cKDTree(current) if len(current) else None
         match = dict(match_tol=p.match_tol, separation=p.match_separation, tree=tree)
@@ -694,7 +709,7 @@ class NaiveAgent:
         # 4. Search (LM) for them; sample the POVs of new compensating states.
         #    Their sensation now is the anchor's.
         pov_rows_before = self._body.rows.get("pov", 0)
-        found, new_povs, new_sensations = self._search(requests, current, tree)
+        found, new_povs, new_sensations = self._search(requests, current, tree, split_now)
         pov_rows = self._body.rows.get("pov", 0) - pov_rows_before
         if new_povs:
             current = np.vstack([current, np.asarray(new_sensations)])
@@ -787,17 +802,24 @@ class NaiveAgent:
                         compensations=records, equality_rows=self._sets.rows_since(sets_before))
 
 
-    def _sweep_known(self) -> np.ndarray:
-        """Sensation of every known POV now, ``(K, S)``, in one call (one
-        sample each: all samples of a POV share the eye's pose)."""
+    def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
+        """Sensation now of every known POV ``(K, S)`` and of every remembered
+        split POV ``(Q, S)``, in one call (one sample each: all samples of a
+        POV share the eye's pose)."""
+        n_sensors = self._body.n_sensors
         if self._store.count == 0:
-            return np.zeros((0, self._body.n_sensors))
-        return self._body.sense(self._sweep_rows())
+            return np.zeros((0, n_sensors)), np.zeros((0, n_sensors))
+        swept = self._body.sense(self._sweep_rows())
+        return swept[:self._store.count], swept[self._store.count:]
 
     def _sweep_rows(self) -> np.ndarray:
         """The motor states a sweep senses (``_sweep_known``; what ``next_sweep``
-        announces must be these rows, bit for bit)."""
-        return self._store.samples[:, 0]
+        announces must be these rows, bit for bit): the known POVs' first
+        samples, then the remembered split POVs' states."""
+        rows = self._store.samples[:, 0]
+        if len(self._split_states):
+            rows = np.concatenate([rows, self._split_states])
+        return rows
 
     def _anchor_requests(self, matches, rest_hits, rank_now):
         """Anchors: matched by a known POV, or searched for. A snapshot none
@@ -855,11 +877,14 @@ class NaiveAgent:
         share = min(1.0, self._frontier_success / 0.2)
         return max(1, int(np.ceil(self.params.frontier_attempts * share)))
 
-    def _search(self, requests, current, tree):
+    def _search(self, requests, current, tree, split_now):
         """LM toward every requested anchor (identical targets searched once)
         from the request's own start, the resting state and the remembered
         states that sense most like the target; sample the POVs of accepted
-        solutions that are not known POVs.
+        solutions that are not known POVs. ``split_now``: sensations of the
+        remembered split POVs in this environment; a solution sensing one of
+        them is on that loop, already walked and found split: not walked
+        again (its POV is -1, as after a split walk).
 
         Returns ``{request index: (pov or -1, motor state)}`` for accepted
         compensations, the new POV indices and their sensations.
@@ -884,12 +909,18 @@ class NaiveAgent:
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose).
         fresh = []
+        split_tree = cKDTree(split_now) if len(split_now) else None
         for g in sorted(solution):
             if tree is not None:
                 distance, index = tree.query(unique_targets[g], k=1)
                 if distance <= p.match_tol:
                     pov_of_group[g] = int(index)
                     continue
+            if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] \
+                    <= p.match_tol:
+                pov_of_group[g] = -1
+                self.split_walks_skipped += 1
+                continue
             fresh.append(g)
         new_povs, new_sensations = [], []
         if fresh:
@@ -948,9 +979,12 @@ class NaiveAgent:
                 self.pov_queries.append(int(walk.queries[i]))
                 self.pov_events.append(self._event)
                 sensations.append(walk.target_sensations[i])
-            elif keep_invalid:
-                indices.append(-1)
-                sensations.append(None)
+            else:
+                if walk.reason[i] == SPLIT and p.remember_split_povs:
+                    self._split_states = np.vstack([self._split_states, motor_states[i]])
+                if keep_invalid:
+                    indices.append(-1)
+                    sensations.append(None)
         return indices, sensations
 
 

@@ -195,3 +195,28 @@ def test_agent_calls_out_of_order_and_bad_inputs():
     with pytest.raises(ValueError, match="passive_sensation"):
         agent.react(np.zeros(5))
     assert not agent.react(np.zeros(6)).compensated
+
+
+def test_remembered_split_povs_change_no_result_only_the_walks():
+    world = build_world(0, {"grid_count": 16})
+    runs = {remember: run_naive(world, NaiveParams(remember_split_povs=remember), seed=0,
+                                paper_positions=np.zeros((0, 2)))
+            for remember in (True, False)}
+    on, off = runs[True], runs[False]
+    np.testing.assert_array_equal(on.povs, off.povs)
+    np.testing.assert_array_equal(on.pairs, off.pairs)
+    np.testing.assert_array_equal(on.set_ids, off.set_ids)
+    records = {remember: [(r.event, r.anchor_event, r.pov, r.searched, r.motor_state.tobytes())
+                          for r in run.agent.compensations] for remember, run in runs.items()}
+    assert records[True] == records[False] and len(records[True]) > 10
+    split = on.agent.split_motor_states
+    assert len(split) > 0 and len(off.agent.split_motor_states) == 0
+    assert on.agent.split_walks_skipped > 0 and off.agent.split_walks_skipped == 0
+    assert on.agent.calls_by_stage["pov"] < off.agent.calls_by_stage["pov"]
+    # Ground truth: each remembered state is a different loop (none was walked
+    # twice), and none is the loop of a valid POV.
+    poses = arm.forward(split)
+    gap = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=-1)
+    assert np.min(gap + np.eye(len(split))) > 1e-3
+    pov_poses = arm.forward(on.povs[:, 0])
+    assert np.min(np.linalg.norm(poses[:, None, :2] - pov_poses[None, :, :2], axis=-1)) > 1e-3
