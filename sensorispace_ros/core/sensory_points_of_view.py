@@ -106,8 +106,9 @@ def minimum_norm_correction(jacobians: np.ndarray, residuals: np.ndarray,
     largest singular values: the correction moves across the level set,
     never along it (the discarded direction is the POV's tangent)."""
     u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
-    # A blank sensation has J = 0: its "correction" is infinite, never small.
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # A blank sensation has J = 0 (or a singular value of ~1e-300): its
+    # "correction" is infinite, never small.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         coeff = np.einsum("bsk,bs->bk", u[:, :, :rank], residuals) / singular[:, :rank]
         return -np.einsum("bk,bkm->bm", coeff, right[:, :rank, :])
 
@@ -116,7 +117,7 @@ def _correction_and_null(jacobians: np.ndarray, residuals: np.ndarray):
     """``minimum_norm_correction`` and the unit null vector of each rank-3
     Jacobian from one SVD (the walk's inner loop)."""
     u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         coeff = np.einsum("bsk,bs->bk", u[:, :, :3], residuals) / singular[:, :3]
     return -np.einsum("bk,bkm->bm", coeff, right[:, :3, :]), right[:, 3, :].copy()
 

@@ -168,7 +168,9 @@ def test_equality_pass_adds_sets_and_no_points_of_view():
 
 @pytest.mark.parametrize("name, value", [("fd_step", 0.0), ("lm_restarts", 0),
                                          ("match_tol", 1.0), ("pov_initial_step", 1.0),
-                                         ("max_snapshots", 2.5), ("min_singular", -1.0)])
+                                         ("max_snapshots", 2.5), ("min_singular", -1.0),
+                                         ("lm_initial_damping", 0.0),
+                                         ("remember_split_povs", "yes")])
 def test_bad_parameters_are_named(name, value):
     with pytest.raises(ValueError, match=rf"^naive\.{name}:"):
         NaiveParams(**{name: value})
