@@ -75,8 +75,8 @@ class NaiveParams:
     per target. ``lm_initial_damping`` is small (nearly Gauss-Newton steps,
     ``lm_max_step`` bounds them) and a search stops when its error has not
     halved in ``lm_stall_iterations`` iterations: measured on the paper
-    config (seeds 0 and 1), 1e-3 and 4 took ~2x the search calls for the
-    same POVs and 5-6 % more compensated changes. ``lm_error_tol``/``lm_motor_tol`` are tight because matches
+    config (seeds 0 and 1), 1e-3 and 4 took 1.6x the search calls for the
+    same POVs and ~3 % more compensated changes. ``lm_error_tol``/``lm_motor_tol`` are tight because matches
     between sweeps rely on compensating poses being exact (a pose error e
     shows as a sensation error ~e).
     Sensation matching: ``match_tol`` (measured: two compensations of the
