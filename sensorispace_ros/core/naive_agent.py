@@ -76,9 +76,10 @@ class NaiveParams:
     ``lm_max_step`` bounds them) and a search stops when its error has not
     halved in ``lm_stall_iterations`` iterations: measured on the paper
     config (seeds 0 and 1), 1e-3 and 4 took 1.6x the search calls for the
-    same POVs and ~3 % more compensated changes. ``lm_error_tol``/``lm_motor_tol`` are tight because matches
-    between sweeps rely on compensating poses being exact (a pose error e
-    shows as a sensation error ~e).
+    same POVs and ~3 % more compensated changes. ``lm_error_tol`` and
+    ``lm_motor_tol`` are tight because matches between sweeps rely on
+    compensating poses being exact (a pose error e shows as a sensation
+    error ~e).
     Sensation matching: ``match_tol`` (measured: two compensations of the
     same pose through different anchor chains differ by ~3e-9 in pose,
     up to ~7e-8 in sensation; lattice neighbours differ by > 1e-3),
