@@ -15,6 +15,8 @@ from sensorispace_ros.core.naive_agent import NaiveAgent, NaiveParams
 from sensorispace_ros.core.naive_evaluation import run_naive
 from sensorispace_ros.core.world import REDISTRIBUTION
 
+from naive_flag_runs import assert_same_results, runs_on_and_off
+
 CORE = Path(__file__).resolve().parents[2] / "sensorispace_ros" / "core"
 NAIVE_MODULES = ("naive_agent", "sensory_points_of_view", "sensory_compensation",
                  "sensory_equality_sets")
@@ -200,17 +202,8 @@ def test_agent_calls_out_of_order_and_bad_inputs():
 
 
 def test_remembered_split_povs_change_no_result_only_the_walks():
-    world = build_world(0, {"grid_count": 16})
-    runs = {remember: run_naive(world, NaiveParams(remember_split_povs=remember), seed=0,
-                                paper_positions=np.zeros((0, 2)))
-            for remember in (True, False)}
-    on, off = runs[True], runs[False]
-    np.testing.assert_array_equal(on.povs, off.povs)
-    np.testing.assert_array_equal(on.pairs, off.pairs)
-    np.testing.assert_array_equal(on.set_ids, off.set_ids)
-    records = {remember: [(r.event, r.anchor_event, r.pov, r.searched, r.motor_state.tobytes())
-                          for r in run.agent.compensations] for remember, run in runs.items()}
-    assert records[True] == records[False] and len(records[True]) > 10
+    on, off = runs_on_and_off("remember_split_povs", grid_count=16)
+    assert assert_same_results(on, off) > 10
     split = on.agent.split_motor_states
     assert len(split) > 0 and len(off.agent.split_motor_states) == 0
     assert on.agent.split_walks_skipped > 0 and off.agent.split_walks_skipped == 0

@@ -12,6 +12,8 @@ from sensorispace_ros.core.naive_agent import (NaiveParams, _CountingBody,
                                                _SensedSinceChange)
 from sensorispace_ros.core.naive_evaluation import run_naive
 
+from naive_flag_runs import assert_same_results, runs_on_and_off
+
 
 class CountingFake:
     """A deterministic body (row -> its own function) recording each call."""
@@ -141,19 +143,8 @@ def test_simulated_body_move_puts_the_arm_there_and_counts_a_call():
 
 
 def test_remembering_changes_no_result_only_the_calls():
-    world = build_world(0, {"grid_count": 12})
-    runs = {remember: run_naive(world, NaiveParams(remember_sensations=remember), seed=0,
-                                paper_positions=np.zeros((0, 2)))
-            for remember in (True, False)}
-    on, off = runs[True], runs[False]
-    np.testing.assert_array_equal(on.povs, off.povs)
-    np.testing.assert_array_equal(on.pairs, off.pairs)
-    np.testing.assert_array_equal(on.set_ids, off.set_ids)
-    records_on = [(r.event, r.anchor_event, r.pov, r.searched, r.motor_state.tobytes())
-                  for r in on.agent.compensations]
-    records_off = [(r.event, r.anchor_event, r.pov, r.searched, r.motor_state.tobytes())
-                   for r in off.agent.compensations]
-    assert records_on == records_off and len(records_on) > 10
+    on, off = runs_on_and_off("remember_sensations", grid_count=12)
+    assert assert_same_results(on, off) > 10
     remembered = sum(on.agent.remembered_by_stage.values())
     assert remembered > 0 and off.agent.remembered_by_stage == {}
     assert off.agent.calls_total - on.agent.calls_total == remembered
