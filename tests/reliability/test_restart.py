@@ -73,7 +73,10 @@ def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_pat
     assert_same_result(load_result(tmp_path / "results"), single_host_result)
     assert outcome["bag"] == {"settled_missing": [], "events_missing": [], "parts_left": []}, \
         str(outcome)
-    assert outcome["bag_expected_settled"] >= (50 if victim == "recorder" else 285), str(outcome)
+    # Killed at settle 60: what the watcher got RECORDER_MARGIN_S before the kill must be a
+    # real share of the run. Not >= 50: at ~60 changes a second a loaded host delivered
+    # settles 48-60 to the watcher in one 0.2 s burst (1 of 6 runs with two busy loops).
+    assert outcome["bag_expected_settled"] >= (30 if victim == "recorder" else 285), str(outcome)
     if victim == "representation":
         return          # its restart changes nothing the bag holds (it only reads history)
     analysed = analysed_metrics(tmp_path / "bag", tmp_path / "analysed")
