@@ -60,11 +60,19 @@ def frame(kind: str, number: int) -> str:
     return f"{kind}/{int(number)}"
 
 
+MAX_FRAME_NUMBER = 2 ** 63 - 1
+
+
 def parse_frame(frame_id: str) -> tuple[str, int] | None:
     kind, _, number = frame_id.partition("/")
     # ASCII digits only: str.isdigit() is also true for "²" (int() raises, which
     # killed a node on a fuzzed frame id) and for "٣" (int() reads 3).
     if kind not in ("change", "end", "cmd", "next") or not (number.isascii() and number.isdigit()):
+        return None
+    # Numbers count changes and commands and travel as int64/uint64 elsewhere: a longer
+    # one (the fuzzer's "cmd/" + 400 nines) is no frame id; the body answered it, and
+    # the third such command in a row made it exit as if its answers were lost.
+    if len(number) > 19 or int(number) > MAX_FRAME_NUMBER:
         return None
     return kind, int(number)
 

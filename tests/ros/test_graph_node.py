@@ -11,7 +11,7 @@ from rclpy.serialization import serialize_message
 from rclpy.time import Time
 
 from sensorispace_ros import contracts, launcher, messages
-from sensorispace_ros.nodes import GraphNode
+from sensorispace_ros.nodes import MAX_FRAME_NUMBER, GraphNode, parse_frame
 
 from .conftest import SMOKE
 
@@ -57,6 +57,7 @@ def _messages():
         "point_cloud": (cloud, "change/2"),
         "wrong_kind": (packer.pack(rows, "end/3"), "frame id 'end/3'"),
         "not_a_frame": (packer.pack(rows, "cmd/\u00b2"), "frame id 'cmd/²'"),
+        "number_too_long": (packer.pack(rows, "cmd/" + "9" * 400), "frame id 'cmd/999"),
         "nan": (packer.pack(nan, "cmd/8"), "column 's4' holds NaN or inf"),
         # the frame id is checked before the data, as decode does
         "nan_and_not_a_frame": (packer.pack(nan, "x/8"), "frame id 'x/8'"),
@@ -65,6 +66,16 @@ def _messages():
                                                           messages.make_header("cmd/1")),
                                  "column 's4' holds NaN or inf"),
     }
+
+
+@pytest.mark.parametrize("frame_id, parsed", [
+    ("cmd/7", ("cmd", 7)), ("next/0", ("next", 0)), ("end/12", ("end", 12)),
+    (f"change/{MAX_FRAME_NUMBER}", ("change", MAX_FRAME_NUMBER)),
+    (f"change/{MAX_FRAME_NUMBER + 1}", None), ("cmd/" + "9" * 400, None),
+    ("cmd/" + "0" * 20 + "1", None), ("cmd/\u00b2", None), ("cmd/-1", None), ("cmd/", None),
+    ("bogus/1", None), ("change/1/2", None)])
+def test_parse_frame_takes_the_protocol_grammar_only(frame_id, parsed):
+    assert parse_frame(frame_id) == parsed
 
 
 @pytest.mark.parametrize("name", _messages().keys())
