@@ -71,7 +71,8 @@ def parse_frame(frame_id: str) -> tuple[str, int] | None:
         return None
     # Numbers count changes and commands and travel as int64/uint64 elsewhere: a longer
     # one (the fuzzer's "cmd/" + 400 nines) is no frame id; the body answered it, and
-    # the third such command in a row made it exit as if its answers were lost.
+    # the third such command in a row made it exit as if its answers were lost. The
+    # length goes first: int() raises on a string of more than 4,300 digits.
     if len(number) > 19 or int(number) > MAX_FRAME_NUMBER:
         return None
     return kind, int(number)
