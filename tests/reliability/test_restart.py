@@ -2,8 +2,8 @@
 
 For each victim the smoke graph runs as five processes (localhost discovery,
 a free domain id, every node with ``graph.checkpoint_dir``); once the agent has
-settled change 60 (of 284) the victim gets SIGKILL by PID and is started again
-with the same command line. Asserted:
+settled change KILL_AT (120 of 284) the victim gets SIGKILL by PID and is started
+again with the same command line. Asserted:
 
 - the run completes (the representation exits 0) and its result (POVs,
   equality rows, embeddings, the agent's counters) equals the undisturbed
@@ -41,6 +41,12 @@ from .restart_nodes import restart_run
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 PARITY_PREFIXES = ("exploration.", "quality.")
+# Past the start-up: the smoke run settles ~60 changes a second, and while five node
+# processes and the representation's workers start on two cores the test's watcher can
+# be starved for seconds, then take every settle at once. Killed at 60 (the value until
+# session 10), one CI run saw no settle arrive earlier than RECORDER_MARGIN_S before the
+# kill, another only 47.
+KILL_AT = 120
 PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
 
 
@@ -67,16 +73,14 @@ def analysed_metrics(bag, out) -> dict:
 def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_path,
                                                                  single_host_result,
                                                                  offline_naive_metrics):
-    outcome = restart_run(victim, tmp_path, kill_at=60, stall_s=150, reference=None)
+    outcome = restart_run(victim, tmp_path, kill_at=KILL_AT, stall_s=150, reference=None)
     assert outcome.get("settled_at_kill", 10**6) < 200, str(outcome)     # killed mid-run
     assert outcome["state"] == "completed", str(outcome)
     assert_same_result(load_result(tmp_path / "results"), single_host_result)
     assert outcome["bag"] == {"settled_missing": [], "events_missing": [], "parts_left": []}, \
         str(outcome)
-    # Killed at settle 60: what the watcher got RECORDER_MARGIN_S before the kill must be a
-    # real share of the run. Not >= 50: at ~60 changes a second a loaded host delivered
-    # settles 48-60 to the watcher in one 0.2 s burst (1 of 6 runs with two busy loops).
-    assert outcome["bag_expected_settled"] >= (30 if victim == "recorder" else 285), str(outcome)
+    # What the watcher got RECORDER_MARGIN_S before the kill must be a real share of the run.
+    assert outcome["bag_expected_settled"] >= (50 if victim == "recorder" else 285), str(outcome)
     if victim == "representation":
         return          # its restart changes nothing the bag holds (it only reads history)
     analysed = analysed_metrics(tmp_path / "bag", tmp_path / "analysed")
