@@ -11,9 +11,11 @@ With numba installed (``kernel="auto"``) the simulator runs the forward
 model and the retina in one compiled loop over rows (``simulate``). It does
 the floating-point operations of ``arm.forward`` + ``retina.sensation`` in
 their order, and numba's ``math.cos/sin/exp/hypot`` are the C library's,
-which NumPy calls too on a machine without AVX-512 (float64 has no SIMD
-path there), so the bits are equal (tests/core/test_body_simulation.py
-checks it); those two NumPy functions stay the reference and the fallback.
+which NumPy calls too where ``core.numpy_math.numpy_calls_c_math()`` (on a
+machine without AVX-512: float64 has no SIMD path there), so the bits are
+equal (tests/core/test_body_simulation.py checks it; on AVX-512 NumPy's own
+exp is within one ulp); those two NumPy functions stay the reference and
+the fallback.
 Measured: 1 row 54 -> 2 us, 649 rows 0.42 -> 0.22 ms, then 0.29 -> 0.19 ms at
 the initial pose once terms that underflow to 0 skipped exp (``_EXP_ZERO``).
 The simulator is in the agent's loop (~63,000 calls a paper run) and in the

