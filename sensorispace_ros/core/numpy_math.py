@@ -41,20 +41,27 @@ def _dispatched_features() -> list[str]:
     return [name for name in umath.__cpu_dispatch__ if found.get(name)]
 
 
+def c_math_differences(x: np.ndarray, unit: np.ndarray) -> list[int]:
+    """How many of NumPy's ``exp(x)``, ``log(|x| + 1e-300)`` and
+    ``arccos(unit)`` differ from the C library's (Python's ``math``)."""
+    x, unit = np.asarray(x, dtype=float), np.asarray(unit, dtype=float)
+    counts = []
+    for numpy_function, c_function, arguments in ((np.exp, math.exp, x),
+                                                  (np.log, math.log, np.abs(x) + 1e-300),
+                                                  (np.arccos, math.acos, unit)):
+        c_values = np.array([c_function(v) for v in arguments.tolist()])
+        counts.append(int(np.count_nonzero(numpy_function(arguments).view(np.uint64)
+                                           != c_values.view(np.uint64))))
+    return counts
+
+
 @functools.lru_cache(maxsize=1)
 def numpy_calls_c_math() -> bool:
     """True when NumPy's float64 ``exp``, ``log`` and ``arccos`` give the C
     library's bits on a probe of 20,001 arguments each (the functions the
     kernels' NumPy paths use and NumPy has SIMD loops for)."""
-    x = np.linspace(-745.0, 709.0, _PROBE_SIZE)
-    probes = ((np.exp, math.exp, x),
-              (np.log, math.log, np.abs(x) + 1e-300),
-              (np.arccos, math.acos, np.linspace(-1.0, 1.0, _PROBE_SIZE)))
-    for numpy_function, c_function, arguments in probes:
-        c_values = np.array([c_function(v) for v in arguments.tolist()])
-        if numpy_function(arguments).tobytes() != c_values.tobytes():
-            return False
-    return True
+    return not any(c_math_differences(np.linspace(-745.0, 709.0, _PROBE_SIZE),
+                                      np.linspace(-1.0, 1.0, _PROBE_SIZE)))
 
 
 def numpy_simd_features() -> list[str]:

@@ -14,21 +14,12 @@ from sensorispace_ros.core.numpy_math import c_math_environment, numpy_calls_c_m
 
 REPO = Path(__file__).resolve().parents[2]
 
-# A sample the probe does not use: random arguments over each function's range.
-WIDE_SAMPLE = """
-import math, numpy as np
-rng = np.random.default_rng(7)
-x = rng.uniform(-745.0, 709.0, 100_000)
-differs = [int(np.count_nonzero(f(a) != np.array([c(v) for v in a.tolist()])))
-           for f, c, a in ((np.exp, math.exp, x), (np.log, math.log, np.abs(x) + 1e-300),
-                           (np.arccos, math.acos, rng.uniform(-1.0, 1.0, 100_000)))]
-"""
-
 
 def wide_sample_differences() -> list[int]:
-    scope = {}
-    exec(WIDE_SAMPLE, scope)
-    return scope["differs"]
+    """Arguments the probe does not use: random over each function's range."""
+    rng = np.random.default_rng(7)
+    return numpy_math.c_math_differences(rng.uniform(-745.0, 709.0, 100_000),
+                                         rng.uniform(-1.0, 1.0, 100_000))
 
 
 def run_child(code: str) -> str:
@@ -46,9 +37,11 @@ def test_the_probe_agrees_with_a_wider_sample():
 
 
 def test_numpy_calls_c_math_in_the_child_environment():
-    out = run_child(WIDE_SAMPLE + """
-from sensorispace_ros.core.numpy_math import numpy_calls_c_math
-print(numpy_calls_c_math(), differs)
+    out = run_child(f"""
+import sys
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from test_numpy_math import numpy_calls_c_math, wide_sample_differences
+print(numpy_calls_c_math(), wide_sample_differences())
 """)
     assert out.split(None, 1) == ["True", "[0, 0, 0]\n"], out
 
