@@ -8,8 +8,9 @@ message, ``end/<k>``, with unchanged lights: the body turns it into a passive
 sensation, so the agent learns of the end only through its body.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, ``{current, settled}``
-is written to ``<dir>/environment.json`` at every change, at the end and when
-the run is complete: a fixed-size JSON record overwritten in place by one
+is written to ``<dir>/environment.json`` (``environment_progress``; the
+launcher polls it for its progress line) at every change, at the end and
+when the run is complete: a fixed-size JSON record overwritten in place by one
 ``os.pwrite`` (a kill cannot tear a one-page write; 4-7 us, where tmp file +
 ``os.replace`` took 1.0-1.5 ms on ext4, which flushes data on rename). A restarted
 environment does not rewind: it resumes at ``current`` (re-publishes its event
@@ -24,8 +25,6 @@ analysis see the re-sent messages as duplicates (first occurrence wins).
 """
 from __future__ import annotations
 
-import json
-import os
 import time
 from pathlib import Path
 
@@ -33,10 +32,10 @@ import numpy as np
 
 from .. import contracts, messages
 from ..core import world as world_mod
+from ..environment_progress import PROGRESS_FILE, ProgressWriter, decode_progress
 from . import GraphNode, build_world, frame, run_node
 
 KIND_CODES = {world_mod.TRANSLATION: 0, world_mod.REDISTRIBUTION: 1}
-PROGRESS_BYTES = 64       # environment.json: one in-place record, well inside a page
 # One participant announcement period of the launcher's Fast DDS profile
 # (launcher.LEASE_ANNOUNCEMENT_S = 1 s) plus a margin; see _peers_ready.
 RECORDER_DISCOVERY_S = 1.5
@@ -61,9 +60,10 @@ class EnvironmentNode(GraphNode):
         self.lights = self.world.initial_lights
         self.finished = False
         self.run_complete = False
-        self.progress_file = (Path(self.graph["checkpoint_dir"]) / "environment.json"
+        self.progress_file = (Path(self.graph["checkpoint_dir"]) / PROGRESS_FILE
                               if self.graph["checkpoint_dir"] else None)
-        self._progress_fd: int | None = None
+        self.progress_writer = (ProgressWriter(self.progress_file)
+                                if self.progress_file is not None else None)
         self._graph_seen_at: float | None = None
         self.resuming = self._load_progress()
         # after a restart: the change whose lights are re-sent until it is settled
@@ -82,9 +82,8 @@ class EnvironmentNode(GraphNode):
         if self.progress_file is None or not self.progress_file.is_file():
             return False
         try:
-            progress = json.loads(self.progress_file.read_text())
-            current, settled = int(progress["current"]), int(progress["settled"])
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+            current, settled = decode_progress(self.progress_file.read_bytes())
+        except (OSError, ValueError) as exc:
             self.get_logger().error(f"{self.progress_file}: unreadable ({exc}); starting afresh")
             return False
         if not (0 <= current <= self.n_changes + 1 and -1 <= settled <= current):
@@ -104,20 +103,12 @@ class EnvironmentNode(GraphNode):
         return self.world.initial_lights if k == 0 else self.world.events[k - 1].lights
 
     def _save_progress(self) -> None:
-        if self.progress_file is None:
-            return
-        if self._progress_fd is None:
-            self.progress_file.parent.mkdir(parents=True, exist_ok=True)
-            self._progress_fd = os.open(self.progress_file, os.O_WRONLY | os.O_CREAT, 0o644)
-        record = json.dumps({"current": self.current, "settled": self.settled}).encode()
-        # always PROGRESS_BYTES (JSON ignores the trailing blanks): a shorter record
-        # never leaves the tail of a longer one behind
-        os.pwrite(self._progress_fd, record.ljust(PROGRESS_BYTES), 0)
+        if self.progress_writer is not None:
+            self.progress_writer.write(self.current, self.settled)
 
     def close(self) -> None:
-        if self._progress_fd is not None:
-            os.close(self._progress_fd)
-            self._progress_fd = None
+        if self.progress_writer is not None:
+            self.progress_writer.close()
 
     def _peers_ready(self) -> bool:
         present = set(self.get_node_names())

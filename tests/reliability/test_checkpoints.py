@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.nodes.body import RestingStateFile
-from sensorispace_ros.nodes.environment import PROGRESS_BYTES
+from sensorispace_ros.environment_progress import PROGRESS_BYTES
 
 
 def test_resting_state_file_returns_the_last_state_saved_after_a_reopen(tmp_path):

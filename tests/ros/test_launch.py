@@ -107,6 +107,8 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
     output, seen, domain_id = (smoke_launch[k] for k in ("output", "seen", "domain_id"))
     assert smoke_launch["returncode"] == 0, output
     assert f"ROS_DOMAIN_ID={domain_id}" in output and "LOCALHOST" in output
+    # progress from the environment's record (the launcher is not in the graph)
+    assert re.search(r"^\[launch\] change \d+/\d+ \(\d+ %\) after ", output, re.M), output
     assert seen.get("agent") == ["/body/sensation"], seen
     assert seen.get("representation") and all(
         t.startswith("/agent/") for t in seen["representation"]), seen
