@@ -20,7 +20,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
-from .. import config, contracts, messages
+from .. import config, contracts, messages, tracing
 
 # Parameters of the graph itself (not of the science): results directory,
 # start-up handshake. Kept apart from the validated run configuration.
@@ -280,6 +280,7 @@ def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
     which is a normal stop here.
     """
     rclpy.init(args=args)
+    tracing.enable(name)           # only with SENSORISPACE_TRACE_DIR set
     node = None
     try:
         try:

@@ -76,7 +76,7 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
-from .. import config, contracts, messages
+from .. import config, contracts, messages, tracing
 from ..agent_checkpoint import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal, CheckpointError,
                                 command_check, read_journal, read_snapshot, write_snapshot)
 from ..core.naive_agent import STAGES as NAIVE_STAGES
@@ -230,6 +230,8 @@ class BodyOverTopics:
                     self._on_retransmit(sent.frame_id, now - sent.started)
                 self._publish_command(sent.motor_states, sent.frame_id)
                 last_sent = now
+        if since == sent.started:        # waited from the publication on (not a move's)
+            tracing.stamp("agent.resume")
         self.round_trip_s += time.perf_counter() - since
         reply, self._reply = self._reply, None
         if self.journal is not None:
@@ -440,6 +442,7 @@ class AgentNode(GraphNode):
         self.body.aborted = True
 
     def on_sensation(self, msg) -> None:
+        tracing.stamp("agent.answer")
         read = self.read_float_cloud("/body/sensation", msg,
                                      kinds=("cmd", "next", "change", "end"))
         if read is None:
@@ -475,6 +478,7 @@ class AgentNode(GraphNode):
                 self.settles_resent += 1
             return
         self.last_passive = number
+        tracing.stamp("agent.passive", number)
         if self._resume_timer is not None:     # in step with the environment again
             self._resume_timer.cancel()
             self._resume_timer = None
@@ -503,6 +507,7 @@ class AgentNode(GraphNode):
             self._stepping = False
 
     def react(self, kind: str, number: int, sensation: np.ndarray) -> None:
+        tracing.stamp("agent.react", number)
         header = messages.make_header(frame(kind, number), self.get_clock().now().nanoseconds)
         # Replayed after a restart and already settled by the agent that died.
         # Its reaction is published again all the same (the representation
@@ -550,12 +555,15 @@ class AgentNode(GraphNode):
         snapshot when one is due. The agent's last command (its rest, a
         ``BodyOverTopics.move``) is answered first: the arm is where it rests
         before the environment moves."""
+        tracing.stamp("agent.await_rest", number)
         self.body.await_move()
         self.last_settled = number
         if not published:
             if self.journal is not None:
                 self.journal.settled(number)
+            tracing.stamp("agent.settle", number)
             self.settled_pub.publish(UInt64(data=number))
+            tracing.stamp("agent.settled", number)
             if self.journal is not None and not self.passive and self.snapshot_due():
                 self.take_snapshot()
         # After the snapshot (whose command count it is not part of), and for a
@@ -623,7 +631,13 @@ class AgentNode(GraphNode):
 
     def publish_command(self, motor_states: np.ndarray, frame_id: str) -> None:
         self.await_peers()
-        self.command_pub.publish(self.command_packer.pack(motor_states, frame_id, self.now_ns()))
+        data = self.command_packer.pack(motor_states, frame_id, self.now_ns())
+        traced = frame_id.startswith("cmd")       # not a presend (answered after a change)
+        if traced:
+            tracing.stamp("agent.publish")
+        self.command_pub.publish(data)
+        if traced:
+            tracing.stamp("agent.published")
 
 
 def main(args=None) -> int:

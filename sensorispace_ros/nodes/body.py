@@ -33,7 +33,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .. import contracts, messages
+from .. import contracts, messages, tracing
 from ..core.body import SimulatedBody, simulate
 from . import RESTART_EXIT_CODE, GraphNode, build_world, run_node
 
@@ -141,6 +141,7 @@ class BodyNode(GraphNode):
         if read is None:
             return
         (kind, number), cloud = read
+        tracing.stamp("body.lights", number)
         lights = cloud.matrix
         if kind == "change":
             if len(lights) == 0:
@@ -156,6 +157,7 @@ class BodyNode(GraphNode):
         if self.resting_file is not None and self.lights_before_kill is None:
             self.resting_file.save((*self.body.motor_state.tolist(), number))
         self.publish_passive(cloud.frame_id, cloud.stamp_ns)
+        tracing.stamp("body.passive", number)
         if self.held is not None and number >= self.held_for \
                 and self.lights_before_kill is None:
             held, self.held = self.held, None
@@ -173,6 +175,7 @@ class BodyNode(GraphNode):
         self.publish_answer(sensation, pose, rest, frame_id, stamp_ns)
 
     def on_command(self, msg) -> None:
+        tracing.stamp("body.command")
         read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd", "next"))
         if read is None:
             return
@@ -226,13 +229,19 @@ class BodyNode(GraphNode):
         if self.resting_file is not None:
             # before the answer: once the agent has it, a restart rests where it did
             self.resting_file.save((*self.body.motor_state.tolist(), self.lights_number))
-        self.publish_answer(sensations, poses, self.body.motor_state, frame_id, stamp_ns)
+        self.publish_answer(sensations, poses, self.body.motor_state, frame_id, stamp_ns,
+                            traced=True)
 
     def publish_answer(self, sensations: np.ndarray, poses: np.ndarray, rest: np.ndarray,
-                       frame_id: str, stamp_ns: int) -> None:
+                       frame_id: str, stamp_ns: int, traced: bool = False) -> None:
         """The sensation first (the agent waits for it), then the ground truth; the
         header (frame id and stamp of the command or the change) of all three."""
-        self.sensation_pub.publish(self.sensation_packer.pack(sensations, frame_id, stamp_ns))
+        data = self.sensation_packer.pack(sensations, frame_id, stamp_ns)
+        if traced:
+            tracing.stamp("body.publish")
+        self.sensation_pub.publish(data)
+        if traced:
+            tracing.stamp("body.published")
         self.pose_pub.publish(self.pose_packer.pack(poses, frame_id, stamp_ns))
         self.joint_pub.publish(self.joint_packer.pack(rest, frame_id, stamp_ns))
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import contracts, messages
+from .. import contracts, messages, tracing
 from ..core import world as world_mod
 from ..environment_progress import PROGRESS_FILE, ProgressWriter, decode_progress
 from . import GraphNode, build_world, frame, run_node
@@ -170,6 +170,7 @@ class EnvironmentNode(GraphNode):
 
     def on_settled(self, msg) -> None:
         k = int(msg.data)
+        tracing.stamp("environment.settled", k)
         if k == self.settled == self.current - 1 and not self.resuming:
             # A restarted agent that lost the passive sensation of `current` re-sends
             # its last settle: the current lights again make the body send it again
@@ -208,6 +209,7 @@ class EnvironmentNode(GraphNode):
             self.lights = event.lights
         # The lights first: the body (then the agent) waits for them, the
         # ground truth only goes to the recorder (a hand-over per change).
+        tracing.stamp("environment.lights", k)
         self.publish_lights(frame_id, stamp_ns)
         if event is not None:
             header = messages.make_header(frame_id, stamp_ns)
