@@ -28,11 +28,15 @@ from pathlib import Path
 
 from .config import ConfigError
 from .environment_progress import PROGRESS_FILE, read_progress
+from .recording_complete import wait_for_complete_recording
 
 # Exceptions the `sensorispace` command prints as a one-line user error.
 USER_ERRORS = (ConfigError,)
 GRAPH_NODES = ("environment", "body", "agent", "representation")
 RECORDER = "recorder"
+# At the end of a run, how long to wait for the recorder to hold the agent's whole
+# run (recording_complete: at once unless the recorder was restarted late).
+RECORDING_WAIT_S = 10.0
 GRACE_S = 5.0
 # Fast DDS binds the unicast metatraffic port 7410 + 250 * domain for the first
 # participant of a domain (RTPS port mapping): a bound port = domain in use.
@@ -246,6 +250,25 @@ class Monitor:
                   f" after {now - self.started:.1f} s", file=self.stream, flush=True)
 
 
+def wait_for_recording(graph: "Graph", bag_dir: Path, stream,
+                       timeout_s: float = RECORDING_WAIT_S) -> float | None:
+    """Before the nodes are stopped: until the recorder holds the agent's whole
+    run (``recording_complete``), at most ``timeout_s``; says so when it waited."""
+    recorder = graph.children.get(RECORDER)
+    if recorder is None:
+        return None
+    waited = wait_for_complete_recording(bag_dir, timeout_s,
+                                         alive=lambda: recorder.poll() is None)
+    if waited is None:
+        print(f"[launch] the recorder does not hold the agent's whole run after "
+              f"{timeout_s:.0f} s (restarted late?); stopping anyway: "
+              f"`sensorispace analyze` of {bag_dir} may lack POVs", file=stream, flush=True)
+    elif waited > 0.5:
+        print(f"[launch] waited {waited:.1f} s for the recorder to hold the agent's whole run",
+              file=stream, flush=True)
+    return waited
+
+
 def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                  domain_id: int | None = None, record: bool = True,
                  results_root: str | Path = "results", bags_root: str | Path = "bags",
@@ -321,6 +344,8 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
             exited = graph.exited()
             if exited.get("representation") == 0 and len(exited) == 1:
                 result.exit_code = 0
+                if has_recorder:
+                    wait_for_recording(graph, bag_dir, stream)
                 break
             dead = {n: c for n, c in exited.items() if not (n == "representation" and c == 0)}
             for name, code in list(dead.items()):

@@ -16,6 +16,11 @@ the bag's write-ahead log (bags.BagWriter, ``recorder.write_ahead``, default
 true; false: the open chunk, <= ``recorder.chunk_interval_s``, is lost). What
 the middleware had received but the recorder not yet taken is lost.
 ``sensorispace bag recover`` (or the restarted recorder) rebuilds the bag.
+
+``<bag>.complete``, beside the bag directory, says the recording holds the
+agent's whole run (``recording_complete``): the launcher waits for it before
+it stops the nodes, so a recorder restarted late still gets the agent's
+TRANSIENT_LOCAL history.
 """
 from __future__ import annotations
 
@@ -33,7 +38,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from sensorispace_ros import bags, contracts
+from sensorispace_ros import bags, contracts, recording_complete
 
 # Parameters that are not the run's configuration: the launcher's plumbing
 # (graph.*: graph.bag_dir is where to record), the recorder's own (recorder.*)
@@ -144,6 +149,13 @@ class Recorder(Node):
                 f"this recording when the bag is closed")
         self.writer = bags.BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s,
                                      write_ahead=write_ahead)
+        # Counted from this process's own messages: a restarted recorder gets the
+        # agent's whole TRANSIENT_LOCAL history again.
+        self.completeness = recording_complete.RunCompleteness()
+        recording_complete.remove_marker(self.writer.path)
+        if not set(recording_complete.TOPICS) <= set(self.contracts):
+            # not recording the agent's data (recorder.topics): nothing to wait for
+            self._mark_complete()
         if run_config:
             self.writer.write(bags.SESSION_CONFIG_TOPIC, time.time_ns(),
                               bags.session_config_cdr(config_yaml(run_config)))
@@ -189,12 +201,19 @@ class Recorder(Node):
 
     def _store(self, topic: str, cdr: bytes, info: dict) -> None:
         self.writer.write(topic, info.get("received_timestamp") or time.time_ns(), cdr)
+        if topic in recording_complete.TOPICS and self.completeness.add(topic, cdr):
+            self.writer.commit()         # on disk before the launcher may stop the run
+            self._mark_complete()
         self.received += 1
         self._window_count += 1
         now = time.monotonic()
         self.last_message_at = now
         if self.first_message_at is None:
             self.first_message_at = now
+
+    def _mark_complete(self) -> None:
+        path = recording_complete.write_marker(self.writer.path, self.completeness.held)
+        self.get_logger().info(f"holds the agent's whole run ({path.name})")
 
     def _log_rate(self) -> None:
         now = time.monotonic()
@@ -213,6 +232,7 @@ class Recorder(Node):
         if self.writer.closed:
             return
         self.writer.close()
+        recording_complete.remove_marker(self.writer.path)
         if self.earlier_parts:
             merge_parts(self.writer.path, self.earlier_parts)
         counts = ", ".join(f"{t} {n}" for t, n in sorted(self.writer.counts.items()))

@@ -96,6 +96,16 @@ class NodeProcesses:
             time.sleep(0.2)
         raise AssertionError(f"the graph did not finish within {timeout_s} s; logs in {self.log_dir}")
 
+    def wait_for_recording(self, bag_dir: Path, timeout_s: float = 10.0) -> float | None:
+        """As the launcher does before it stops a finished run: until the recorder
+        holds the agent's whole run (``<bag>.complete``); seconds waited, or None."""
+        from sensorispace_ros.recording_complete import wait_for_complete_recording
+        recorder = self.children.get("recorder")
+        if recorder is None:
+            return None
+        return wait_for_complete_recording(bag_dir, timeout_s,
+                                           alive=lambda: recorder.poll() is None)
+
     def stop(self, grace_s: float = 5.0) -> None:
         order = [n for n in self.children if n != "recorder"] + \
                 [n for n in self.children if n == "recorder"]

@@ -139,6 +139,7 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
             exited = processes.exited()
             if exited.get("representation") == 0:
                 state = "completed"
+                outcome["recording_wait_s"] = processes.wait_for_recording(bag)
                 break
             dead = {n: c for n, c in exited.items() if n != "representation" or c != 0}
             for name in [n for n, c in dead.items() if c == RESTART_EXIT_CODE]:
