@@ -43,8 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from . import bags
-
-POVS, ROWS, DONE = "/agent/points_of_view", "/agent/compensations", "/agent/done"
+from .recording_complete import DONE, POVS, ROWS
 POV_RECORDS, COMPENSATION_RECORDS = "/agent/pov_records", "/agent/compensation_records"
 STAGE_COUNTERS = "/agent/stage_counters"
 EVENT, COMMAND, POSE = "/environment/event", "/body/motor_command", "/body/sensor_pose"

@@ -12,15 +12,14 @@ harness wait for that file (``wait_for_complete_recording``) before they stop
 the nodes. The recorder removes the file when it starts and when it closes
 the bag.
 
-No rclpy here.
+No ROS imports at module level: the launcher (imported by every
+``sensorispace`` command) only needs the marker and the wait.
 """
 from __future__ import annotations
 
 import json
 import time
 from pathlib import Path
-
-from . import contracts, messages
 
 POVS, ROWS, DONE = "/agent/points_of_view", "/agent/compensations", "/agent/done"
 TOPICS = (POVS, ROWS, DONE)
@@ -52,6 +51,7 @@ class RunCompleteness:
         """Count one recorded message; True when the run has just become complete."""
         if topic not in TOPICS or self.complete:
             return False
+        from . import contracts, messages     # the recorder's process has them loaded
         try:
             cloud = messages.cloud_from_cdr(cdr)
             table = messages.cloud_to_table(cloud, contracts.contract(topic).columns)
