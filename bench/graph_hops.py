@@ -33,7 +33,8 @@ def report(events) -> dict:
     """Both step tables of ``events`` (``tracing.load``) and their totals."""
     trips, changes = tracing.round_trips(events), tracing.hand_overs(events)
     return {"round_trips": len(trips), "round_trip": tracing.step_table(trips, tracing.ROUND_TRIP),
-            "changes": len(changes), "hand_over": tracing.step_table(changes, tracing.HAND_OVER)}
+            "changes": len(changes), "hand_over": tracing.step_table(changes, tracing.HAND_OVER),
+            "agent_idle": tracing.idle_waits(events)}
 
 
 def print_table(title: str, count: int, rows: list[dict]) -> None:
@@ -76,6 +77,15 @@ def main(argv=None) -> int:
     print_table("round trips (commands the agent waited for)", tables["round_trips"],
                 tables["round_trip"])
     print_table("hand-overs (changes)", tables["changes"], tables["hand_over"])
+    idle = tables["agent_idle"]
+    for key, what in (("idle_before_passive", "the agent idle (its next sweep sent) until the "
+                       "passive sensation is published"),
+                      ("passive_hop_when_idle", "that sensation's hop to the idle agent")):
+        r = idle[key]
+        if r["n"]:
+            print(f"  {what}: mean {r['mean_us']:.0f} us, median {r['median_us']:.0f} us, "
+                  f"p90 {r['p90_us']:.0f} us ({r['n']} changes)")
+    print(f"  the agent was idle first in {100 * idle['idle_first_share']:.0f} % of the changes")
     if args.json is not None:
         args.json.write_text(json.dumps(tables, indent=1))
     return 0

@@ -16,7 +16,8 @@ publication (``body.command``, ``body.publish``, ``body.published``), the
 agent's callback and return to its computation (``agent.answer``,
 ``agent.resume``); per change: the agent waiting for its rest command's answer
 (``agent.await_rest``), publishing the settle (``agent.settle``,
-``agent.settled``), the environment receiving it and about to publish the
+``agent.settled``), done with its own work of the hand-over (the next sweep sent
+ahead: ``agent.idle``, a branch beside the chain, see ``idle_waits``), the environment receiving it and about to publish the
 next lights (``environment.settled``, ``environment.lights``, numbered by the
 new change), the body receiving them and having published the passive
 sensation (``body.lights``, ``body.passive``), the agent receiving it and
@@ -44,6 +45,9 @@ HAND_OVER = ("agent.await_rest", "agent.settle", "agent.settled", "environment.s
              "environment.lights", "body.lights", "body.passive", "agent.passive",
              "agent.react")
 _NEXT_CHANGE = HAND_OVER.index("environment.lights")
+# The agent's own work after its settle (the next sweep, sent ahead) runs beside the
+# chain environment -> body -> passive sensation, not in it.
+AGENT_IDLE = "agent.idle"
 
 _events: list | None = None
 _node = ""
@@ -133,3 +137,37 @@ def step_table(records: list[dict], tags) -> list[dict]:
                      "p90_us": us[min(len(us) - 1, int(0.9 * len(us)))],
                      "total_s": sum(us) / 1e6})
     return rows
+
+
+def idle_waits(events) -> dict:
+    """Per change k: how long the agent sat idle, done with its own work
+    (``agent.idle`` k), before the passive sensation of change k + 1 was
+    published (``body.passive``; <= 0 when it was published first), and the
+    hop of that sensation to the agent's callback (``agent.passive``) when the
+    agent was already idle, i.e. a hop no work of the agent's delays. Count,
+    mean, median and p90 (us) of each; the share of changes where the agent
+    was idle first."""
+    first: dict[tuple[str, int], int] = {}
+    for tag, t, number in events:
+        if tag in (AGENT_IDLE, "body.passive", "agent.passive"):
+            first.setdefault((tag, number), t)
+    idle, hops = [], []
+    for (tag, k), t_idle in first.items():
+        if tag != AGENT_IDLE:
+            continue
+        passive, taken = first.get(("body.passive", k + 1)), first.get(("agent.passive", k + 1))
+        if passive is None or taken is None:
+            continue
+        idle.append((passive - t_idle) / 1e3)
+        if t_idle <= passive:
+            hops.append((taken - passive) / 1e3)
+
+    def summary(us):
+        us = sorted(us)
+        if not us:
+            return {"n": 0}
+        return {"n": len(us), "mean_us": statistics.fmean(us), "median_us": statistics.median(us),
+                "p90_us": us[min(len(us) - 1, int(0.9 * len(us)))]}
+
+    return {"idle_before_passive": summary(idle), "passive_hop_when_idle": summary(hops),
+            "idle_first_share": len(hops) / len(idle) if idle else 0.0}

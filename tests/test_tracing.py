@@ -69,6 +69,30 @@ def test_hand_overs_pair_the_settle_of_k_with_the_lights_of_k_plus_one():
         [100.0 * (i + 1) for i in range(1, len(tracing.HAND_OVER))])
 
 
+def test_idle_waits_time_the_agent_idle_before_the_passive_sensation_and_its_hop():
+    us = 1_000
+    events = []
+    # change 3: idle at 100 us, passive published at 400, taken at 450 (idle 300, hop 50)
+    events += [("agent.idle", 100 * us, 3), ("body.passive", 400 * us, 4),
+               ("agent.passive", 450 * us, 4)]
+    # change 4: idle at 1000, published at 1100, taken at 1300 (idle 100, hop 200)
+    events += [("agent.idle", 1000 * us, 4), ("body.passive", 1100 * us, 5),
+               ("agent.passive", 1300 * us, 5)]
+    # change 5: still busy when the passive was published (idle -40): no hop counted
+    events += [("body.passive", 2000 * us, 6), ("agent.idle", 2040 * us, 5),
+               ("agent.passive", 2050 * us, 6)]
+    # change 6 never got its passive sensation: left out
+    events += [("agent.idle", 3000 * us, 6), ("body.passive", 3000 * us, 6)]
+    waits = tracing.idle_waits(sorted(events, key=lambda e: e[1]))
+    assert waits["idle_before_passive"]["n"] == 3
+    assert waits["idle_before_passive"]["median_us"] == pytest.approx(100)
+    assert waits["idle_before_passive"]["mean_us"] == pytest.approx((300 + 100 - 40) / 3)
+    assert waits["passive_hop_when_idle"]["n"] == 2
+    assert waits["passive_hop_when_idle"]["mean_us"] == pytest.approx(125)
+    assert waits["idle_first_share"] == pytest.approx(2 / 3)
+    assert tracing.idle_waits([])["idle_before_passive"] == {"n": 0}
+
+
 def test_nothing_is_recorded_unless_enabled_and_each_process_writes_its_own_file(tmp_path):
     script = textwrap.dedent("""
         import os, sys

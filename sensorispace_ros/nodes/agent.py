@@ -571,6 +571,7 @@ class AgentNode(GraphNode):
         sweep = None if self.run_over else self.agent.next_sweep()
         if sweep is not None:
             self.body.presend(sweep, number + 1)
+        tracing.stamp("agent.idle", number)
 
     def snapshot_due(self) -> bool:
         last_cost = self.checkpoint_stats["last_snapshot_s"]
