@@ -110,10 +110,7 @@ def round_trips(events) -> list[dict]:
 def hand_overs(events) -> list[dict]:
     """The ``HAND_OVER`` stamps of each change k (the first of each tag; the
     steps from ``environment.lights`` on carry k + 1), complete ones only."""
-    first: dict[tuple[str, int], int] = {}
-    for tag, t, number in events:
-        if tag in HAND_OVER:
-            first.setdefault((tag, number), t)
+    first = _first_stamps(events, HAND_OVER)
     changes = sorted({n for tag, n in first if tag == HAND_OVER[0]})
     complete = []
     for k in changes:
@@ -124,18 +121,34 @@ def hand_overs(events) -> list[dict]:
     return complete
 
 
+def _first_stamps(events, tags) -> dict[tuple[str, int], int]:
+    """The time of the first stamp of each ``(tag, number)`` of ``tags`` (a re-sent
+    copy of a message stamps again)."""
+    first: dict[tuple[str, int], int] = {}
+    for tag, t, number in events:
+        if tag in tags:
+            first.setdefault((tag, number), t)
+    return first
+
+
+def _summary(us) -> dict:
+    """Count, mean, median and p90 of durations in us (``{"n": 0}`` for none)."""
+    us = sorted(us)
+    if not us:
+        return {"n": 0}
+    return {"n": len(us), "mean_us": statistics.fmean(us), "median_us": statistics.median(us),
+            "p90_us": us[min(len(us) - 1, int(0.9 * len(us)))]}
+
+
 def step_table(records: list[dict], tags) -> list[dict]:
     """Per step between consecutive ``tags``: count, mean, median, p90 (us) and
     the total (s) over ``records``."""
     rows = []
     for a, b in zip(tags, tags[1:]):
-        us = sorted((r[b] - r[a]) / 1e3 for r in records)
+        us = [(r[b] - r[a]) / 1e3 for r in records]
         if not us:
             continue
-        rows.append({"from": a, "to": b, "n": len(us), "mean_us": statistics.fmean(us),
-                     "median_us": statistics.median(us),
-                     "p90_us": us[min(len(us) - 1, int(0.9 * len(us)))],
-                     "total_s": sum(us) / 1e6})
+        rows.append({"from": a, "to": b, **_summary(us), "total_s": sum(us) / 1e6})
     return rows
 
 
@@ -147,10 +160,7 @@ def idle_waits(events) -> dict:
     agent was already idle, i.e. a hop no work of the agent's delays. Count,
     mean, median and p90 (us) of each; the share of changes where the agent
     was idle first."""
-    first: dict[tuple[str, int], int] = {}
-    for tag, t, number in events:
-        if tag in (AGENT_IDLE, "body.passive", "agent.passive"):
-            first.setdefault((tag, number), t)
+    first = _first_stamps(events, (AGENT_IDLE, "body.passive", "agent.passive"))
     idle, hops = [], []
     for (tag, k), t_idle in first.items():
         if tag != AGENT_IDLE:
@@ -161,13 +171,5 @@ def idle_waits(events) -> dict:
         idle.append((passive - t_idle) / 1e3)
         if t_idle <= passive:
             hops.append((taken - passive) / 1e3)
-
-    def summary(us):
-        us = sorted(us)
-        if not us:
-            return {"n": 0}
-        return {"n": len(us), "mean_us": statistics.fmean(us), "median_us": statistics.median(us),
-                "p90_us": us[min(len(us) - 1, int(0.9 * len(us)))]}
-
-    return {"idle_before_passive": summary(idle), "passive_hop_when_idle": summary(hops),
+    return {"idle_before_passive": _summary(idle), "passive_hop_when_idle": _summary(hops),
             "idle_first_share": len(hops) / len(idle) if idle else 0.0}
