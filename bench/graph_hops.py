@@ -8,8 +8,11 @@ Launches the graph (one process per node, no recorder) with
 90th percentile and total: for the agent's commands (publish -> the body's
 callback -> its answer's publication -> the agent's callback -> back in its
 computation) and for the changes (the rest command's answer -> settle ->
-environment -> lights -> body -> passive sensation -> the agent's reaction).
-One machine's numbers are in bench/RESULTS.md (session 12); ``graph_walltime.py``
+environment -> lights -> body -> passive sensation -> the agent's reaction),
+then how long the agent sits idle, its next sweep sent, before each passive
+sensation is published, and that sensation's hop to the idle agent
+(``tracing.idle_waits``).
+One machine's numbers are in bench/RESULTS.md (sessions 12-13); ``graph_walltime.py``
 gives the wall time against the offline run.
 """
 from __future__ import annotations
