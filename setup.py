@@ -34,13 +34,13 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'sensorispace = sensorispace_ros.cli:main',
-            'environment = sensorispace_ros.nodes.environment:main',
-            'body = sensorispace_ros.nodes.body:main',
-            'agent = sensorispace_ros.nodes.agent:main',
-            'representation = sensorispace_ros.nodes.representation:main',
-            'recorder = sensorispace_ros.nodes.recorder:main',
-            'replay = sensorispace_ros.nodes.replay:main',
+            'sensorispace = sensorispace_ros.cli.main:main',
+            'environment = sensorispace_ros.graph.nodes.environment:main',
+            'body = sensorispace_ros.graph.nodes.body:main',
+            'agent = sensorispace_ros.graph.nodes.agent:main',
+            'representation = sensorispace_ros.graph.nodes.representation:main',
+            'recorder = sensorispace_ros.graph.nodes.recorder:main',
+            'replay = sensorispace_ros.graph.nodes.replay:main',
         ],
     },
 )

@@ -4,7 +4,7 @@
 
 Launches the graph (one process per node, no recorder) with
 ``SENSORISPACE_TRACE_DIR`` set, so every node stamps its steps
-(``sensorispace_ros.tracing``), then prints per step the count, mean, median,
+(``sensorispace_ros.graph.tracing``), then prints per step the count, mean, median,
 90th percentile and total: for the agent's commands (publish -> the body's
 callback -> its answer's publication -> the agent's callback -> back in its
 computation) and for the changes (the rest command's answer -> settle ->
@@ -29,7 +29,7 @@ HERE = Path(__file__).resolve().parent
 if str(HERE.parent) not in sys.path:
     sys.path.insert(0, str(HERE.parent))
 
-from sensorispace_ros import tracing  # noqa: E402
+from sensorispace_ros.graph import tracing  # noqa: E402
 
 
 def report(events) -> dict:
@@ -60,7 +60,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         traces = args.traces
         if traces is None:
-            from sensorispace_ros import launcher
+            from sensorispace_ros.graph import launcher
             traces = Path(tmp) / "traces"
             os.environ[tracing.TRACE_DIR_ENV] = str(traces)
             try:

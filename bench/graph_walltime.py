@@ -43,10 +43,11 @@ from bench.child import child_environment, run_measured  # noqa: E402
 def offline_child(config_path: str) -> int:
     """The offline run, in this (fresh) process; prints its stage times as JSON."""
     started = time.perf_counter()
-    from sensorispace_ros import config, pipeline
-    from sensorispace_ros.core.exploration import build_world
-    from sensorispace_ros.core.naive_agent import NaiveParams
-    from sensorispace_ros.core.naive_evaluation import explore_naive
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.run import explore_naive
     imported = time.perf_counter()
     cfg = config.load_config(config_path)
     world = build_world(cfg["seed"], pipeline.world_params(cfg))
@@ -82,7 +83,8 @@ def run_offline(config_path: str) -> dict:
 def legacy_offline(config_path: str) -> float:
     """Session 1-7's offline number: ``run_naive_strategy`` (ground-truth
     evaluation included) + representation, in this process, imports excluded."""
-    from sensorispace_ros import config, pipeline
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
     cfg = config.load_config(config_path)
     started = time.perf_counter()
     produced = pipeline.run_naive_strategy(cfg, cfg["seed"])
@@ -103,7 +105,7 @@ def run_pair(args, legacy: bool = False) -> float:
         print(f"legacy offline number (run_naive_strategy in-process, ground truth included): "
               f"{legacy_offline(args.config):.2f} s")
 
-    from sensorispace_ros import launcher
+    from sensorispace_ros.graph import launcher
     cpu_started = time.process_time()
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     children_before = children.ru_utime + children.ru_stime

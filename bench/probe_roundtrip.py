@@ -1,7 +1,7 @@
 """Graph probe round trip vs a bare rclpy ping-pong of the same message sizes.
 
 Four server processes in one private domain (localhost discovery):
-  * the real body node (``python -m sensorispace_ros.nodes.body``), which
+  * the real body node (``python -m sensorispace_ros.graph.nodes.body``), which
     decodes each /body/motor_command, simulates the arm and retina, and
     publishes /body/sensation, /body/sensor_pose and /body/joint_states;
   * ``bench/rclpy_echo.py``, which answers a ``rows x 4`` float64
@@ -72,9 +72,10 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
 
     from bench import rclpy_echo
     from sensorispace_ros import config as config_mod
-    from sensorispace_ros import contracts, launcher, messages
-    from sensorispace_ros.nodes import build_world, frame, make_executor
-    from sensorispace_ros.nodes.agent import BodyOverTopics
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.graph import launcher
+    from sensorispace_ros.graph.framework import build_world, frame, make_executor
+    from sensorispace_ros.graph.nodes.agent import BodyOverTopics
 
     per_round = per_round or {1: 100, batch_rows: 20}
     config = Path(config)
@@ -97,7 +98,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
                                 start_new_session=True, cwd=HERE.parent)
 
     servers = [
-        start([sys.executable, "-m", "sensorispace_ros.nodes.body", "--ros-args",
+        start([sys.executable, "-m", "sensorispace_ros.graph.nodes.body", "--ros-args",
                "--params-file", str(config)], "body"),
         start([sys.executable, str(HERE / "rclpy_echo.py")], "echo"),
         start([sys.executable, str(HERE / "rclpy_echo.py"), "--lean"], "lean_echo"),

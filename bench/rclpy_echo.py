@@ -79,7 +79,7 @@ def main(argv=None) -> int:
     else:
         from sensorispace_ros import config, contracts, messages
         from sensorispace_ros.core.body import SimulatedBody
-        from sensorispace_ros.nodes import build_world
+        from sensorispace_ros.graph.framework import build_world
         world = build_world(config.load_config(args.simulate))
         body = SimulatedBody(world.receptors, world.initial_lights, world.m0.copy())
         command = contracts.contract("/body/motor_command").columns
@@ -103,7 +103,7 @@ def main(argv=None) -> int:
 
         node.create_subscription(PointCloud2, SIM_PING, on_ping, QOS, raw=True)
     if args.lean or args.simulate:
-        from sensorispace_ros.nodes import make_executor
+        from sensorispace_ros.graph.framework import make_executor
         executor, _ = make_executor()
     else:
         executor = SingleThreadedExecutor()

@@ -82,7 +82,8 @@ def paper_povs(povs_from: Path | None, e2e: dict | None, quick: bool):
     for directory in candidates:
         with np.load(Path(directory) / "arrays.npz") as arrays:
             return arrays["povs"], arrays["pairs"], arrays["set_ids"], str(directory)
-    from sensorispace_ros import config, pipeline
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
     cfg = config.load_config(REPO / "config" / ("smoke.yaml" if quick else "paper.yaml"))
     produced = pipeline.run_paper(cfg, 0)
     return produced.povs, produced.pairs, produced.set_ids, "pipeline.run_paper (in process)"

@@ -241,7 +241,7 @@ def _validate_section(section: Any, schema: dict, prefix: str) -> dict:
 def _validate_naive(overrides: dict) -> dict:
     """Reject keys the naive strategy does not know, and let it check values."""
     try:
-        from .core.naive_agent import NaiveParams
+        from sensorispace_ros.core.naive.agent import NaiveParams
     except ModuleNotFoundError:     # naive strategy not built yet: keys cannot be checked
         return overrides
     if is_dataclass(NaiveParams):

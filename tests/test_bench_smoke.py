@@ -63,7 +63,8 @@ def test_graph_walltime_offline_side_does_the_graphs_work_without_evaluation():
     import os
     import subprocess
 
-    from sensorispace_ros import config, pipeline
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
     smoke = str(REPO / "config" / "smoke.yaml")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (str(REPO), os.environ.get("PYTHONPATH")) if p)}

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from sensorispace_ros import cli
+from sensorispace_ros.cli import main as cli
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "config" / "smoke.yaml"

@@ -6,10 +6,9 @@ import re
 
 import pytest
 
-from sensorispace_ros.environment_progress import (PROGRESS_BYTES, ProgressWriter,
-                                                   decode_progress, encode_progress,
-                                                   read_progress)
-from sensorispace_ros.launcher import Monitor
+from sensorispace_ros.state.environment_record import (PROGRESS_BYTES, ProgressWriter,
+    decode_progress, encode_progress, read_progress)
+from sensorispace_ros.graph.launcher import Monitor
 
 
 def test_a_record_round_trips_and_is_always_the_same_size():

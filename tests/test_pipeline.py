@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sensorispace_ros import figures, pipeline
+from sensorispace_ros.offline import figures, pipeline
 from sensorispace_ros.config import load_config
 
 REPO = Path(__file__).resolve().parents[1]

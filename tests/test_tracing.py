@@ -1,4 +1,4 @@
-"""The opt-in stamps of the graph's round trips and hand-overs (sensorispace_ros.tracing):
+"""The opt-in stamps of the graph's round trips and hand-overs (sensorispace_ros.graph.tracing):
 recording only when enabled, one file per process, and the step tables of
 bench/graph_hops.py on stamps whose steps are known."""
 import json
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from sensorispace_ros import tracing
+from sensorispace_ros.graph import tracing
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
@@ -97,7 +97,7 @@ def test_nothing_is_recorded_unless_enabled_and_each_process_writes_its_own_file
     script = textwrap.dedent("""
         import os, sys
         sys.path.insert(0, sys.argv[1])
-        from sensorispace_ros import tracing
+        from sensorispace_ros.graph import tracing
         tracing.stamp("agent.publish")              # before enable: not recorded
         on = tracing.enable("agent")
         tracing.stamp("agent.publish")

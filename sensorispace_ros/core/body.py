@@ -30,7 +30,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from . import arm, retina
+from sensorispace_ros.core import arm, retina
 
 try:
     import numba

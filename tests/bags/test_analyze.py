@@ -10,7 +10,8 @@ import yaml
 from rclpy.serialization import serialize_message
 from std_msgs.msg import UInt64
 
-from sensorispace_ros import analyze, bags, contracts, messages
+from sensorispace_ros.recording import analyze, bags
+from sensorispace_ros import contracts, messages
 from sensorispace_ros.core import arm
 
 P, N = 12, 5
@@ -141,7 +142,8 @@ _missing = [m for m in _CORE if importlib.util.find_spec(f"sensorispace_ros.core
 
 @pytest.mark.skipif(bool(_missing), reason=f"core modules not written yet: {_missing}")
 def test_analyze_bag_equals_the_pipeline_on_the_same_data(tmp_path):
-    from sensorispace_ros import config, pipeline
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
 
     povs, rows = write_run(tmp_path / "bag")
     metrics = analyze.analyze_bag(tmp_path / "bag", tmp_path / "out")

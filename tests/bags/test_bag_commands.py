@@ -4,7 +4,8 @@ from __future__ import annotations
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros import bags, cli
+from sensorispace_ros.recording import bags
+from sensorispace_ros.cli import main as cli
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 

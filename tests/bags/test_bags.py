@@ -12,7 +12,7 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros import bags
+from sensorispace_ros.recording import bags
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 SETTLED = "/agent/settled"

@@ -19,7 +19,7 @@ import zlib
 import numpy as np
 import pytest
 
-from sensorispace_ros import analyze, bags
+from sensorispace_ros.recording import analyze, bags
 
 from conftest import REPO
 
@@ -52,7 +52,7 @@ def _domain_id(name: str) -> int:
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     """One launched tiny run for the module: (bag, results dir, config file)."""
-    from sensorispace_ros import launcher
+    from sensorispace_ros.graph import launcher
 
     root = tmp_path_factory.mktemp("graph")
     config = root / "tiny.yaml"
@@ -118,7 +118,7 @@ def test_graph_recording_drops_nothing(recorded_tiny_run):
 
 
 def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_run, tmp_path):
-    from sensorispace_ros.nodes.representation import RESULT_FILE
+    from sensorispace_ros.graph.nodes.representation import RESULT_FILE
 
     if not (tiny_run["results"] / RESULT_FILE).is_file():
         # not a replay problem: the live run has no representation to compare with
@@ -128,7 +128,7 @@ def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_r
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                ROS_DOMAIN_ID=str(_domain_id("replay")), PYTHONPATH=str(REPO))
     representation = subprocess.Popen(
-        [sys.executable, "-m", "sensorispace_ros.nodes.representation", "--ros-args",
+        [sys.executable, "-m", "sensorispace_ros.graph.nodes.representation", "--ros-args",
          "--params-file", str(tiny_run["config"]), "-p", f"graph.results_dir:={tmp_path}",
          "-p", "graph.exit_when_done:=true"], env=env, cwd=REPO,
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -159,7 +159,8 @@ def test_the_bag_holds_the_run_configuration(tiny_run):
 
 
 def test_analyze_of_the_bag_reproduces_the_live_metrics(tiny_run, tmp_path):
-    from sensorispace_ros import cli, pipeline
+    from sensorispace_ros.cli import main as cli
+    from sensorispace_ros.offline import pipeline
 
     live_file = tiny_run["results"] / "metrics.json"
     if not live_file.is_file():

@@ -13,7 +13,7 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros import bags
+from sensorispace_ros.recording import bags
 
 from bag_test_support import PARAMS_FILE, wait_for
 
@@ -25,7 +25,7 @@ def start_recorder(children, ros_env, tmp_path, chunk_interval_s=0.2):
     params = tmp_path / "params.yaml"
     params.write_text(PARAMS_FILE)
     bag = tmp_path / "bag"
-    process = children(["-m", "sensorispace_ros.nodes.recorder", "--ros-args",
+    process = children(["-m", "sensorispace_ros.graph.nodes.recorder", "--ros-args",
                         "--params-file", str(params), "-p", f"graph.bag_dir:={bag}",
                         "-p", f"recorder.chunk_interval_s:={chunk_interval_s}"], ros_env["env"])
     return process, bag

@@ -8,9 +8,8 @@ import numpy as np
 from rclpy.serialization import serialize_message
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.recording_complete import (DONE, POVS, ROWS, RunCompleteness,
-                                                 marker_path, remove_marker,
-                                                 wait_for_complete_recording, write_marker)
+from sensorispace_ros.recording.completeness import (DONE, POVS, ROWS, RunCompleteness,
+    marker_path, remove_marker, wait_for_complete_recording, write_marker)
 
 
 def _cdr(topic: str, frame_id: str, table: dict) -> bytes:

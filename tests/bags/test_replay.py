@@ -5,7 +5,7 @@ import time
 
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros import bags
+from sensorispace_ros.recording import bags
 
 from bag_test_support import wait_for
 
@@ -70,7 +70,7 @@ class RawListener:
 
 
 def replay(children, ros_env, bag, *params):
-    args = ["-m", "sensorispace_ros.nodes.replay", "--ros-args", "-p", f"bag_path:={bag}"]
+    args = ["-m", "sensorispace_ros.graph.nodes.replay", "--ros-args", "-p", f"bag_path:={bag}"]
     for param in params:
         args += ["-p", param]
     return children(args, ros_env["env"])

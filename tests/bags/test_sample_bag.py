@@ -9,7 +9,8 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros import analyze, bags, contracts, messages
+from sensorispace_ros.recording import analyze, bags
+from sensorispace_ros import contracts, messages
 
 from conftest import REPO
 
@@ -36,7 +37,7 @@ def test_sample_opens_with_both_readers_and_counts_agree():
 
 
 def test_sample_rebuilds_the_recorded_embeddings():
-    from sensorispace_ros import pipeline
+    from sensorispace_ros.offline import pipeline
 
     cfg = analyze.config_from_bag(SAMPLE)
     data = analyze.agent_data(SAMPLE)

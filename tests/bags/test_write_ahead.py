@@ -9,7 +9,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from sensorispace_ros import bags
+from sensorispace_ros.recording import bags
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -21,7 +21,7 @@ def killed_writer(bag: Path, body: str, write_ahead: bool = True) -> None:
         import os, signal, sys
         sys.path.insert(0, {str(REPO)!r})
         from rosbags.typesys import Stores, get_typestore
-        from sensorispace_ros import bags
+        from sensorispace_ros.recording import bags
         store = get_typestore(Stores.ROS2_JAZZY)
         UInt64 = store.types["std_msgs/msg/UInt64"]
         w = bags.BagWriter({str(bag)!r}, {{"/x": "std_msgs/msg/UInt64"}},

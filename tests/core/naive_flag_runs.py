@@ -3,9 +3,9 @@ only the calls (``remember_sensations``, ``remember_split_povs``), and the
 check that their results are the same."""
 import numpy as np
 
-from sensorispace_ros.core.exploration import build_world
-from sensorispace_ros.core.naive_agent import NaiveParams
-from sensorispace_ros.core.naive_evaluation import run_naive
+from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.naive.agent import NaiveParams
+from sensorispace_ros.core.naive.run import run_naive
 
 
 def runs_on_and_off(flag: str, grid_count: int) -> tuple:

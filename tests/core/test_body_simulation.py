@@ -249,7 +249,7 @@ def test_terms_around_the_underflow_keep_the_numpy_bits(kernel):
 @needs_numba
 @pytest.mark.numpy_bits
 def test_compiled_simulator_on_the_paper_world_and_an_empty_batch():
-    from sensorispace_ros.core import exploration
+    from sensorispace_ros.core.paper import exploration
     world = exploration.build_world(0, {})
     rng = np.random.default_rng(11)
     for lights in (world.initial_lights, world.initial_lights + rng.uniform(-6, 6, 2)):

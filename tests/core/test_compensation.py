@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.core import arm
-from sensorispace_ros.core.compensation import _squared_pose_error, compensate_pose
+from sensorispace_ros.core.paper.compensation import _squared_pose_error, compensate_pose
 
 
 def test_objective_equals_squared_pose_error_of_the_forward_model():

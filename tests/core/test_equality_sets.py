@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.equality_sets import equality_sets_from_poses
+from sensorispace_ros.core.paper.equality_sets import equality_sets_from_poses
 
 SPACING = 0.2
 

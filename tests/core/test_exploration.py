@@ -3,9 +3,9 @@ import pytest
 from scipy.optimize import minimize
 
 from sensorispace_ros.core import arm, retina, world
-from sensorispace_ros.core.exploration import (PAPER_PARAMS, build_world, explore_paper,
-                                               rigid_translation_fit)
-from sensorispace_ros.core.points_of_view import sample_points_of_view
+from sensorispace_ros.core.paper.exploration import (PAPER_PARAMS, build_world, explore_paper,
+    rigid_translation_fit)
+from sensorispace_ros.core.paper.points_of_view import sample_points_of_view
 
 SMALL = {"grid_count": 16}
 

@@ -4,13 +4,8 @@ import pytest
 from scipy.spatial.distance import directed_hausdorff
 
 from sensorispace_ros.core import hausdorff as hausdorff_module
-from sensorispace_ros.core.hausdorff import (
-    directed_hausdorff_pair,
-    hausdorff_matrix,
-    hausdorff_matrix_bruteforce,
-    hausdorff_pair,
-    motor_distance,
-)
+from sensorispace_ros.core.hausdorff import (directed_hausdorff_pair, hausdorff_matrix,
+    hausdorff_matrix_bruteforce, hausdorff_pair, motor_distance)
 
 TWO_PI = 2 * np.pi
 

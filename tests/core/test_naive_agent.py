@@ -10,49 +10,63 @@ import pytest
 
 from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.body import SimulatedBody
-from sensorispace_ros.core.exploration import build_world
-from sensorispace_ros.core.naive_agent import NaiveAgent, NaiveParams
-from sensorispace_ros.core.naive_evaluation import run_naive
+from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveParams
+from sensorispace_ros.core.naive.run import run_naive
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 from naive_flag_runs import assert_same_results, runs_on_and_off
 
-CORE = Path(__file__).resolve().parents[2] / "sensorispace_ros" / "core"
-NAIVE_MODULES = ("naive_agent", "sensory_points_of_view", "sensory_compensation",
-                 "sensory_equality_sets")
+PACKAGE = Path(__file__).resolve().parents[2] / "sensorispace_ros"
+NAIVE = PACKAGE / "core" / "naive"
+# The agent's own modules; core/naive/run.py drives it against the simulator.
+NAIVE_MODULES = ("agent", "points_of_view", "compensation", "equality_sets")
 # Modules that know the arm, the retina, the lights or the events.
-GROUND_TRUTH = {"arm", "retina", "world", "body", "exploration", "naive_evaluation",
-                "points_of_view", "compensation", "equality_sets"}
+GROUND_TRUTH = ("sensorispace_ros.core.arm", "sensorispace_ros.core.retina",
+                "sensorispace_ros.core.world", "sensorispace_ros.core.body",
+                "sensorispace_ros.core.paper", "sensorispace_ros.core.naive.run",
+                "sensorispace_ros.offline")
 
 
-def _imported_core_modules(path: Path) -> set:
+def _knows_ground_truth(module: str) -> bool:
+    return any(module == g or module.startswith(g + ".") for g in GROUND_TRUTH)
+
+
+def _imported_modules(path: Path) -> set:
+    """Every module a file imports, as absolute dotted names."""
+    package = "sensorispace_ros." + ".".join(path.relative_to(PACKAGE).parent.parts)
     names = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom):
-            module = node.module or ""
-            if node.level and not module:                   # from . import x
-                names.update(alias.name for alias in node.names)
-            else:
-                names.add(module.split(".")[-1])
-                names.update(alias.name for alias in node.names)
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            names.add(base)
+            names.update(f"{base}.{alias.name}" for alias in node.names)
         elif isinstance(node, ast.Import):
-            names.update(alias.name.split(".")[-1] for alias in node.names)
+            names.update(alias.name for alias in node.names)
     return names
+
+
+def test_the_ground_truth_check_sees_a_ground_truth_import():
+    imported = _imported_modules(PACKAGE / "core" / "naive" / "run.py")
+    assert any(_knows_ground_truth(m) for m in imported)
 
 
 @pytest.mark.parametrize("module", NAIVE_MODULES)
 def test_naive_modules_import_no_ground_truth(module):
-    assert not _imported_core_modules(CORE / f"{module}.py") & GROUND_TRUTH
+    imported = _imported_modules(NAIVE / f"{module}.py")
+    assert not [m for m in imported if _knows_ground_truth(m)]
 
 
 def test_loading_the_agent_loads_no_ground_truth_module():
-    code = ("import sys, sensorispace_ros.core.naive_agent\n"
-            "print(' '.join(m.split('.')[-1] for m in sys.modules "
-            "if m.startswith('sensorispace_ros.core.')))")
+    code = ("import sys, sensorispace_ros.core.naive.agent\n"
+            "print(' '.join(m for m in sys.modules if m.startswith('sensorispace_ros.')))")
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True, cwd=CORE.parents[1]).stdout.split()
-    assert "naive_agent" in loaded
-    assert not set(loaded) & GROUND_TRUTH
+                            check=True, cwd=PACKAGE.parent).stdout.split()
+    assert "sensorispace_ros.core.naive.agent" in loaded
+    assert not [m for m in loaded if _knows_ground_truth(m)]
 
 
 class ClosureBody:

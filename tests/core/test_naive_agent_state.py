@@ -8,8 +8,8 @@ import pytest
 
 from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
-from sensorispace_ros.core.exploration import build_world
-from sensorispace_ros.core.naive_agent import NaiveAgent, NaiveParams
+from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveParams
 
 
 def _passive(simulator, lights, world):
@@ -110,7 +110,7 @@ def test_state_is_refused_inside_a_reaction(world):
 def test_agent_records_survive_a_round_trip_through_arrays(tmp_path):
     from dataclasses import fields
 
-    from sensorispace_ros.core.naive_agent import NaiveAgentRecords
+    from sensorispace_ros.core.naive.agent import NaiveAgentRecords
     rng = np.random.default_rng(2)
     records = NaiveAgentRecords(
         povs=rng.normal(size=(3, 5, 4)), pov_events=np.array([0, 4, 9]),

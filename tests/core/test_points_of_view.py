@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.core import arm
-from sensorispace_ros.core import points_of_view as pov
+from sensorispace_ros.core.paper import points_of_view as pov
 
 # Tip distances from the base: split fibres below 1 (paper Fig. 5b), whole
 # loops between 1 and 3, near both ends of the ring included.

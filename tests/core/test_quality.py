@@ -4,13 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.quality import (
-    affine_residual,
-    continuity,
-    quality_report,
-    spearman,
-    trustworthiness,
-)
+from sensorispace_ros.core.quality import (affine_residual, continuity, quality_report, spearman,
+    trustworthiness)
 
 
 @pytest.fixture(scope="module")

@@ -4,14 +4,8 @@ import pytest
 from scipy.spatial.distance import pdist, squareform
 
 from sensorispace_ros.core.hausdorff import motor_distance
-from sensorispace_ros.core.reach import (
-    automatic_radius,
-    motor_trajectory,
-    path_straightness,
-    pruned_graph,
-    reaching_evaluation,
-    shortest_path,
-)
+from sensorispace_ros.core.reach import (automatic_radius, motor_trajectory, path_straightness,
+    pruned_graph, reaching_evaluation, shortest_path)
 
 
 @pytest.fixture(scope="module")

@@ -6,11 +6,7 @@ from scipy.spatial.distance import pdist, squareform
 
 from sensorispace_ros.core.cca import CCA
 from sensorispace_ros.core.quality import affine_residual
-from sensorispace_ros.core.regularize import (
-    iterate_regularization,
-    regularize_metric,
-    set_spread,
-)
+from sensorispace_ros.core.regularize import iterate_regularization, regularize_metric, set_spread
 
 
 def lattice_with_warped_metric(n=10):

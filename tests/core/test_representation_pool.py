@@ -10,7 +10,7 @@ from concurrent.futures import Executor
 import numpy as np
 import pytest
 
-from sensorispace_ros import pipeline
+from sensorispace_ros.offline import pipeline
 from sensorispace_ros.config import load_config
 
 

@@ -7,10 +7,9 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
-from sensorispace_ros.core.exploration import build_world
-from sensorispace_ros.core.naive_agent import (NaiveParams, _CountingBody,
-                                               _SensedSinceChange)
-from sensorispace_ros.core.naive_evaluation import run_naive
+from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.naive.agent import NaiveParams, _CountingBody, _SensedSinceChange
+from sensorispace_ros.core.naive.run import run_naive
 
 from naive_flag_runs import assert_same_results, runs_on_and_off
 

@@ -6,8 +6,8 @@ import pytest
 
 from sensorispace_ros.core import arm
 from sensorispace_ros.core.body import SimulatedBody
-from sensorispace_ros.core.exploration import build_world
-from sensorispace_ros.core.sensory_compensation import compensate
+from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.world import draw_light_offsets
 
 

@@ -4,11 +4,10 @@ import pytest
 
 from sensorispace_ros.core import arm
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
-from sensorispace_ros.core.exploration import build_world
-from sensorispace_ros.core.points_of_view import project_onto_pose
-from sensorispace_ros.core.sensory_equality_sets import (EqualitySetCollection,
-                                                         EqualitySetSweep, match_sensations,
-                                                         merge_equality_sets)
+from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.paper.points_of_view import project_onto_pose
+from sensorispace_ros.core.naive.equality_sets import (EqualitySetCollection, EqualitySetSweep,
+    match_sensations, merge_equality_sets)
 from sensorispace_ros.core.world import draw_light_offsets
 
 

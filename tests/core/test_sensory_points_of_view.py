@@ -7,13 +7,12 @@ import pytest
 
 from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.body import SimulatedBody
-from sensorispace_ros.core.exploration import build_world
+from sensorispace_ros.core.paper.exploration import build_world
 from sensorispace_ros.core.hausdorff import hausdorff_pair
-from sensorispace_ros.core.points_of_view import (loop_winding, resample_closed_path,
-                                                  sample_points_of_view)
-from sensorispace_ros.core.sensory_points_of_view import (
-    NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID, has_full_pose_rank, resample_loop_spline,
-    sample_sensory_points_of_view, sensory_jacobian)
+from sensorispace_ros.core.paper.points_of_view import (loop_winding, resample_closed_path,
+    sample_points_of_view)
+from sensorispace_ros.core.naive.points_of_view import (NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID,
+    has_full_pose_rank, resample_loop_spline, sample_sensory_points_of_view, sensory_jacobian)
 
 
 @pytest.fixture(scope="module")

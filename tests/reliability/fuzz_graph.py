@@ -45,7 +45,8 @@ if __package__ in (None, ""):
 else:
     from . import node_processes as np_mod
 
-from sensorispace_ros import contracts, launcher, messages   # noqa: E402
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.graph import launcher  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "config" / "smoke.yaml"
@@ -103,7 +104,7 @@ class Fuzzer:
 
     def remember(self, topic: str, msg) -> None:
         """Keep real messages (the fuzzer hears its own too: those break the contract)."""
-        from sensorispace_ros.nodes import parse_frame
+        from sensorispace_ros.graph.framework import parse_frame
         if topic == "/agent/settled":
             real = msg.data < 10 ** 6          # fuzzed settled numbers are >= 10**6
         else:

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorispace_ros import launcher
-from sensorispace_ros.nodes.representation import RESULT_FILE
+from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph.nodes.representation import RESULT_FILE
 
 NODES = ("environment", "body", "agent", "representation", "recorder")
 
@@ -99,7 +99,7 @@ class NodeProcesses:
     def wait_for_recording(self, bag_dir: Path, timeout_s: float = 10.0) -> float | None:
         """As the launcher does before it stops a finished run: until the recorder
         holds the agent's whole run (``<bag>.complete``); seconds waited, or None."""
-        from sensorispace_ros.recording_complete import wait_for_complete_recording
+        from sensorispace_ros.recording.completeness import wait_for_complete_recording
         recorder = self.children.get("recorder")
         if recorder is None:
             return None

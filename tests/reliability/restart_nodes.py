@@ -29,8 +29,8 @@ if __package__ in (None, ""):
 else:
     from . import node_processes as np_mod
 
-from sensorispace_ros import launcher   # noqa: E402
-from sensorispace_ros.nodes import RESTART_EXIT_CODE   # noqa: E402
+from sensorispace_ros.graph import launcher  # noqa: E402
+from sensorispace_ros.graph.framework import RESTART_EXIT_CODE  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "config" / "smoke.yaml"
@@ -79,7 +79,7 @@ RECORDER_MARGIN_S = 0.2
 def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]) -> dict:
     """What the (merged) bag lacks: /agent/settled values and /environment/event
     changes expected in it; duplicates are fine."""
-    from sensorispace_ros import bags
+    from sensorispace_ros.recording import bags
 
     settled, changes = set(), set()
     for topic, _, _, msg in bags.read_bag_messages(bag, ["/agent/settled", "/environment/event"]):

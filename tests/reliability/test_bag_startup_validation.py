@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros import bags
+from sensorispace_ros.recording import bags
 
 from .conftest import REPO
 

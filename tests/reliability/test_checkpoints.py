@@ -9,8 +9,8 @@ import time
 import numpy as np
 import pytest
 
-from sensorispace_ros.nodes.body import RestingStateFile
-from sensorispace_ros.environment_progress import PROGRESS_BYTES
+from sensorispace_ros.graph.nodes.body import RestingStateFile
+from sensorispace_ros.state.environment_record import PROGRESS_BYTES
 
 
 def test_resting_state_file_returns_the_last_state_saved_after_a_reopen(tmp_path):
@@ -53,8 +53,9 @@ class EnvironmentProbe:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
-        from sensorispace_ros import contracts, launcher
-        from sensorispace_ros.nodes.environment import EnvironmentNode
+        from sensorispace_ros import contracts
+        from sensorispace_ros.graph import launcher
+        from sensorispace_ros.graph.nodes.environment import EnvironmentNode
 
         from .conftest import SMOKE
         self.context = Context()
@@ -190,10 +191,11 @@ def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_ki
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from sensorispace_ros import contracts, launcher, messages
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.graph import launcher
     from sensorispace_ros.core.body import SimulatedBody
-    from sensorispace_ros.nodes import RESTART_EXIT_CODE, build_world, frame
-    from sensorispace_ros.nodes.body import BodyNode
+    from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, build_world, frame
+    from sensorispace_ros.graph.nodes.body import BodyNode
 
     from .conftest import SMOKE
     cfg_overrides = launcher.parameter_overrides(SMOKE, {"graph.checkpoint_dir": str(tmp_path)})

@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from sensorispace_ros import launcher
+from sensorispace_ros.graph import launcher
 
 from .conftest import SMOKE
 from .node_processes import stop_by_pid
@@ -84,7 +84,7 @@ def graph_node(domain_id):
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from sensorispace_ros.nodes import GraphNode
+    from sensorispace_ros.graph.framework import GraphNode
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id,
@@ -125,7 +125,7 @@ def test_a_publish_that_fails_for_a_while_is_retried_until_it_goes_through(graph
 def test_a_publish_that_keeps_failing_is_given_up_without_raising(graph_node, monkeypatch):
     from std_msgs.msg import UInt64
 
-    from sensorispace_ros import nodes
+    from sensorispace_ros.graph import framework as nodes
 
     failing_publish(monkeypatch, failures=10**9)
     monkeypatch.setattr(nodes, "PUBLISH_RETRY_S", 0.3)
@@ -170,7 +170,7 @@ _ASK_ONCE = ("import os, sys\n"
 def test_launch_starts_again_a_node_that_asks_for_it(tmp_path, monkeypatch, domain_id):
     import io
 
-    from sensorispace_ros.nodes import RESTART_EXIT_CODE
+    from sensorispace_ros.graph.framework import RESTART_EXIT_CODE
     real_command = launcher.node_command
     marker = tmp_path / "body.asked"
 

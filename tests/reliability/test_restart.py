@@ -52,7 +52,8 @@ PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_
 
 @pytest.fixture(scope="module")
 def offline_naive_metrics(tmp_path_factory) -> dict:
-    from sensorispace_ros import config, pipeline
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
 
     out = tmp_path_factory.mktemp("offline_naive")
     pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
@@ -61,7 +62,8 @@ def offline_naive_metrics(tmp_path_factory) -> dict:
 
 
 def analysed_metrics(bag, out) -> dict:
-    from sensorispace_ros import analyze, pipeline
+    from sensorispace_ros.recording import analyze
+    from sensorispace_ros.offline import pipeline
 
     cfg = analyze.config_from_bag(bag)
     cfg["output"]["figures"] = False

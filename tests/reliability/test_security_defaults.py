@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from sensorispace_ros.launcher import free_domain_id, graph_environment
+from sensorispace_ros.graph.launcher import free_domain_id, graph_environment
 
 pytestmark = [pytest.mark.graph]
 

@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from sensorispace_ros import launcher
+from sensorispace_ros.graph import launcher
 
 from .conftest import SMOKE
 from .node_processes import NodeProcesses, assert_same_result, command, load_result

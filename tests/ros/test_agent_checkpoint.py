@@ -1,11 +1,11 @@
-"""The agent's journal and snapshot files (sensorispace_ros.agent_checkpoint,
+"""The agent's journal and snapshot files (sensorispace_ros.state.agent_journal,
 issue #7): a kill mid-write loses only the record being written, damage
 elsewhere is an error naming the file. Pure Python, no ROS."""
 import numpy as np
 import pytest
 
-from sensorispace_ros.agent_checkpoint import (AgentJournal, CheckpointError, command_check,
-                                               read_journal, read_snapshot, write_snapshot)
+from sensorispace_ros.state.agent_journal import (AgentJournal, CheckpointError, command_check,
+    read_journal, read_snapshot, write_snapshot)
 
 
 def _write_some(path):

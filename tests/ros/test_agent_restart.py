@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 from std_msgs.msg import UInt64
 
-from sensorispace_ros import config, contracts, launcher, messages
-from sensorispace_ros.agent_checkpoint import JOURNAL_FILE, SNAPSHOT_FILE, read_journal
-from sensorispace_ros.nodes import frame
-from sensorispace_ros.nodes.agent import AgentNode, BodyOverTopics, RunAborted
-from sensorispace_ros.nodes.representation import RepresentationNode
+from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.graph import launcher
+from sensorispace_ros.state.agent_journal import JOURNAL_FILE, SNAPSHOT_FILE, read_journal
+from sensorispace_ros.graph.framework import frame
+from sensorispace_ros.graph.nodes.agent import AgentNode, BodyOverTopics, RunAborted
+from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
 from .conftest import SMOKE
 
@@ -161,7 +162,7 @@ def test_journal_records_older_than_the_snapshot_are_not_replayed(context, tmp_p
 
 @pytest.mark.parametrize("damage", ["snapshot", "journal", "config"])
 def test_a_bad_checkpoint_stops_the_agent_naming_the_file(context, tmp_path, damage):
-    from sensorispace_ros.agent_checkpoint import AgentJournal, write_snapshot
+    from sensorispace_ros.state.agent_journal import AgentJournal, write_snapshot
     checkpoints = tmp_path / "checkpoints"
     checkpoints.mkdir()
     if damage == "snapshot":
@@ -222,7 +223,7 @@ def test_representation_ignores_re_published_povs_and_rows(context, tmp_path):
                             calls=np.array([1])))
         assert node.worker is not None, "duplicates were counted: totals never matched"
         assert node.duplicates == 3
-        from sensorispace_ros.nodes.representation import assemble_points_of_view
+        from sensorispace_ros.graph.nodes.representation import assemble_points_of_view
         ids, motor = assemble_points_of_view(list(node.pov_tables.values()))
         assert list(ids) == [0, 1, 2, 3] and np.all(motor[3] == 3.0)
         assert sum(len(t) for t in node.row_tables.values()) == 4
@@ -303,10 +304,10 @@ def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
 
 @pytest.fixture(scope="module")
 def offline():
-    from sensorispace_ros import pipeline
-    from sensorispace_ros.core.exploration import build_world
-    from sensorispace_ros.core.naive_agent import NaiveParams
-    from sensorispace_ros.core.naive_evaluation import run_naive
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.run import run_naive
     cfg = config.load_config(SMOKE)
     world = build_world(cfg["seed"], pipeline.world_params(cfg))
     return run_naive(world, NaiveParams(**cfg["naive"]), cfg["seed"],

@@ -18,7 +18,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import UInt64
 
-from sensorispace_ros.nodes import make_executor
+from sensorispace_ros.graph.framework import make_executor
 
 
 @pytest.fixture(params=["events", "single_threaded"])

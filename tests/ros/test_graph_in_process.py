@@ -12,7 +12,9 @@ import pytest
 from rclpy.node import Node
 from std_msgs.msg import UInt64
 
-from sensorispace_ros import config, contracts, launcher, messages, pipeline
+from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.graph import launcher
+from sensorispace_ros.offline import pipeline
 
 from .conftest import SMOKE
 
@@ -29,9 +31,9 @@ def smoke_cfg():
 
 @pytest.fixture(scope="module")
 def offline(smoke_cfg):
-    from sensorispace_ros.core.exploration import build_world
-    from sensorispace_ros.core.naive_agent import NaiveParams
-    from sensorispace_ros.core.naive_evaluation import run_naive
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.run import run_naive
     world = build_world(smoke_cfg["seed"], pipeline.world_params(smoke_cfg))
     produced = run_naive(world, NaiveParams(**smoke_cfg["naive"]), smoke_cfg["seed"])
     representation = pipeline.build_representation(

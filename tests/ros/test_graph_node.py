@@ -10,8 +10,9 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.time import Time
 
-from sensorispace_ros import contracts, launcher, messages
-from sensorispace_ros.nodes import MAX_FRAME_NUMBER, GraphNode, parse_frame
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph.framework import MAX_FRAME_NUMBER, GraphNode, parse_frame
 
 from .conftest import SMOKE
 

@@ -87,7 +87,7 @@ def _subscriptions_of(domain_id: int, names, deadline_s: float = 60.0) -> dict:
 @pytest.fixture(scope="module")
 def smoke_launch(tmp_path_factory):
     """One recorded `sensorispace launch` of the smoke config for the module."""
-    from sensorispace_ros.launcher import free_domain_id
+    from sensorispace_ros.graph.launcher import free_domain_id
 
     tmp_path, domain_id = tmp_path_factory.mktemp("launch"), free_domain_id()
     lines: list = []
@@ -150,7 +150,7 @@ PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_
 @pytest.fixture(scope="module")
 def unrecorded_launch(tmp_path_factory):
     """One `sensorispace launch --no-record` of the smoke config: evaluated without a bag."""
-    from sensorispace_ros.launcher import free_domain_id
+    from sensorispace_ros.graph.launcher import free_domain_id
 
     tmp_path = tmp_path_factory.mktemp("launch_no_record")
     proc = _launch(tmp_path, free_domain_id(), "smoke", _launcher_env(), record=False)
@@ -164,7 +164,8 @@ def unrecorded_launch(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def offline_smoke(tmp_path_factory):
-    from sensorispace_ros import config, pipeline
+    from sensorispace_ros import config
+    from sensorispace_ros.offline import pipeline
 
     out = tmp_path_factory.mktemp("offline")
     pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
@@ -176,7 +177,7 @@ def offline_smoke(tmp_path_factory):
                                                       ("unrecorded_launch", "agent_records.npz")])
 def test_launched_metrics_have_the_offline_naive_keys_and_numbers(launched, evaluated_from,
                                                                    offline_smoke, request):
-    from sensorispace_ros import pipeline
+    from sensorispace_ros.offline import pipeline
 
     run = request.getfixturevalue(launched)
     assert run["returncode"] == 0, run["output"]

@@ -16,7 +16,7 @@ from .conftest import SMOKE
 ])
 def test_invalid_parameter_stops_node_with_its_name(node, override, name, node_env):
     done = subprocess.run(
-        [sys.executable, "-m", f"sensorispace_ros.nodes.{node}", "--ros-args",
+        [sys.executable, "-m", f"sensorispace_ros.graph.nodes.{node}", "--ros-args",
          "--params-file", str(SMOKE), "-p", override],
         env=node_env, capture_output=True, text=True, timeout=60)
     assert done.returncode != 0

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorispace_ros import contracts, launcher, messages
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.graph import launcher
 from sensorispace_ros.core import hausdorff
-from sensorispace_ros.nodes.representation import RepresentationNode, assemble_points_of_view
+from sensorispace_ros.graph.nodes.representation import RepresentationNode, assemble_points_of_view
 
 from .conftest import SMOKE
 

@@ -57,9 +57,9 @@ def test_destroying_the_node_ends_its_pool_workers(domain_id, tmp_path):
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from sensorispace_ros import pipeline
-    from sensorispace_ros.launcher import parameter_overrides
-    from sensorispace_ros.nodes.representation import RepresentationNode
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.graph.launcher import parameter_overrides
+    from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id,
@@ -87,8 +87,8 @@ def test_the_pool_starts_late_or_as_soon_as_the_run_is_over(domain_id, tmp_path,
     from rclpy.signals import SignalHandlerOptions
 
     from sensorispace_ros import contracts, messages
-    from sensorispace_ros.launcher import parameter_overrides
-    from sensorispace_ros.nodes import representation
+    from sensorispace_ros.graph.launcher import parameter_overrides
+    from sensorispace_ros.graph.nodes import representation
 
     monkeypatch.setattr(representation, "CHAIN_POOL_DELAY_S", 3600.0)
     context = Context()
@@ -121,7 +121,7 @@ def test_no_process_of_the_node_outlives_it(stop, node_env, tmp_path):
     log = tmp_path / "representation.log"
     with open(log, "w") as out:
         node = subprocess.Popen(
-            [sys.executable, "-m", "sensorispace_ros.nodes.representation", "--ros-args",
+            [sys.executable, "-m", "sensorispace_ros.graph.nodes.representation", "--ros-args",
              "--params-file", str(SMOKE), "-p", f"graph.results_dir:={tmp_path}"],
             env=node_env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     try:

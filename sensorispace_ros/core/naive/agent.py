@@ -52,11 +52,11 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .sensory_compensation import compensate
-from .sensory_equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
-                                    EqualitySetCollection, EqualitySetSweep,
-                                    check_pose_rank, match_sensations)
-from .sensory_points_of_view import SPLIT, jacobian_stencil, sample_sensory_points_of_view
+from sensorispace_ros.core.naive.compensation import compensate
+from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
+    EqualitySetCollection, EqualitySetSweep, check_pose_rank, match_sensations)
+from sensorispace_ros.core.naive.points_of_view import (SPLIT, jacobian_stencil,
+    sample_sensory_points_of_view)
 
 EXPLORING = "exploring"
 EQUALITY_PASS = "equality_pass"

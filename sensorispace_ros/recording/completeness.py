@@ -51,7 +51,7 @@ class RunCompleteness:
         """Count one recorded message; True when the run has just become complete."""
         if topic not in TOPICS or self.complete:
             return False
-        from . import contracts, messages     # the recorder's process has them loaded
+        from sensorispace_ros import contracts, messages  # the recorder's process has them loaded
         try:
             cloud = messages.cloud_from_cdr(cdr)
             table = messages.cloud_to_table(cloud, contracts.contract(topic).columns)

@@ -42,8 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import bags
-from .recording_complete import DONE, POVS, ROWS
+from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.completeness import DONE, POVS, ROWS
 POV_RECORDS, COMPENSATION_RECORDS = "/agent/pov_records", "/agent/compensation_records"
 STAGE_COUNTERS = "/agent/stage_counters"
 EVENT, COMMAND, POSE = "/environment/event", "/body/motor_command", "/body/sensor_pose"
@@ -51,7 +51,7 @@ EVENT, COMMAND, POSE = "/environment/event", "/body/motor_command", "/body/senso
 
 def config_from_bag(bag_dir) -> dict:
     """The run's validated configuration, from its /session/config message."""
-    from . import config
+    from sensorispace_ros import config
 
     text = bags.read_session_config(bag_dir)
     with tempfile.NamedTemporaryFile("w", suffix=".yaml") as handle:
@@ -67,8 +67,8 @@ def config_from_bag(bag_dir) -> dict:
 def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
     """frame id -> decoded table of the first message of ``topic`` with that frame id
     (a re-send after a restart is a duplicate, see the module docstring)."""
-    from . import contracts, messages
-    from .nodes import parse_frame
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.graph.framework import parse_frame
 
     columns = contracts.contract(topic).columns
     tables = {}
@@ -86,8 +86,8 @@ def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
 def agent_data(bag_dir) -> dict:
     """POV ids, POV motor samples, equality pairs (POV positions) and set ids, as the
     representation node builds them, plus the change each POV was published for."""
-    from . import contracts, messages
-    from .nodes.representation import assemble_points_of_view
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.graph.nodes.representation import assemble_points_of_view
 
     pov_tables = _tables(bag_dir, POVS)
     row_tables = _tables(bag_dir, ROWS)
@@ -118,8 +118,8 @@ def agent_totals(bag_dir) -> dict | None:
 def true_poses(bag_dir, povs: np.ndarray) -> tuple[np.ndarray, int]:
     """Sensor pose (x, y, alpha) of each POV's first sample: recorded where that motor
     state was commanded, ``arm.forward`` otherwise. Returns (poses, number recorded)."""
-    from . import contracts, messages
-    from .core import arm
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.core import arm
 
     first = np.ascontiguousarray(povs[:, 0], dtype="<f8")
     wanted = {row.tobytes(): k for k, row in enumerate(first)}
@@ -161,7 +161,7 @@ def events(bag_dir) -> dict[str, np.ndarray]:
 
 
 def _concatenated(bag_dir, topic: str) -> np.ndarray:
-    from . import contracts, messages
+    from sensorispace_ros import contracts, messages
 
     present = topic in bags.bag_info(bag_dir).topics
     tables = list(_tables(bag_dir, topic).values()) if present else []
@@ -173,8 +173,8 @@ def naive_records(bag_dir, data: dict, totals: dict | None):
     """The agent's records of the run (``core.naive_evaluation.NaiveAgentRecords``),
     or None when the bag lacks them (recorded before they were published, or the
     run did not end)."""
-    from .core.naive_agent import STAGES
-    from .core.naive_evaluation import NaiveAgentRecords
+    from sensorispace_ros.core.naive.agent import STAGES
+    from sensorispace_ros.core.naive.run import NaiveAgentRecords
 
     info = bags.bag_info(bag_dir)
     if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
@@ -211,11 +211,11 @@ def naive_ground_truth(cfg: dict, change_events: dict, n_changes: int, poses: np
     """``core.naive_evaluation.NaiveGroundTruth`` of the run: the recorded changes
     (``/environment/event``; agent event t = change t), the world rebuilt from the
     configuration for the initial centre and the coverage denominator."""
-    from . import pipeline
-    from .core import world as world_mod
-    from .core.exploration import build_world
-    from .core.naive_evaluation import NaiveGroundTruth, paper_compensated_positions
-    from .nodes.environment import KIND_CODES
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.core import world as world_mod
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.naive.run import NaiveGroundTruth, paper_compensated_positions
+    from sensorispace_ros.graph.nodes.environment import KIND_CODES
 
     world = build_world(int(cfg["seed"]), pipeline.world_params(cfg))
     kind_of_code = {code: kind for kind, code in KIND_CODES.items()}
@@ -245,7 +245,7 @@ def naive_metrics(records, cfg: dict, change_events: dict, changes: int, poses: 
     """``naive.*`` of a run and the grid index of each POV's change, from the
     agent's records and ``/agent/done``'s ``changes`` (``end/<k>`` closes a run of
     k - 1 changes, nodes/environment.py), ground truth from ``naive_ground_truth``."""
-    from .core.naive_evaluation import evaluate_naive_records
+    from sensorispace_ros.core.naive.run import evaluate_naive_records
 
     truth = naive_ground_truth(cfg, change_events, int(changes) - 1, poses)
     evaluated, _, grid_index = evaluate_naive_records(records, truth)
@@ -256,7 +256,8 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     """Rebuild and evaluate the run recorded in ``bag_dir``; write ``out_dir/metrics.json``,
     ``arrays.npz`` and figures (``pipeline.evaluate_graph_run``, as for a live graph run).
     ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics."""
-    from . import config, contracts, pipeline
+    from sensorispace_ros import config, contracts
+    from sensorispace_ros.offline import pipeline
 
     started = time.perf_counter()
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)

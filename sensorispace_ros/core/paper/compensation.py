@@ -14,7 +14,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize
 
-from . import arm
+from sensorispace_ros.core import arm
 
 TWO_PI = 2.0 * math.pi
 

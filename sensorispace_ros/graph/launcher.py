@@ -1,7 +1,7 @@
 """``sensorispace launch``: the whole graph, one process per node.
 
 No ros2 launch here (no launch/launch_ros wheels exist, ROS_NOTES.md):
-children are ``python -m sensorispace_ros.nodes.<name> --ros-args
+children are ``python -m sensorispace_ros.graph.nodes.<name> --ros-args
 --params-file CONFIG``, started in their own session so a terminal Ctrl-C
 reaches only the launcher, which then stops them by PID (SIGTERM, SIGKILL
 after a grace period). Discovery is localhost-only and the domain id is
@@ -26,9 +26,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .config import ConfigError
-from .environment_progress import PROGRESS_FILE, read_progress
-from .recording_complete import wait_for_complete_recording
+from sensorispace_ros.config import ConfigError
+from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progress
+from sensorispace_ros.recording.completeness import wait_for_complete_recording
 
 # Exceptions the `sensorispace` command prints as a one-line user error.
 USER_ERRORS = (ConfigError,)
@@ -44,8 +44,8 @@ _RTPS_PORT_BASE, _RTPS_DOMAIN_GAIN = 7410, 250
 
 
 def default_config() -> Path:
-    here = Path(__file__).resolve().parent
-    for candidate in (here.parent / "config" / "paper.yaml",
+    source_tree = Path(__file__).resolve().parents[2]
+    for candidate in (source_tree / "config" / "paper.yaml",
                       Path(sys.prefix) / "share" / "sensorispace_ros" / "config" / "paper.yaml"):
         if candidate.is_file():
             return candidate
@@ -93,7 +93,7 @@ HEARTBEAT_PERIOD_NS = 100_000_000
 INITIAL_ANNOUNCEMENTS = 20
 INITIAL_ANNOUNCEMENT_PERIOD_NS = 50_000_000
 FASTDDS_PROFILE_XML = f"""<?xml version="1.0" encoding="UTF-8" ?>
-<!-- written by sensorispace_ros.launcher: short participant lease (issue #7),
+<!-- written by sensorispace_ros.graph.launcher: short participant lease (issue #7),
      quick initial announcements (start-up), frequent writer heartbeats
      (acknowledgements the agent's snapshots wait for) -->
 <dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
@@ -151,14 +151,14 @@ def graph_environment(domain_id: int, base: dict | None = None,
     if not env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(fastdds_profile_file(profile_dir))
     env["ROS_DOMAIN_ID"] = str(domain_id)
-    package_root = str(Path(__file__).resolve().parent.parent)
+    package_root = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
     env.setdefault("PYTHONUNBUFFERED", "1")
     return env
 
 
 def node_command(name: str, config_path: Path, parameters: dict) -> list[str]:
-    command = [sys.executable, "-m", f"sensorispace_ros.nodes.{name}", "--ros-args",
+    command = [sys.executable, "-m", f"sensorispace_ros.graph.nodes.{name}", "--ros-args",
                "--params-file", str(config_path)]
     for key, value in parameters.items():
         if isinstance(value, (list, tuple)):
@@ -286,8 +286,8 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     """
     if respawn < 0:
         raise ValueError(f"respawn must be >= 0, got {respawn}")
-    from . import config
-    from .nodes import RESTART_EXIT_CODE, build_world
+    from sensorispace_ros import config
+    from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, build_world
     stream = sys.stderr if stream is None else stream
     config_path = Path(config_path) if config_path else default_config()
     cfg = config.load_config(config_path)
@@ -303,7 +303,7 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
     total = len(build_world(cfg).events) + 1
     has_recorder = record and importlib.util.find_spec(
-        f"sensorispace_ros.nodes.{RECORDER}") is not None
+        f"sensorispace_ros.graph.nodes.{RECORDER}") is not None
     bag_dir = Path(bags_root) / run
     print(f"[launch] run {run}: ROS_DOMAIN_ID={domain_id}, discovery "
           f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']}, config {config_path}, logs {log_dir}"
@@ -391,8 +391,8 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
 def evaluate_run(cfg: dict, results_dir: Path, bag_dir: Path | None, stream) -> dict:
     """metrics.json + figures of a finished run, ground truth joined here."""
     if bag_dir is not None and (bag_dir / "metadata.yaml").is_file() \
-            and importlib.util.find_spec("sensorispace_ros.analyze") is not None:
-        from . import analyze
+            and importlib.util.find_spec("sensorispace_ros.recording.analyze") is not None:
+        from sensorispace_ros.recording import analyze
         metrics = analyze.analyze_bag(bag_dir, results_dir, cfg)
     else:
         metrics = evaluate_representation(results_dir, cfg, stream)
@@ -410,9 +410,9 @@ def evaluate_representation(results_dir: Path, cfg: dict, stream=None) -> dict:
     """
     import numpy as np
 
-    from . import pipeline
-    from .nodes.agent import AGENT_RECORDS_FILE
-    from .nodes.representation import RESULT_FILE
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.graph.nodes.agent import AGENT_RECORDS_FILE
+    from sensorispace_ros.graph.nodes.representation import RESULT_FILE
 
     with np.load(Path(results_dir) / RESULT_FILE) as stored:
         arrays = {key: stored[key] for key in stored.files}
@@ -446,9 +446,9 @@ def _evaluate_agent_records(records_file: Path, arrays: dict, cfg: dict, changes
     forward model. Sets ``arrays["grid_index"]``."""
     import numpy as np
 
-    from .analyze import naive_metrics
-    from .core import arm
-    from .core.naive_agent import NaiveAgentRecords
+    from sensorispace_ros.recording.analyze import naive_metrics
+    from sensorispace_ros.core import arm
+    from sensorispace_ros.core.naive.agent import NaiveAgentRecords
 
     with np.load(records_file) as stored:
         records = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
@@ -504,7 +504,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from .config import ConfigError
+    from sensorispace_ros.config import ConfigError
     if args.respawn < 0:
         print(f"sensorispace launch: --respawn must be >= 0, got {args.respawn}", file=sys.stderr)
         return 2
@@ -535,7 +535,7 @@ def parameter_overrides(config_path: str | Path, graph: dict | None = None) -> l
     """The parameter file (and ``graph.*`` values) as rclpy Parameters, for in-process nodes."""
     from rclpy.parameter import Parameter
 
-    from . import config
+    from sensorispace_ros import config
     flat = config.flatten(config.read_parameter_file(config_path))
     flat.update(graph or {})
     return [Parameter(name, value=value) for name, value in flat.items()]
@@ -561,10 +561,10 @@ def run_graph_in_process(config_path: str | Path, domain_id: int, results_dir: s
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from .nodes.agent import AgentNode
-    from .nodes.body import BodyNode
-    from .nodes.environment import EnvironmentNode
-    from .nodes.representation import RepresentationNode
+    from sensorispace_ros.graph.nodes.agent import AgentNode
+    from sensorispace_ros.graph.nodes.body import BodyNode
+    from sensorispace_ros.graph.nodes.environment import EnvironmentNode
+    from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     context = Context()

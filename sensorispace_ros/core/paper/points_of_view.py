@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import arm
-from .motor_loops import loop_winding  # noqa: F401  (re-exported: part of this API)
+from sensorispace_ros.core import arm
+from sensorispace_ros.core.motor_loops import loop_winding  # noqa: F401  (re-exported: part of this API)
 
 TWO_PI = 2.0 * np.pi
 

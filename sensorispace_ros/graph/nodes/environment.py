@@ -30,10 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import contracts, messages, tracing
-from ..core import world as world_mod
-from ..environment_progress import PROGRESS_FILE, ProgressWriter, decode_progress
-from . import GraphNode, build_world, frame, run_node
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.graph import tracing
+from sensorispace_ros.core import world as world_mod
+from sensorispace_ros.state.environment_record import (PROGRESS_FILE, ProgressWriter,
+    decode_progress)
+from sensorispace_ros.graph.framework import GraphNode, build_world, frame, run_node
 
 KIND_CODES = {world_mod.TRANSLATION: 0, world_mod.REDISTRIBUTION: 1}
 # One participant announcement period of the launcher's Fast DDS profile

@@ -30,8 +30,8 @@ import numpy as np
 from scipy.spatial.distance import pdist, squareform
 from scipy.stats import spearmanr
 
-from . import config as config_mod
-from .core.seeding import rng_for
+from sensorispace_ros import config as config_mod
+from sensorispace_ros.core.seeding import rng_for
 
 if TYPE_CHECKING:
     from concurrent.futures import Executor, ProcessPoolExecutor
@@ -144,8 +144,8 @@ def run_strategy(cfg: dict, strategy: str, seed: int, progress=None) -> Strategy
 
 def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 with the paper's analytic shortcuts."""
-    from .core.equality_sets import equality_sets_from_poses
-    from .core.exploration import build_world, explore_paper
+    from sensorispace_ros.core.paper.equality_sets import equality_sets_from_poses
+    from sensorispace_ros.core.paper.exploration import build_world, explore_paper
 
     timings: dict = {}
     with _stage(progress, "exploration", timings):
@@ -205,7 +205,8 @@ def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
     as one batch (tests check it). Measured on the paper's 649 POVs: 6.0 s of
     one process, 4.4 s per half (each half walks until its longest loop closes).
     """
-    from .core.points_of_view import PointsOfViewResult, sample_points_of_view
+    from sensorispace_ros.core.paper.points_of_view import (PointsOfViewResult,
+        sample_points_of_view)
 
     if processes is None:
         processes = min(2, os.cpu_count() or 1) if _can_fork() else 1
@@ -236,9 +237,9 @@ def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
 
 def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 from the sensorimotor flow alone (issue #3)."""
-    from .core.exploration import build_world
-    from .core.naive_agent import NaiveParams
-    from .core.naive_evaluation import run_naive
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.run import run_naive
 
     timings: dict = {}
     world = build_world(seed, world_params(cfg))
@@ -276,7 +277,7 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
 
 def _pose_drift(povs: np.ndarray, true_poses: np.ndarray) -> float:
     """Largest pose error of any POV sample w.r.t. its POV's sensor pose (ground truth)."""
-    from .core import arm
+    from sensorispace_ros.core import arm
 
     if len(povs) == 0:
         return 0.0
@@ -311,7 +312,7 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
     process that must not fork, e.g. ``start_chain_pool``'s), in place of
     ``processes``. The result depends on neither.
     """
-    from .core.hausdorff import hausdorff_matrix
+    from sensorispace_ros.core.hausdorff import hausdorff_matrix
 
     povs = np.asarray(povs, dtype=float)
     if povs.ndim != 3 or povs.shape[2] != 4 or len(povs) < 4:
@@ -475,7 +476,7 @@ def _exit_with(parent) -> None:
 
 def _warm_chain_worker() -> int:
     """A tiny CCA, so that the worker has loaded what a chain uses."""
-    from .core.cca import CCA
+    from sensorispace_ros.core.cca import CCA
 
     points = np.arange(16, dtype=float).reshape(8, 2) ** 1.5
     CCA(n_components=2, metric="precomputed", init="mds", n_epochs=1,
@@ -503,8 +504,8 @@ def _dimension_chain(distance: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
                      seed: int, name: str, n_components: int) -> dict:
     """CCA of the Hausdorff metric, then the regularisation iterations, in
     ``n_components`` dimensions (a process of its own in build_representation)."""
-    from .core.cca import CCA
-    from .core.regularize import iterate_regularization, set_spread
+    from sensorispace_ros.core.cca import CCA
+    from sensorispace_ros.core.regularize import iterate_regularization, set_spread
 
     started = time.perf_counter()
     estimator = CCA(n_components=n_components, metric="precomputed", init="mds",
@@ -545,8 +546,8 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
     degrees; ``timings_s.reaching``. ``povs`` is accepted so callers hand
     over the whole run; no number here needs it yet.
     """
-    from .core.quality import quality_report
-    from .core.reach import reaching_evaluation
+    from sensorispace_ros.core.quality import quality_report
+    from sensorispace_ros.core.reach import reaching_evaluation
 
     true_positions = np.asarray(true_positions, dtype=float)
     metrics: dict[str, Any] = {}
@@ -692,7 +693,7 @@ def write_run(out_dir: str | Path, flat_metrics: dict, arrays: dict, cfg: dict, 
     timings = dict(timings)
     arrays = dict(arrays)
     if cfg["output"]["figures"]:
-        from . import figures
+        from sensorispace_ros.offline import figures
 
         with _stage(progress, "figures", timings, total=len(figures.FIGURES)):
             arrays.update(_draw_figures(arrays, cfg, out_dir / FIGURES_DIR, progress))
@@ -713,7 +714,7 @@ def write_run(out_dir: str | Path, flat_metrics: dict, arrays: dict, cfg: dict, 
 
 def _examples_figure(cfg: dict, figures_dir: Path) -> dict:
     """Fig. 6 from its own POVs (``figure_examples``); returns those arrays."""
-    from . import figures
+    from sensorispace_ros.offline import figures
 
     examples = figure_examples(cfg)
     figures.draw_all(examples, figures_dir, seed=cfg["seed"], only=[EXAMPLES_FIGURE])
@@ -729,7 +730,7 @@ def _draw_figures(arrays: dict, cfg: dict, figures_dir: Path, progress=None) -> 
     Fig. 6 samples POVs of its own (~2.5 s), so when ``_can_fork`` a forked
     process does it while this one draws the others (~5 s on the paper run).
     """
-    from . import figures
+    from sensorispace_ros.offline import figures
 
     others = [name for name in figures.FIGURES if name != EXAMPLES_FIGURE]
     if not (_can_fork() and (os.cpu_count() or 1) > 1):
@@ -782,8 +783,8 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
     """Ground truth of POVs recorded without it (a graph run): sensor poses
     from the forward model, object grid position from the tip displacement
     since the initial pose. Evaluation only."""
-    from .core import arm
-    from .core.world import grid_spacing, position_grid
+    from sensorispace_ros.core import arm
+    from sensorispace_ros.core.world import grid_spacing, position_grid
 
     povs = np.asarray(povs, dtype=float)
     true_poses = arm.forward(povs[:, 0])
@@ -840,8 +841,8 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
 def figure_examples(cfg: dict) -> dict:
     """POVs drawn only for Fig. 6: the initial motor state's POV, and POVs
     of sensor poses along the x axis (one of them inside |tip| < 1)."""
-    from .core import arm
-    from .core.points_of_view import project_onto_pose, sample_points_of_view
+    from sensorispace_ros.core import arm
+    from sensorispace_ros.core.paper.points_of_view import project_onto_pose, sample_points_of_view
 
     m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
     reach = np.array([0.6, 1.3, 1.8, 2.3, 2.8])

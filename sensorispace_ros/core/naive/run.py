@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import arm, retina
-from .body import SensingOnly, SimulatedBody
-from .naive_agent import STAGES as NAIVE_STAGES
-from .naive_agent import NaiveAgent, NaiveAgentRecords, NaiveParams
-from .world import REDISTRIBUTION
+from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core.body import SensingOnly, SimulatedBody
+from sensorispace_ros.core.naive.agent import STAGES as NAIVE_STAGES
+from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveAgentRecords, NaiveParams
+from sensorispace_ros.core.world import REDISTRIBUTION
 
 WRONG_POSE_TOL = 1e-3
 
@@ -170,7 +170,7 @@ def _passive_sensation(body: SimulatedBody) -> np.ndarray:
 def paper_compensated_positions(world) -> np.ndarray:
     """Sensor positions ``(Q, 2)`` the paper strategy compensates (with its
     initial POV), for the coverage denominator."""
-    from .exploration import explore_paper
+    from sensorispace_ros.core.paper.exploration import explore_paper
 
     explored = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
                              initial_center=world.initial_center)

@@ -33,9 +33,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .. import contracts, messages, tracing
-from ..core.body import SimulatedBody, simulate
-from . import RESTART_EXIT_CODE, GraphNode, build_world, run_node
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.graph import tracing
+from sensorispace_ros.core.body import SimulatedBody, simulate
+from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, GraphNode, build_world, run_node
 
 
 class RestingStateFile:

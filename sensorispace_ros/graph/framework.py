@@ -20,7 +20,8 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
-from .. import config, contracts, messages, tracing
+from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.graph import tracing
 
 # Parameters of the graph itself (not of the science): results directory,
 # start-up handshake. Kept apart from the validated run configuration.
@@ -312,7 +313,7 @@ def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
 
 def build_world(cfg: dict):
     """The run's world (ground truth) from the validated configuration."""
-    from ..core import exploration
+    from sensorispace_ros.core.paper import exploration
     world_cfg = cfg["world"]
     return exploration.build_world(cfg["seed"], {
         "m0": tuple(cfg["arm"]["initial_motor_state"]),

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .sensory_points_of_view import has_full_pose_rank, sensory_jacobian
+from sensorispace_ros.core.naive.points_of_view import has_full_pose_rank, sensory_jacobian
 
 RANK_UNKNOWN = -1
 RANK_DEFICIENT = 0

@@ -16,8 +16,9 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from sensorispace_ros import bags, contracts
-from sensorispace_ros.nodes.recorder import lossless
+from sensorispace_ros.recording import bags
+from sensorispace_ros import contracts
+from sensorispace_ros.graph.nodes.recorder import lossless
 
 # /session/config is not in the contract: a late subscriber should still get it
 SESSION_CONFIG_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,

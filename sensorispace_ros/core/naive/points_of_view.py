@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from .motor_loops import loop_winding
+from sensorispace_ros.core.motor_loops import loop_winding
 
 TWO_PI = 2.0 * np.pi
 

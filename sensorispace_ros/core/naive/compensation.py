@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sensory_points_of_view import minimum_norm_correction, sensory_jacobian
+from sensorispace_ros.core.naive.points_of_view import minimum_norm_correction, sensory_jacobian
 
 
 @dataclass

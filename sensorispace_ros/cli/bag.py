@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .bags import BagError
+from sensorispace_ros.recording.bags import BagError
 
 USER_ERRORS = (BagError,)
 
@@ -64,7 +64,7 @@ def register(subparsers) -> None:
 
 
 def run_replay(args: argparse.Namespace) -> int:
-    from .nodes.replay import replay_bag
+    from sensorispace_ros.graph.nodes.replay import replay_bag
 
     published = replay_bag(args.bag, rate=0.0 if args.fast else args.rate, topics=args.topics)
     print(f"replayed {sum(published.values())} messages from {args.bag}")
@@ -72,13 +72,13 @@ def run_replay(args: argparse.Namespace) -> int:
 
 
 def run_analyze(args: argparse.Namespace) -> int:
-    from . import analyze
+    from sensorispace_ros.recording import analyze
 
     bag = Path(args.bag)
     out = Path(args.out) if args.out else Path("results") / f"{bag.resolve().name}-analyzed"
     metrics = analyze.analyze_bag(bag, out)
     try:
-        from .cli import summary_table
+        from sensorispace_ros.cli.main import summary_table
 
         print(summary_table(metrics, out))
     except ImportError:
@@ -87,7 +87,7 @@ def run_analyze(args: argparse.Namespace) -> int:
 
 
 def run_recover(args: argparse.Namespace) -> int:
-    from .bags import recover_bag
+    from sensorispace_ros.recording.bags import recover_bag
 
     report = recover_bag(args.bag)
     print(report.summary())

@@ -30,7 +30,7 @@ evaluated without a bag (``launch --no-record``).
 
 Restart (issue #7; only with ``graph.checkpoint_dir`` set, "" costs nothing).
 The agent persists ``<dir>/agent.snapshot`` and ``<dir>/agent.journal``
-(format: ``sensorispace_ros.agent_checkpoint``). The journal gets, unbuffered
+(format: ``sensorispace_ros.state.agent_journal``). The journal gets, unbuffered
 (one ``os.writev`` each, kept by the page cache through a kill -9), every
 input the agent consumes: each new passive sensation when it arrives, each
 body answer (with a crc of the command it answers), and a marker once a
@@ -76,12 +76,13 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import UInt64
 
-from .. import config, contracts, messages, tracing
-from ..agent_checkpoint import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal, CheckpointError,
-                                command_check, read_journal, read_snapshot, write_snapshot)
-from ..core.naive_agent import STAGES as NAIVE_STAGES
-from ..core.naive_agent import NaiveAgent, NaiveAgentRecords, NaiveParams
-from . import GraphNode, frame, run_node
+from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.graph import tracing
+from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal,
+    CheckpointError, command_check, read_journal, read_snapshot, write_snapshot)
+from sensorispace_ros.core.naive.agent import STAGES as NAIVE_STAGES
+from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveAgentRecords, NaiveParams
+from sensorispace_ros.graph.framework import GraphNode, frame, run_node
 
 
 AGENT_RECORDS_FILE = "agent_records.npz"

@@ -28,8 +28,8 @@ from matplotlib.colors import hsv_to_rgb, to_rgb  # noqa: E402
 from matplotlib.patches import Circle, Wedge  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
 
-from .core import arm  # noqa: E402
-from .core.seeding import rng_for  # noqa: E402
+from sensorispace_ros.core import arm  # noqa: E402
+from sensorispace_ros.core.seeding import rng_for  # noqa: E402
 
 TWO_PI = 2.0 * np.pi
 DPI = 110
@@ -535,7 +535,7 @@ def fig16_metric_comparisons(arrays: Mapping, seed: int = 0,
 def reaching_examples(arrays: Mapping, dim: str, seed: int = 0, count: int = 3) -> dict:
     """Paths of ``count`` random start/target pairs, before and after, through
     the pruned graph of the ``dim`` representation (the figure's data)."""
-    from .core import reach
+    from sensorispace_ros.core import reach
 
     cfg = _config(arrays)["representation"]["reaching"]
     positions = np.asarray(arrays["true_positions"])

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Sequence
 
 PROG = "sensorispace"
-EXTENSIONS = ("sensorispace_ros.launcher", "sensorispace_ros.bag_commands")
+EXTENSIONS = ("sensorispace_ros.graph.launcher", "sensorispace_ros.cli.bag")
 EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
 
@@ -111,9 +111,9 @@ def _one_line(exc: BaseException) -> str:
 
 
 def run_reproduce(args: argparse.Namespace) -> int:
-    from . import config as config_mod
-    from . import pipeline
-    from .progress import Progress
+    from sensorispace_ros import config as config_mod
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.progress import Progress
 
     overrides = {}
     if args.seed is not None:
@@ -199,7 +199,7 @@ def summary_table(metrics: dict, out: Path | None = None) -> str:
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    from .pipeline import read_metrics
+    from sensorispace_ros.offline.pipeline import read_metrics
 
     a, b = read_metrics(args.a), read_metrics(args.b)
     print(compare_table(a, b, str(args.a), str(args.b), only_different=args.only_different))
@@ -231,7 +231,7 @@ def _difference(a, b) -> str:
 def compare_table(a: dict, b: dict, name_a: str = "A", name_b: str = "B",
                   only_different: bool = False) -> str:
     """Two runs' metrics side by side: key, A, B, B - A (relative)."""
-    from .pipeline import flatten_metrics
+    from sensorispace_ros.offline.pipeline import flatten_metrics
 
     config_a, config_b = a.get("config", {}), b.get("config", {})
     flat_a = flatten_metrics({k: v for k, v in a.items() if k != "config"})
@@ -265,6 +265,3 @@ def compare_table(a: dict, b: dict, name_a: str = "A", name_b: str = "B",
         lines.append("same configuration" if config_a or config_b else "no configuration recorded")
     return "\n".join(lines)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

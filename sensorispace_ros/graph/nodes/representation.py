@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import contracts, messages
-from . import GraphNode, run_node
+from sensorispace_ros import contracts, messages
+from sensorispace_ros.graph.framework import GraphNode, run_node
 
 RESULT_FILE = "representation.npz"
 CHAIN_POOL_DELAY_S = 3.0
@@ -90,8 +90,8 @@ class RepresentationNode(GraphNode):
         self.hausdorff_failed = False
 
     def _start_chain_pool(self) -> None:
-        from .. import pipeline
-        from ..core.hausdorff import hausdorff_matrix
+        from sensorispace_ros.offline import pipeline
+        from sensorispace_ros.core.hausdorff import hausdorff_matrix
 
         # After the other nodes' start-up (or at once when the run is over, or
         # the node closing): the forkserver and its two workers import numpy,
@@ -143,7 +143,7 @@ class RepresentationNode(GraphNode):
         """Queue the distances of this table's POVs to those held (see the module
         docstring); gives the growing matrix up for one computed at the end when
         the table does not hold whole POVs or numba is missing."""
-        from ..core.hausdorff import GrowingHausdorffMatrix, numba_available
+        from sensorispace_ros.core.hausdorff import GrowingHausdorffMatrix, numba_available
         if self.hausdorff_failed:
             return
         try:
@@ -224,7 +224,7 @@ class RepresentationNode(GraphNode):
         self.worker.start()
 
     def build(self) -> None:
-        from .. import pipeline
+        from sensorispace_ros.offline import pipeline
         try:
             ids, povs = assemble_points_of_view(list(self.pov_tables.values()))
             rows = (np.concatenate(list(self.row_tables.values())) if self.row_tables
@@ -267,7 +267,7 @@ class RepresentationNode(GraphNode):
                               set_ids: np.ndarray, distance: np.ndarray | None = None):
         from concurrent.futures.process import BrokenProcessPool
 
-        from .. import pipeline
+        from sensorispace_ros.offline import pipeline
         if self.chain_pool is not None:
             try:
                 return pipeline.build_representation(povs, pairs, set_ids, self.cfg,
@@ -283,7 +283,7 @@ class RepresentationNode(GraphNode):
 
     def destroy_node(self):
         """Stops the chain pool first: none of its workers outlives the node."""
-        from .. import pipeline
+        from sensorispace_ros.offline import pipeline
         self.closing = True
         self._start_pool_now.set()
         self.hausdorff_worker.shutdown(wait=True, cancel_futures=True)

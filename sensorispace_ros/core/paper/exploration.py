@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import arm, retina, world as world_mod
-from .compensation import compensate_pose
-from .seeding import rng_for
+from sensorispace_ros.core import arm, retina, world as world_mod
+from sensorispace_ros.core.paper.compensation import compensate_pose
+from sensorispace_ros.core.seeding import rng_for
 
 # Paper values (Sec. 4); receptor and light layouts are ours (issue #2: the
 # paper leaves them open), see retina.draw_receptor_positions and

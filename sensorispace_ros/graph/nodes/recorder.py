@@ -38,7 +38,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from sensorispace_ros import bags, contracts, recording_complete
+from sensorispace_ros.recording import bags, completeness as recording_complete
+from sensorispace_ros import contracts
 
 # Parameters that are not the run's configuration: the launcher's plumbing
 # (graph.*: graph.bag_dir is where to record), the recorder's own (recorder.*)
