@@ -23,6 +23,6 @@ unset PIP_FIND_LINKS PIP_EXTRA_INDEX_URL PIP_INDEX_URL PIP_CONSTRAINT
 "$tmp/venv/bin/pip" install -q pip-tools==7.6.2
 CUSTOM_COMPILE_COMMAND="scripts/lock.sh" \
   "$tmp/venv/bin/pip-compile" --quiet --generate-hashes --allow-unsafe \
-    --strip-extras --no-emit-index-url --no-emit-find-links \
+    --no-strip-extras --no-emit-index-url --no-emit-find-links \
     --output-file requirements.lock requirements.in
 echo "lock.sh: wrote requirements.lock"
