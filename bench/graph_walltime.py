@@ -46,7 +46,7 @@ def offline_child(config_path: str) -> int:
     from sensorispace_ros import config
     from sensorispace_ros.offline import pipeline
     from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import explore_naive
     imported = time.perf_counter()
     cfg = config.load_config(config_path)

@@ -35,7 +35,7 @@ import yaml
 
 ROS_WRAPPER = "ros__parameters"
 # The ``naive`` section is passed through to the naive strategy's parameters;
-# its keys are those of ``core.naive_agent.NaiveParams``.
+# its keys are those of ``core.naive.params.NaiveParams``.
 OPEN_SECTIONS = ("naive",)
 
 
@@ -241,7 +241,7 @@ def _validate_section(section: Any, schema: dict, prefix: str) -> dict:
 def _validate_naive(overrides: dict) -> dict:
     """Reject keys the naive strategy does not know, and let it check values."""
     try:
-        from sensorispace_ros.core.naive.agent import NaiveParams
+        from sensorispace_ros.core.naive.params import NaiveParams
     except ModuleNotFoundError:     # naive strategy not built yet: keys cannot be checked
         return overrides
     if is_dataclass(NaiveParams):

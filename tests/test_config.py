@@ -176,7 +176,7 @@ def naive_params_module(monkeypatch):
             if self.batch < 1:
                 raise ValueError(f"naive.batch: must be >= 1, got {self.batch}")
 
-    module = types.ModuleType("sensorispace_ros.core.naive.agent")
+    module = types.ModuleType("sensorispace_ros.core.naive.params")
     module.NaiveParams = NaiveParams
     monkeypatch.setitem(sys.modules, module.__name__, module)
     return NaiveParams

@@ -238,7 +238,7 @@ def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
 def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 from the sensorimotor flow alone (issue #3)."""
     from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
 
     timings: dict = {}

@@ -4,7 +4,7 @@ check that their results are the same."""
 import numpy as np
 
 from sensorispace_ros.core.paper.exploration import build_world
-from sensorispace_ros.core.naive.agent import NaiveParams
+from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
 
 

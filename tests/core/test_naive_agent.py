@@ -11,7 +11,8 @@ import pytest
 from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.body import SimulatedBody
 from sensorispace_ros.core.paper.exploration import build_world
-from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveParams
+from sensorispace_ros.core.naive.agent import NaiveAgent
+from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
 from sensorispace_ros.core.world import REDISTRIBUTION
 

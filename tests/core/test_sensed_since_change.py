@@ -8,7 +8,8 @@ import pytest
 
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.paper.exploration import build_world
-from sensorispace_ros.core.naive.agent import NaiveParams, _CountingBody, _SensedSinceChange
+from sensorispace_ros.core.naive.agent import _CountingBody, _SensedSinceChange
+from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
 
 from naive_flag_runs import assert_same_results, runs_on_and_off

@@ -306,7 +306,7 @@ def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
 def offline():
     from sensorispace_ros.offline import pipeline
     from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
     cfg = config.load_config(SMOKE)
     world = build_world(cfg["seed"], pipeline.world_params(cfg))

@@ -32,7 +32,7 @@ def smoke_cfg():
 @pytest.fixture(scope="module")
 def offline(smoke_cfg):
     from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.core.naive.agent import NaiveParams
+    from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
     world = build_world(smoke_cfg["seed"], pipeline.world_params(smoke_cfg))
     produced = run_naive(world, NaiveParams(**smoke_cfg["naive"]), smoke_cfg["seed"])

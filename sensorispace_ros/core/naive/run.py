@@ -18,7 +18,8 @@ from scipy.spatial import cKDTree
 from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.naive.agent import STAGES as NAIVE_STAGES
-from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveAgentRecords, NaiveParams
+from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveAgentRecords
+from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 WRONG_POSE_TOL = 1e-3
