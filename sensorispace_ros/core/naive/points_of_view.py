@@ -1,4 +1,4 @@
-"""Points of view from the sensorimotor flow alone (naive strategy, issue #3).
+"""Points of view from the sensorimotor flow alone (naive strategy).
 
 The paper samples a point of view (POV) by walking the kernel of the arm's
 Jacobian J_f (Sec. 4.1). A naive agent has no f. It has a body that answers
@@ -184,74 +184,129 @@ def sample_sensory_points_of_view(
                            rank_ratio=rank_ratio, max_queries=max_queries,
                            polish_iterations=polish_iterations,
                            min_loop_length=min_loop_length, knots_per_step=knots_per_step)
-    n_pov = len(start)
-    rows_per_state = n_motors + 1
-    queries = np.zeros(n_pov, dtype=int)
-    steps = np.zeros(n_pov, dtype=int)
-    reason = [VALID] * n_pov
-    paths: list[list[np.ndarray]] = [[start[p].copy()] for p in range(n_pov)]
-    jacobians_along: list[list[np.ndarray]] = [[] for _ in range(n_pov)]
-    calls = 0
-    if n_pov == 0:
+    if len(start) == 0:
+        none = np.zeros(0, dtype=int)
         return SensoryPointsOfView(np.zeros((0, n_samples, n_motors)), np.zeros(0, bool), [],
-                                   queries, steps, 0, 0.0, np.zeros((0, int(body.n_sensors))))
+                                   none, none.copy(), 0, 0.0, np.zeros((0, int(body.n_sensors))))
+    walk = _Walk(body, start, fd_step=fd_step, min_step=min_step, max_step=max_step,
+                 predictor_tol=predictor_tol, max_queries=max_queries,
+                 min_loop_length=min_loop_length, knots_per_step=knots_per_step)
+    walk.begin(rank_ratio, initial_step)
+    while len(walk.active):
+        walk.advance()
+    samples = walk.resample(n_samples)
+    max_residual = walk.project(samples, polish_iterations)
+    reason = walk.reason
+    return SensoryPointsOfView(samples=samples, valid=np.array([r == VALID for r in reason]),
+                               reason=reason, queries=walk.queries, steps=walk.steps,
+                               calls=walk.calls, max_residual=max_residual,
+                               target_sensations=walk.target)
 
-    target, jac, _ = sensory_jacobian(body, start, fd_step)
-    calls += 1
-    queries += rows_per_state
-    for p in range(n_pov):
-        jacobians_along[p].append(jac[p])
-    full_rank = has_full_pose_rank(jac, rank_ratio)
-    _, right = rank3_report(jac)
-    tangent = right[:, -1, :].copy()
-    # SVD null vectors have an arbitrary sign: start along the one whose
-    # largest component is positive so a run is reproducible.
-    tangent *= np.sign(tangent[np.arange(n_pov), np.argmax(np.abs(tangent), axis=1)])[:, None]
-    for p in np.flatnonzero(~full_rank):
-        reason[p] = RANK_DEFICIENT
 
-    # Two fronts per POV walk the loop in opposite directions from the start,
-    # in the same sense calls, until they meet half way round. Arrays are
-    # (POV, front, ...): front 0 along +tangent, front 1 along -tangent.
-    active = np.flatnonzero(full_rank)
-    n_knots = int(knots_per_step)
-    fraction = np.arange(1, n_knots + 1)                      # probe k at k * spacing
-    point = np.repeat(start[active, None, :], 2, axis=1)      # last accepted (corrected) knots
-    point_jac = np.repeat(jac[active, None], 2, axis=1)      # sensory Jacobians there
-    rows_per_call = 2 * (rows_per_state + n_knots - 1)       # per walking POV
-    direction = tangent[active, None, :] * np.array([1.0, -1.0])[None, :, None]
-    spacing = np.full((len(active), 2), float(initial_step))
-    arc = np.zeros((len(active), 2))
-    bend = np.zeros_like(direction)          # d(tangent)/d(arc), from the last two knots
-    branches = [([], []) for _ in range(n_pov)]             # knots of each front
-    branch_jacobians = [([], []) for _ in range(n_pov)]
-    while len(active):
+class _Walk:
+    """One batch of POV walks (``sample_sensory_points_of_view``).
+
+    Per POV: its path (start, then the knots of both fronts once the loop
+    closed), the sensory Jacobians along it, its rows probed and its
+    outcome. Per walking POV (``active``), arrays ``(A, 2, ...)`` describe
+    its two fronts, front 0 along +tangent and front 1 along -tangent:
+    ``point`` the last accepted (corrected) knot and ``point_jac`` its
+    sensory Jacobian, ``direction`` the unit tangent there, ``bend``
+    d(tangent)/d(arc) from the last two knots, ``spacing`` the knot interval
+    ``h`` and ``arc`` the arc length walked.
+    """
+
+    def __init__(self, body, start, *, fd_step, min_step, max_step, predictor_tol,
+                 max_queries, min_loop_length, knots_per_step):
+        self.body, self.start = body, start
+        self.fd_step, self.min_step, self.max_step = fd_step, min_step, max_step
+        self.predictor_tol, self.max_queries = predictor_tol, max_queries
+        self.min_loop_length = min_loop_length
+        n_pov = len(start)
+        self.n_motors = start.shape[1]
+        self.rows_per_state = self.n_motors + 1
+        self.n_knots = int(knots_per_step)
+        self.fraction = np.arange(1, self.n_knots + 1)             # probe k at k * spacing
+        self.rows_per_call = 2 * (self.rows_per_state + self.n_knots - 1)  # per walking POV
+        self.queries = np.zeros(n_pov, dtype=int)
+        self.steps = np.zeros(n_pov, dtype=int)
+        self.reason = [VALID] * n_pov
+        self.paths: list[list[np.ndarray]] = [[start[p].copy()] for p in range(n_pov)]
+        self.jacobians_along: list[list[np.ndarray]] = [[] for _ in range(n_pov)]
+        self.branches = [([], []) for _ in range(n_pov)]             # knots of each front
+        self.branch_jacobians = [([], []) for _ in range(n_pov)]
+        self.calls = 0
+
+    def begin(self, rank_ratio: float, initial_step: float) -> None:
+        """Sense the starts with their Jacobians; the POVs whose start has
+        full pose rank set off, two fronts each along the null vector."""
+        start, n_pov = self.start, len(self.start)
+        self.target, jac, _ = sensory_jacobian(self.body, start, self.fd_step)
+        self.calls += 1
+        self.queries += self.rows_per_state
+        for p in range(n_pov):
+            self.jacobians_along[p].append(jac[p])
+        full_rank = has_full_pose_rank(jac, rank_ratio)
+        _, right = rank3_report(jac)
+        tangent = right[:, -1, :].copy()
+        # SVD null vectors have an arbitrary sign: start along the one whose
+        # largest component is positive so a run is reproducible.
+        tangent *= np.sign(tangent[np.arange(n_pov), np.argmax(np.abs(tangent), axis=1)])[:, None]
+        for p in np.flatnonzero(~full_rank):
+            self.reason[p] = RANK_DEFICIENT
+        # Two fronts per POV walk the loop in opposite directions from the
+        # start, in the same sense calls, until they meet half way round.
+        active = self.active = np.flatnonzero(full_rank)
+        self.point = np.repeat(start[active, None, :], 2, axis=1)
+        self.point_jac = np.repeat(jac[active, None], 2, axis=1)
+        self.direction = tangent[active, None, :] * np.array([1.0, -1.0])[None, :, None]
+        self.spacing = np.full((len(active), 2), float(initial_step))
+        self.arc = np.zeros((len(active), 2))
+        self.bend = np.zeros_like(self.direction)
+
+    def advance(self) -> None:
+        """One ``sense`` call: every front probes ahead, keeps what it can
+        and adapts its step; fronts that met close their loop."""
+        jac, null, size, knots = self._probe()
+        self._accept(jac, null, size, knots)
+        self._close()
+
+    def _probe(self):
+        """Predict ``knots_per_step`` states ahead of every front, sense them
+        (the farthest with its stencil) and correct them back onto the level
+        set. Returns per probe ``(A, 2, K, ...)``: its Jacobian, the null
+        vector there (oriented along the walk), the size of its correction
+        and the corrected knot."""
+        n_motors, n_knots, fraction = self.n_motors, self.n_knots, self.fraction
+        point, direction, bend, spacing = self.point, self.direction, self.bend, self.spacing
         reach = spacing[..., None] * fraction                                # (A, 2, K)
         predicted = (point[:, :, None, :] + reach[..., None] * direction[:, :, None, :]
                      + (0.5 * reach * reach)[..., None] * bend[:, :, None, :])
         # One call: the farthest probe of each front with its stencil, the
         # nearer probes one row each. Their Jacobians are interpolated
         # between the front's last knot and the farthest probe (the knots'
-        # Gauss-Newton pass below removes what that costs in accuracy).
+        # Gauss-Newton pass in ``resample`` removes what that costs in accuracy).
         farthest = predicted[:, :, -1, :]
-        stencil = np.repeat(farthest[:, :, None, :], rows_per_state, axis=2)
-        stencil[:, :, 1:, :] += fd_step * np.eye(n_motors)
-        answer = np.asarray(body.sense(np.concatenate([
+        stencil = np.repeat(farthest[:, :, None, :], self.rows_per_state, axis=2)
+        stencil[:, :, 1:, :] += self.fd_step * np.eye(n_motors)
+        answer = np.asarray(self.body.sense(np.concatenate([
             stencil.reshape(-1, n_motors), predicted[:, :, :-1, :].reshape(-1, n_motors)])),
             dtype=float)
-        calls += 1
-        queries[active] += rows_per_call
-        n_stencil_rows = stencil.shape[0] * 2 * rows_per_state
+        self.calls += 1
+        self.queries[self.active] += self.rows_per_call
+        n_stencil_rows = stencil.shape[0] * 2 * self.rows_per_state
         at_farthest = answer[:n_stencil_rows].reshape(stencil.shape[:3] + (-1,))
-        farthest_jac = np.swapaxes(at_farthest[:, :, 1:] - at_farthest[:, :, :1], -1, -2) / fd_step
+        farthest_jac = (np.swapaxes(at_farthest[:, :, 1:] - at_farthest[:, :, :1], -1, -2)
+                        / self.fd_step)
         sensation = np.concatenate([answer[n_stencil_rows:].reshape(
             predicted.shape[:2] + (n_knots - 1, answer.shape[1])), at_farthest[:, :, None, 0]],
             axis=2)
         along = (fraction / n_knots)[:, None, None]                          # (K, 1, 1)
-        jac = ((1.0 - along) * point_jac[:, :, None] + along * farthest_jac[:, :, None])
+        jac = ((1.0 - along) * self.point_jac[:, :, None] + along * farthest_jac[:, :, None])
         correction, null = _correction_and_null(
             jac.reshape((-1,) + jac.shape[3:]),
-            (sensation - target[active][:, None, None, :]).reshape(-1, sensation.shape[-1]))
+            (sensation - self.target[self.active][:, None, None, :]).reshape(
+                -1, sensation.shape[-1]))
         correction = correction.reshape(predicted.shape)
         null = null.reshape(predicted.shape)
         # A probe that lands where the sensation is blank or pins no pose
@@ -261,121 +316,143 @@ def sample_sensory_points_of_view(
         size = np.where(np.isfinite(size), size, np.inf)
         heading = direction[:, :, None, :] + reach[..., None] * bend[:, :, None, :]
         null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
-        knots = predicted + correction
-        # A front keeps its probes up to the first whose correction is too
-        # large (the predictor error grows with the reach).
-        good = (size <= 4.0 * predictor_tol) | ((spacing[..., None] <= min_step) & (size < np.inf))
+        return jac, null, size, predicted + correction
+
+    def _accept(self, jac, null, size, knots) -> None:
+        """Each front keeps its probes up to the first whose correction is
+        too large (the predictor error grows with the reach), moves to the
+        last one kept and adapts its knot interval."""
+        point, spacing, active = self.point, self.spacing, self.active
+        good = ((size <= 4.0 * self.predictor_tol)
+                | ((spacing[..., None] <= self.min_step) & (size < np.inf)))
         kept = np.cumprod(good, axis=-1).sum(axis=-1)                        # (A, 2)
         accepted = kept > 0
         last = np.maximum(kept - 1, 0)
         front_of = (np.arange(len(active))[:, None], np.arange(2)[None, :])
         links = np.linalg.norm(np.diff(np.concatenate([point[:, :, None, :], knots], axis=2),
                                        axis=2), axis=-1)                     # (A, 2, K)
-        travelled = np.sum(np.where(np.arange(n_knots) < kept[..., None], links, 0.0), axis=-1)
-        previous_null = np.where((last > 0)[..., None], null[front_of + (last - 1,)], direction)
+        travelled = np.sum(np.where(np.arange(self.n_knots) < kept[..., None], links, 0.0),
+                           axis=-1)
+        previous_null = np.where((last > 0)[..., None], null[front_of + (last - 1,)],
+                                 self.direction)
         new_bend = ((null[front_of + (last,)] - previous_null)
                     / np.maximum(links[front_of + (last,)], 1e-12)[..., None])
-
         # Predictor error ~ h^3 (the bend makes it second order): aim the
         # farthest probe's correction at predictor_tol.
-        scale = (predictor_tol / np.maximum(size[..., -1], 1e-12)) ** (1.0 / 3.0)
-        spacing = np.where(~accepted, 0.5 * spacing,
-                           np.clip(spacing * np.clip(0.9 * scale, 0.5, 1.5), min_step, max_step))
-        bend = np.where(accepted[..., None], new_bend, bend)
-        point = np.where(accepted[..., None], knots[front_of + (last,)], point)
-        point_jac = np.where(accepted[..., None, None], jac[front_of + (last,)], point_jac)
-        direction = np.where(accepted[..., None], null[front_of + (last,)], direction)
-        arc += travelled
-        steps[active] += kept.sum(axis=1)
+        scale = (self.predictor_tol / np.maximum(size[..., -1], 1e-12)) ** (1.0 / 3.0)
+        self.spacing = np.where(~accepted, 0.5 * spacing,
+                                np.clip(spacing * np.clip(0.9 * scale, 0.5, 1.5),
+                                        self.min_step, self.max_step))
+        self.bend = np.where(accepted[..., None], new_bend, self.bend)
+        self.point = np.where(accepted[..., None], knots[front_of + (last,)], point)
+        self.point_jac = np.where(accepted[..., None, None], jac[front_of + (last,)],
+                                  self.point_jac)
+        self.direction = np.where(accepted[..., None], null[front_of + (last,)], self.direction)
+        self.arc += travelled
+        self.steps[active] += kept.sum(axis=1)
         for k, front in zip(*np.nonzero(accepted)):
-            branches[active[k]][front].extend(knots[k, front, :kept[k, front]])
-            branch_jacobians[active[k]][front].extend(jac[k, front, :kept[k, front]])
+            self.branches[active[k]][front].extend(knots[k, front, :kept[k, front]])
+            self.branch_jacobians[active[k]][front].extend(jac[k, front, :kept[k, front]])
 
-        # The fronts meet, modulo 2 pi per joint (a split POV meets itself a
-        # turn away). Within about a knot interval of each other they close
-        # the loop. Within reach of both next calls they aim at their
-        # midpoint instead: the last knot interval is then no longer than the
-        # others, and the fronts cannot pass each other between two calls.
+    def _close(self) -> None:
+        """The fronts meet, modulo 2 pi per joint (a split POV meets itself a
+        turn away). Within about a knot interval of each other they close
+        the loop. Within reach of both next calls they aim at their midpoint
+        instead: the last knot interval is then no longer than the others,
+        and the fronts cannot pass each other between two calls. A POV out
+        of budget stops, not closed."""
+        point, direction, spacing, active = self.point, self.direction, self.spacing, self.active
         gap = _wrap(point[:, 1] - point[:, 0])
         distance = np.linalg.norm(gap, axis=1)
         facing = (np.sum(gap * direction[:, 0], axis=1) > 0.0) & (
             np.sum(gap * direction[:, 1], axis=1) < 0.0)
-        long_enough = arc.sum(axis=1) > min_loop_length
+        long_enough = self.arc.sum(axis=1) > self.min_loop_length
         widest = spacing.max(axis=1)
         closing = long_enough & ((facing & (distance < 1.25 * widest)) |
                                  (distance < 0.5 * widest))
         converge = (long_enough & facing & ~closing
-                    & (distance < 1.1 * n_knots * spacing.sum(axis=1)))
-        spacing[converge] = np.maximum(distance[converge] / (2 * n_knots), min_step)[:, None]
-        out_of_budget = queries[active] + rows_per_call > max_queries
+                    & (distance < 1.1 * self.n_knots * spacing.sum(axis=1)))
+        spacing[converge] = np.maximum(distance[converge] / (2 * self.n_knots),
+                                       self.min_step)[:, None]
+        out_of_budget = self.queries[active] + self.rows_per_call > self.max_queries
         for k in np.flatnonzero(closing):
             p = active[k]
-            forward, backward = branches[p]
-            forward_jac, backward_jac = branch_jacobians[p]
+            forward, backward = self.branches[p]
+            forward_jac, backward_jac = self.branch_jacobians[p]
             if backward and distance[k] < 0.2 * widest[k]:
                 backward, backward_jac = backward[:-1], backward_jac[:-1]   # near-duplicate knot
             # Unwrapped, the backward front ends a whole number of turns from
             # the forward one: shift it so the path is continuous (a split
             # POV's path then ends a turn away from its start).
             turns = TWO_PI * np.rint((point[k, 1] - point[k, 0] - gap[k]) / TWO_PI)
-            paths[p] = [start[p].copy()] + forward + [b - turns for b in backward[::-1]]
-            jacobians_along[p] = jacobians_along[p] + forward_jac + backward_jac[::-1]
+            self.paths[p] = [self.start[p].copy()] + forward + [b - turns for b in backward[::-1]]
+            self.jacobians_along[p] = self.jacobians_along[p] + forward_jac + backward_jac[::-1]
         for k in np.flatnonzero(out_of_budget & ~closing):
-            reason[active[k]] = NOT_CLOSED
+            self.reason[active[k]] = NOT_CLOSED
         keep = ~(closing | out_of_budget)
-        active, point, point_jac, direction, bend, spacing, arc = (
-            active[keep], point[keep], point_jac[keep], direction[keep], bend[keep],
-            spacing[keep], arc[keep])
+        self.active, self.point, self.point_jac, self.direction, self.bend = (
+            active[keep], point[keep], self.point_jac[keep], direction[keep], self.bend[keep])
+        self.spacing, self.arc = spacing[keep], self.arc[keep]
 
-    samples = np.repeat(start[:, None, :], n_samples, axis=1)
-    for p in range(n_pov):
-        if reason[p] == VALID and np.any(loop_winding(np.asarray(paths[p])) != 0):
-            reason[p] = SPLIT
-    whole = [p for p in range(n_pov) if reason[p] == VALID]
-    if whole:
-        # One more Gauss-Newton step on every knot (with the Jacobian of its
-        # probe, in one call): a knot corrected once from a prediction
-        # ~predictor_tol off the level set is still ~1e-5 off, systematically
-        # on one side, which biases the spline's arc length (samples then
-        # shift along the loop by up to ~4e-5 rad; measured on the paper
-        # config, 1.4e-5 -> 2e-6 max Hausdorff to the analytic walk).
-        knots = np.concatenate([np.asarray(paths[p][1:]) for p in whole])
-        knot_jacobians = np.concatenate([np.asarray(jacobians_along[p][1:]) for p in whole])
-        counts = [len(paths[p]) - 1 for p in whole]
-        sensation = np.asarray(body.sense(knots), dtype=float)
-        calls += 1
-        knots = knots + minimum_norm_correction(
-            knot_jacobians, sensation - np.repeat(target[whole], counts, axis=0))
-        for p, chunk in zip(whole, np.split(knots, np.cumsum(counts)[:-1])):
-            queries[p] += len(chunk)
-            paths[p] = [paths[p][0]] + list(chunk)
-            samples[p] = resample_loop_spline(np.asarray(paths[p]), n_samples)
+    def resample(self, n_samples: int) -> np.ndarray:
+        """``(P, n_samples, M)`` samples: the starts repeated, and for every
+        closed loop that is not split, its polished knots resampled along a
+        periodic spline."""
+        start, paths, reason = self.start, self.paths, self.reason
+        n_pov = len(start)
+        samples = np.repeat(start[:, None, :], n_samples, axis=1)
+        for p in range(n_pov):
+            if reason[p] == VALID and np.any(loop_winding(np.asarray(paths[p])) != 0):
+                reason[p] = SPLIT
+        whole = [p for p in range(n_pov) if reason[p] == VALID]
+        if whole:
+            # One more Gauss-Newton step on every knot (with the Jacobian of its
+            # probe, in one call): a knot corrected once from a prediction
+            # ~predictor_tol off the level set is still slightly off,
+            # systematically on one side, which biases the spline's arc
+            # length and so shifts the samples along the loop.
+            knots = np.concatenate([np.asarray(paths[p][1:]) for p in whole])
+            knot_jacobians = np.concatenate([np.asarray(self.jacobians_along[p][1:])
+                                             for p in whole])
+            counts = [len(paths[p]) - 1 for p in whole]
+            sensation = np.asarray(self.body.sense(knots), dtype=float)
+            self.calls += 1
+            knots = knots + minimum_norm_correction(
+                knot_jacobians, sensation - np.repeat(self.target[whole], counts, axis=0))
+            for p, chunk in zip(whole, np.split(knots, np.cumsum(counts)[:-1])):
+                self.queries[p] += len(chunk)
+                paths[p] = [paths[p][0]] + list(chunk)
+                samples[p] = resample_loop_spline(np.asarray(paths[p]), n_samples)
+        return samples
 
-    # Project the samples back onto the level set with one Gauss-Newton step
-    # each. The Jacobian is the one of the nearest knot (at most half a knot
-    # interval away): its error only slows the convergence of a
-    # correction that is already ~1e-8 (spline between polished knots), so
-    # it costs one row per sample instead of M + 1.
-    max_residual = 0.0
-    good = np.flatnonzero([r == VALID for r in reason])
-    if len(good):
-        flat = samples[good, 1:].reshape(-1, n_motors)
-        flat_target = np.repeat(target[good], n_samples - 1, axis=0)
-        nearest_jac = np.concatenate([
-            np.asarray(jacobians_along[p])[_nearest_rows(samples[p, 1:], np.asarray(paths[p]))]
-            for p in good])
-        for _ in range(polish_iterations):
-            sensation = np.asarray(body.sense(flat), dtype=float)
-            calls += 1
-            queries[good] += n_samples - 1
-            residual = sensation - flat_target
-            max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
-            flat = flat + minimum_norm_correction(nearest_jac, residual)
-        samples[good, 1:] = flat.reshape(len(good), n_samples - 1, n_motors)
-    valid = np.array([r == VALID for r in reason])
-    return SensoryPointsOfView(samples=samples, valid=valid, reason=reason, queries=queries,
-                               steps=steps, calls=calls, max_residual=max_residual,
-                               target_sensations=target)
+    def project(self, samples: np.ndarray, polish_iterations: int) -> float:
+        """Project the valid POVs' samples (in place) back onto the level set
+        with ``polish_iterations`` Gauss-Newton steps each; returns the
+        largest sensory error before the last step (0 without steps).
+
+        The Jacobian is the one of the nearest knot (at most half a knot
+        interval away): its error only slows the convergence of a
+        correction that is already tiny (spline between polished knots), so
+        it costs one row per sample instead of M + 1."""
+        n_pov, n_samples, n_motors = samples.shape
+        max_residual = 0.0
+        good = np.flatnonzero([r == VALID for r in self.reason])
+        if len(good):
+            flat = samples[good, 1:].reshape(-1, n_motors)
+            flat_target = np.repeat(self.target[good], n_samples - 1, axis=0)
+            nearest_jac = np.concatenate([
+                np.asarray(self.jacobians_along[p])[
+                    _nearest_rows(samples[p, 1:], np.asarray(self.paths[p]))]
+                for p in good])
+            for _ in range(polish_iterations):
+                sensation = np.asarray(self.body.sense(flat), dtype=float)
+                self.calls += 1
+                self.queries[good] += n_samples - 1
+                residual = sensation - flat_target
+                max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
+                flat = flat + minimum_norm_correction(nearest_jac, residual)
+            samples[good, 1:] = flat.reshape(len(good), n_samples - 1, n_motors)
+        return max_residual
 
 
 def resample_loop_spline(path: np.ndarray, n_samples: int = 100) -> np.ndarray:
