@@ -1,4 +1,4 @@
-"""Compensation from the sensorimotor flow alone (naive strategy, issue #3).
+"""Compensation from the sensorimotor flow alone (naive strategy).
 
 The paper compensates an object displacement with Nelder-Mead on the tip
 pose, knowing the forward model and the displacement (Sec. 4.2). The naive
@@ -10,8 +10,8 @@ finite-difference sensory Jacobians.
 Many searches (targets x restarts) run together: every LM iteration is ONE
 ``sense`` call carrying each search's trial state and its finite-difference
 stencil. scipy's ``least_squares(method="lm")`` would need one call per
-search per Jacobian (it cannot batch across problems), i.e. ~100x more
-round trips for the ROS body.
+search per Jacobian (it cannot batch across problems): one round trip to the
+ROS body per search instead of one for the whole batch.
 
 A search is accepted only if the sensory error is tiny, the Gauss-Newton step
 that would remove it is tiny in motor space, AND the sensory Jacobian at the
@@ -74,8 +74,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
     not reachable from there).
 
     Two more stops save ``sense`` calls (each a round trip to the body) without
-    changing which targets are found (measured on the 3 184 search batches of
-    the paper config, seed 0: the same targets found, 9 % fewer calls):
+    changing which targets are found (see docs/benchmarks.md):
 
     * at a stationary point: when the part of the residual in the range of
       ``J`` is below ``stationary_ratio`` times the residual, the linearised
@@ -89,21 +88,13 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
       pins the eye's pose and another restart could only find that pose
       again.
     """
-    targets = np.asarray(target_sensations, dtype=float)
-    point = np.array(starts, dtype=float, copy=True)
-    n_motors = int(body.n_motors)
-    if point.ndim != 2 or point.shape[1] != n_motors:
-        raise ValueError(f"starts must have shape (K, {n_motors}), got {point.shape}")
-    if targets.ndim != 2 or len(targets) != len(point):
-        raise ValueError(f"target_sensations must have shape ({len(point)}, S), "
-                         f"got {targets.shape}")
-    _check_search_parameters(fd_step=fd_step, max_iterations=max_iterations,
-                             error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio,
-                             max_step=max_step, initial_damping=initial_damping,
-                             stall_iterations=stall_iterations, stall_factor=stall_factor,
-                             stationary_ratio=stationary_ratio)
+    targets, point = _checked_searches(
+        body, target_sensations, starts, fd_step=fd_step, max_iterations=max_iterations,
+        error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio, max_step=max_step,
+        initial_damping=initial_damping, stall_iterations=stall_iterations,
+        stall_factor=stall_factor, stationary_ratio=stationary_ratio)
     n_search = len(point)
-    rows_per_state = n_motors + 1
+    rows_per_state = point.shape[1] + 1
     queries = np.zeros(n_search, dtype=int)
     iterations = np.zeros(n_search, dtype=int)
     if n_search == 0:
@@ -122,49 +113,44 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
     _, target_id = np.unique(targets, axis=0, return_inverse=True)
     target_id = target_id.reshape(-1)
     for iteration in range(1, max_iterations + 1):
-        done = _converged(jac, residual, error, error_tol, motor_tol)
-        active &= ~done
-        if iteration > stall_iterations:
-            stalled = error > stall_factor * history[-1 - stall_iterations]
-            active &= ~stalled
-        if stationary_ratio > 0 or stop_found_targets:
-            u, singular, _ = np.linalg.svd(jac, full_matrices=False)
-        if stationary_ratio > 0:
-            in_range = np.linalg.norm(np.einsum("bsk,bs->bk", u[:, :, :3], residual), axis=1)
-            active &= ~((in_range < stationary_ratio * error) & (error > error_tol))
-        if stop_found_targets and done.any():
-            found = done & (singular[:, 2] >= rank_ratio * singular[:, 0])
-            active &= ~np.isin(target_id, target_id[found])
+        active &= ~_stopping(jac, residual, error, history, iteration, target_id,
+                             error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio,
+                             stall_iterations=stall_iterations, stall_factor=stall_factor,
+                             stationary_ratio=stationary_ratio,
+                             stop_found_targets=stop_found_targets)
         if not active.any():
             break
         idx = np.flatnonzero(active)
-        j = jac[idx]
-        normal = np.swapaxes(j, 1, 2) @ j
-        # A blank sensation has J = 0: keep the system solvable (step 0).
-        scale = np.maximum(np.trace(normal, axis1=1, axis2=2) / n_motors, 1e-20)
-        lhs = normal + (damping[idx] * scale)[:, None, None] * np.eye(n_motors)
-        rhs = -np.einsum("bsm,bs->bm", j, residual[idx])
-        step = np.linalg.solve(lhs, rhs[..., None])[..., 0]
-        length = np.linalg.norm(step, axis=1)
-        step *= np.minimum(1.0, max_step / np.maximum(length, 1e-300))[:, None]
-        trial = point[idx] + step
-        trial_sensation, trial_jac, _ = sensory_jacobian(body, trial, fd_step)
+        _damped_step(body, idx, targets, point, jac, residual, error, damping,
+                     fd_step=fd_step, max_step=max_step)
         calls += 1
         queries[idx] += rows_per_state
         iterations[idx] += 1
-        trial_residual = trial_sensation - targets[idx]
-        trial_error = np.linalg.norm(trial_residual, axis=1)
-        better = trial_error < error[idx]
-        keep = idx[better]
-        point[keep] = trial[better]
-        jac[keep] = trial_jac[better]
-        residual[keep] = trial_residual[better]
-        error[keep] = trial_error[better]
-        damping[keep] = np.maximum(damping[keep] / 3.0, 1e-12)
-        worse = idx[~better]
-        damping[worse] = damping[worse] * 4.0
         history.append(error.copy())
 
+    return _outcome(point, jac, residual, error, queries, iterations, calls,
+                    error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio)
+
+
+def _checked_searches(body, target_sensations, starts, **parameters):
+    """``(targets (K, S), starts (K, M))`` as float arrays (the starts a
+    copy, the searches' working states), after checking their shapes and
+    ``parameters``."""
+    targets = np.asarray(target_sensations, dtype=float)
+    point = np.array(starts, dtype=float, copy=True)
+    n_motors = int(body.n_motors)
+    if point.ndim != 2 or point.shape[1] != n_motors:
+        raise ValueError(f"starts must have shape (K, {n_motors}), got {point.shape}")
+    if targets.ndim != 2 or len(targets) != len(point):
+        raise ValueError(f"target_sensations must have shape ({len(point)}, S), "
+                         f"got {targets.shape}")
+    _check_search_parameters(**parameters)
+    return targets, point
+
+
+def _outcome(point, jac, residual, error, queries, iterations, calls, *, error_tol, motor_tol,
+             rank_ratio) -> CompensationSearch:
+    """The searches' final states, with the three acceptance tests."""
     singular = np.linalg.svd(jac, compute_uv=False)
     ratio = singular[:, 2] / np.maximum(singular[:, 0], 1e-300)
     motor_residual = _step_norm(jac, residual)
@@ -173,6 +159,59 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
                               motor_residual=motor_residual, rank_ratio=ratio,
                               accepted=accepted, queries=queries, iterations=iterations,
                               calls=calls)
+
+
+def _stopping(jac, residual, error, history, iteration, target_id, *, error_tol, motor_tol,
+              rank_ratio, stall_iterations, stall_factor, stationary_ratio,
+              stop_found_targets) -> np.ndarray:
+    """Searches that stop before this iteration (``compensate``'s stops):
+    converged, stalled, at a stationary point, or restarts toward a target
+    another search already found."""
+    done = _converged(jac, residual, error, error_tol, motor_tol)
+    stop = done.copy()
+    if iteration > stall_iterations:
+        stop |= error > stall_factor * history[-1 - stall_iterations]
+    if stationary_ratio > 0 or stop_found_targets:
+        u, singular, _ = np.linalg.svd(jac, full_matrices=False)
+    if stationary_ratio > 0:
+        in_range = np.linalg.norm(np.einsum("bsk,bs->bk", u[:, :, :3], residual), axis=1)
+        stop |= (in_range < stationary_ratio * error) & (error > error_tol)
+    if stop_found_targets and done.any():
+        found = done & (singular[:, 2] >= rank_ratio * singular[:, 0])
+        stop |= np.isin(target_id, target_id[found])
+    return stop
+
+
+def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd_step,
+                 max_step) -> None:
+    """One Levenberg-Marquardt iteration of the searches ``idx``, in one
+    ``sense`` call: solve the damped normal equations, cap the step, probe
+    the trial state with its stencil; keep a better trial (``point``,
+    ``jac``, ``residual``, ``error`` updated in place) and shrink its
+    damping, grow the damping of a worse one."""
+    n_motors = point.shape[1]
+    j = jac[idx]
+    normal = np.swapaxes(j, 1, 2) @ j
+    # A blank sensation has J = 0: keep the system solvable (step 0).
+    scale = np.maximum(np.trace(normal, axis1=1, axis2=2) / n_motors, 1e-20)
+    lhs = normal + (damping[idx] * scale)[:, None, None] * np.eye(n_motors)
+    rhs = -np.einsum("bsm,bs->bm", j, residual[idx])
+    step = np.linalg.solve(lhs, rhs[..., None])[..., 0]
+    length = np.linalg.norm(step, axis=1)
+    step *= np.minimum(1.0, max_step / np.maximum(length, 1e-300))[:, None]
+    trial = point[idx] + step
+    trial_sensation, trial_jac, _ = sensory_jacobian(body, trial, fd_step)
+    trial_residual = trial_sensation - targets[idx]
+    trial_error = np.linalg.norm(trial_residual, axis=1)
+    better = trial_error < error[idx]
+    keep = idx[better]
+    point[keep] = trial[better]
+    jac[keep] = trial_jac[better]
+    residual[keep] = trial_residual[better]
+    error[keep] = trial_error[better]
+    damping[keep] = np.maximum(damping[keep] / 3.0, 1e-12)
+    worse = idx[~better]
+    damping[worse] = damping[worse] * 4.0
 
 
 def _converged(jac, residual, error, error_tol, motor_tol):
