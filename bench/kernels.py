@@ -97,10 +97,11 @@ def bench_cca(distance: np.ndarray, n_epochs: int = 50, baseline_epochs: int = 2
            "dims": {}}
     for d in (2, 3):
         init = classical_mds(distance, d)
-        _, fit_t = _timed(lambda: CCA(d, n_epochs=n_epochs, alpha0=alpha0,
+        _, fit_t = _timed(lambda: CCA(d, metric="precomputed", n_epochs=n_epochs, alpha0=alpha0,
                                       random_state=seed).fit_transform(distance, init=init))
         # Same schedule as CCA.fit_transform for a short run, then both implementations.
-        short = CCA(d, n_epochs=baseline_epochs, alpha0=alpha0, random_state=seed)
+        short = CCA(d, metric="precomputed", n_epochs=baseline_epochs, alpha0=alpha0,
+                    random_state=seed)
         Y_fast, short_t = _timed(lambda: short.fit_transform(distance, init=init))
         rng = np.random.default_rng(seed)
         steps = baseline_epochs * P
@@ -112,7 +113,8 @@ def bench_cca(distance: np.ndarray, n_epochs: int = 50, baseline_epochs: int = 2
         Y_ref, ref_t = _timed(lambda: reference_cca(distance, init, samples, alpha, lam))
         per_epoch = fit_t[0] / n_epochs
         ref_per_epoch = ref_t[0] / baseline_epochs
-        loop = CCA(d, n_epochs=baseline_epochs, alpha0=alpha0, random_state=seed, kernel="numpy")
+        loop = CCA(d, metric="precomputed", n_epochs=baseline_epochs, alpha0=alpha0,
+                   random_state=seed, kernel="numpy")
         Y_loop, loop_t = _timed(lambda: loop.fit_transform(distance, init=init))
         out["dims"][f"{d}d"] = {
             "fit_s": fit_t[0], "per_epoch_ms": 1e3 * per_epoch,

@@ -1,6 +1,6 @@
 """Curvilinear Component Analysis (Demartines & Herault 1997) as a
-scikit-learn style estimator (paper Sec. "Building a topological
-representation": POVs are projected to 2-D and 3-D with CCA).
+scikit-learn estimator (paper Sec. "Building a topological representation":
+the points of view are projected to 2-D and 3-D with CCA).
 
 The update rule and schedules follow the SOM Toolbox ``cca.m``: one random
 sample i per step pulls or pushes every other projection j along
@@ -8,30 +8,30 @@ Y_j - Y_i by exp(-dy_ij / lambda) * (dx_ij / dy_ij - 1); step size alpha and
 neighbourhood radius lambda decay geometrically ("potency curve") from
 alpha0 to alpha0 / 100 and from lambda0 to ``lambda_end`` over
 n_epochs * P steps. Where cca.m starts from a random or PCA projection, the
-default here is classical MDS (issue #2: CCA from MDS is reproducible and
-needs fewer epochs).
+default here is classical MDS: reproducible, and closer to the answer.
 
 The step loop runs compiled with numba when it is installed (``kernel``
 "auto"): the same IEEE operations in the same order, so the projection is
 bit-identical to the NumPy loop where NumPy's exp is the C library's
-(``core.numpy_math``; on an AVX-512 machine NumPy's own exp moves the last
-bits), which stays as fallback and reference (tests compare both).
-Measured x2-3 on P = 650 (the NumPy loop is ~15 ufunc calls of P elements
-per step, mostly call overhead).
+(``core.numpy_math``); the NumPy loop stays as fallback and reference.
 """
 from __future__ import annotations
 
 import math
 import numbers
 import sys
+import warnings
 
 import numpy as np
 from scipy.linalg import eigh
 from scipy.spatial.distance import pdist, squareform
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, _fit_context
+from sklearn.utils import check_array, check_symmetric
+from sklearn.utils._param_validation import Interval, StrOptions
+from sklearn.utils.validation import validate_data
 from threadpoolctl import threadpool_limits
 
-_METRICS = ("precomputed", "euclidean")
+_METRICS = ("euclidean", "precomputed")
 KERNELS = ("auto", "numpy", "numba")
 
 try:
@@ -44,7 +44,7 @@ def _cca_steps(YT, dx, samples, alpha, neg_inv_lambda, floor):
     """CCA updates for ``samples`` in turn, in place on ``YT`` (d, P).
 
     Written for numba; the arithmetic (operations and their order) is that of
-    the NumPy loop in ``CCA.fit_transform``, element by element.
+    the NumPy loop ``_numpy_steps``, element by element.
     """
     d, P = YT.shape
     yi = np.empty(d)
@@ -76,30 +76,53 @@ def numba_available() -> bool:
 
 
 def _generator(random_state) -> np.random.Generator:
+    """The Generator behind ``random_state``: an int or None seeds
+    ``numpy.random.default_rng``, a Generator is used (and advanced) as is, a
+    legacy RandomState seeds a new Generator with one draw."""
     if random_state is None or isinstance(random_state, numbers.Integral):
         return np.random.default_rng(random_state)
     if isinstance(random_state, np.random.Generator):
         return random_state
-    raise ValueError("random_state must be None, an int or a numpy Generator, "
+    if isinstance(random_state, np.random.RandomState):
+        return np.random.default_rng(random_state.randint(np.iinfo(np.int32).max))
+    raise ValueError("random_state must be None, an int, a numpy Generator or a RandomState, "
                      f"got {type(random_state).__name__}")
 
 
-def check_distance_matrix(X, name: str = "X") -> np.ndarray:
-    """A (P, P) float64 distance matrix, or a ValueError saying what is wrong."""
-    D = np.asarray(X, dtype=float)
-    if D.ndim != 2 or D.shape[0] != D.shape[1]:
+def _check_distance_properties(D: np.ndarray, name: str) -> np.ndarray:
+    """``D`` (a validated 2-D float array) if it is square, non-negative and
+    symmetric (``sklearn.utils.check_symmetric``'s tolerance); else a
+    ValueError naming ``name`` and the reason."""
+    if D.shape[0] != D.shape[1]:
         raise ValueError(f"{name} must be a square (P, P) distance matrix, got shape {D.shape}")
-    if D.shape[0] < 2:
-        raise ValueError(f"{name} must describe at least 2 points, got {D.shape[0]}")
-    if not np.all(np.isfinite(D)):
-        raise ValueError(f"{name} contains NaN or infinite distances")
     if np.any(D < 0):
-        raise ValueError(f"{name} contains negative distances (min {D.min():.3g})")
-    scale = max(float(D.max()), 1e-300)
-    asym = float(np.max(np.abs(D - D.T)))
-    if asym > 1e-9 * scale:
-        raise ValueError(f"{name} is not symmetric (max |D - D.T| = {asym:.3g})")
-    return np.ascontiguousarray(D)
+        raise ValueError(f"Negative values in data passed to {name}: distances are >= 0 "
+                         f"(min {D.min():.3g})")
+    try:
+        check_symmetric(D, raise_exception=True)
+    except ValueError:
+        asym = float(np.max(np.abs(D - D.T)))
+        raise ValueError(f"{name} is not symmetric (max |D - D.T| = {asym:.3g})") from None
+    return D
+
+
+def check_distance_matrix(X, name: str = "X") -> np.ndarray:
+    """A (P, P) float64 C-contiguous distance matrix (P >= 2), or a
+    ValueError saying what is wrong: sparse, complex, NaN or infinite
+    entries, not square, negative or not symmetric."""
+    try:
+        D = check_array(X, dtype=np.float64, ensure_min_samples=2, input_name=name)
+    except ValueError as error:
+        if name in str(error):
+            raise
+        raise ValueError(f"{name}: {error}") from None
+    return np.ascontiguousarray(_check_distance_properties(D, name))
+
+
+def _looks_like_distances(X: np.ndarray) -> bool:
+    """Square, zero diagonal, non-negative and symmetric."""
+    return (X.shape[0] == X.shape[1] and not np.any(np.diagonal(X)) and not np.any(X < 0)
+            and np.allclose(X, X.T))
 
 
 def classical_mds(distance, n_components: int) -> np.ndarray:
@@ -107,8 +130,8 @@ def classical_mds(distance, n_components: int) -> np.ndarray:
 
     Signs are fixed (largest-magnitude coordinate of each axis positive) so
     the result does not depend on the LAPACK build. Only the top eigenpairs
-    are computed, on one BLAS thread: on a busy 2-core machine a threaded
-    OpenBLAS eigh of 500 points took 9.5 s instead of 0.24 s.
+    are computed, on one BLAS thread: a threaded OpenBLAS ``eigh`` is many
+    times slower on a machine whose cores are busy.
     """
     D = np.asarray(distance, dtype=float)
     P = D.shape[0]
@@ -133,34 +156,148 @@ def cca_stress(distance, embedding, lam: float) -> float:
     return float(np.sum((distance - dy) ** 2 * np.exp(-dy / lam)) / 2.0)
 
 
+def _numpy_steps(YT, dx, samples, alpha, neg_inv_lambda, floor, epoch_done=None):
+    """The CCA updates of ``_cca_steps`` as NumPy ufunc calls, in place on
+    ``YT`` (d, P); ``epoch_done(epoch)`` after every P steps.
+
+    Coordinates-major layout: every update is a few ufunc calls on
+    contiguous rows, cheaper than one einsum on (P, d).
+    """
+    d, P = YT.shape
+    diff = np.empty_like(YT)
+    sq = np.empty_like(YT)
+    dy = np.empty(P)
+    gain = np.empty(P)
+    for t in range(samples.shape[0]):
+        i = samples[t]
+        np.subtract(YT, YT[:, i:i + 1], out=diff)
+        np.multiply(diff, diff, out=sq)
+        if d == 1:
+            np.copyto(dy, sq[0])
+        else:
+            np.add(sq[0], sq[1], out=dy)
+            for k in range(2, d):
+                np.add(dy, sq[k], out=dy)
+        np.sqrt(dy, out=dy)
+        np.maximum(dy, floor, out=dy)
+        np.divide(dx[i], dy, out=gain)
+        np.subtract(gain, 1.0, out=gain)
+        np.multiply(dy, neg_inv_lambda[t], out=dy)
+        np.exp(dy, out=dy)
+        np.multiply(gain, dy, out=gain)
+        np.multiply(gain, alpha[t], out=gain)
+        np.multiply(diff, gain, out=diff)
+        np.add(YT, diff, out=YT)
+        if epoch_done is not None and (t + 1) % P == 0:
+            epoch_done((t + 1) // P)
+
+
+def _compiled_steps(YT, dx, samples, alpha, neg_inv_lambda, floor, epoch_done=None):
+    """``_cca_steps`` compiled, one call per epoch of P steps."""
+    P = YT.shape[1]
+    for epoch in range(samples.shape[0] // P):
+        span = slice(epoch * P, (epoch + 1) * P)
+        _cca_steps_compiled(YT, dx, samples[span], alpha[span], neg_inv_lambda[span], floor)
+        if epoch_done is not None:
+            epoch_done(epoch + 1)
+
+
 class CCA(BaseEstimator):
     """Curvilinear Component Analysis.
 
+    A non-linear projection of P points to ``n_components`` dimensions that
+    keeps the short distances first: each step picks one point i at random
+    and moves every projection j along Y_j - Y_i so that its distance to i
+    gets closer to the input one, weighted by exp(-dy_ij / lambda). The step
+    size decays from ``alpha0`` to ``alpha0 / 100`` and the radius lambda
+    from ``lambda0`` to ``lambda_end`` over ``n_epochs * P`` steps. There is
+    no out-of-sample ``transform``: ``fit_transform`` gives the projection.
+
     Parameters
     ----------
-    n_components : output dimension.
-    metric : "precomputed" (X is a (P, P) distance matrix) or "euclidean"
-        (X is a (P, D) data matrix).
-    n_epochs : training length; each epoch is P single-sample updates.
-    alpha0 : initial step size (decays to alpha0 / 100).
-    lambda0 : initial neighbourhood radius; default 3 * max std of the
-        initial embedding (cca.m).
-    init : "mds" (classical MDS), "random", or a (P, n_components) array.
-    lambda_end : final neighbourhood radius (cca.m uses 0.01), in the units
-        of the distances.
-    random_state : None, int or numpy Generator (sample order, random init).
-    kernel : "auto" (numba if installed, else NumPy), "numpy" or "numba":
-        the step loop; both give the same bits.
+    n_components : int, default=2
+        Dimension of the projection.
+    metric : {"euclidean", "precomputed"}, default="euclidean"
+        "euclidean": X is a (P, n_features) data matrix and the input
+        distances are Euclidean. "precomputed": X is a (P, P) symmetric,
+        non-negative distance matrix, used as is.
+    n_epochs : int, default=50
+        Training length; each epoch is P single-sample updates.
+    alpha0 : float, default=0.5
+        Initial step size (it decays to ``alpha0 / 100``).
+    lambda0 : float or None, default=None
+        Initial neighbourhood radius, in the units of the distances. None:
+        3 times the largest standard deviation of the initial projection's
+        coordinates (as cca.m).
+    init : {"mds", "random"} or array-like of shape (P, n_components), \
+default="mds"
+        Initial projection: classical MDS of the distances, uniform random
+        in a box as wide as the largest distance, or the given coordinates.
+        The ``init`` argument of ``fit`` and ``fit_transform`` overrides it.
+    random_state : int, numpy.random.Generator, numpy.random.RandomState \
+or None, default=None
+        Sample order and random initial projection. An int or None seeds
+        ``numpy.random.default_rng``; a Generator is used (and advanced) as
+        is; a RandomState seeds a new Generator with one draw.
+    verbose : int, default=0
+        When positive, one line on stderr per epoch.
+    lambda_end : float, default=0.01
+        Final neighbourhood radius, in the units of the distances.
+    kernel : {"auto", "numpy", "numba"}, default="auto"
+        The step loop: compiled with numba ("auto" when numba is installed)
+        or NumPy ufuncs. Both do the same IEEE operations in the same order.
 
     Attributes
     ----------
-    embedding_ : (P, n_components) projection.
-    stress_ : weighted stress at the final lambda.
-    n_iter_ : epochs run.
-    lambda0_ : the initial radius actually used.
+    embedding_ : ndarray of shape (P, n_components)
+        The projection.
+    stress_ : float
+        Weighted stress 1/2 sum_ij (dx_ij - dy_ij)^2 exp(-dy_ij / lambda_end)
+        of the projection (computed when read).
+    n_iter_ : int
+        Epochs run.
+    lambda0_ : float
+        The initial radius used.
+    n_features_in_ : int
+        Number of columns of X seen during ``fit`` (P when precomputed).
+    feature_names_in_ : ndarray of shape (n_features_in_,)
+        Column names of X, when X has string column names.
+
+    See Also
+    --------
+    sklearn.manifold.MDS : metric multidimensional scaling.
+    sklearn.manifold.Isomap : projection of geodesic distances.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> from sensorispace_ros.core.cca import CCA
+    >>> X = np.random.default_rng(0).uniform(size=(50, 3))
+    >>> cca = CCA(n_components=2, n_epochs=5, random_state=0)
+    >>> Y = cca.fit_transform(X)
+    >>> Y.shape, cca.n_features_in_
+    ((50, 2), 3)
+    >>> D = squareform(pdist(X))
+    >>> Y_from_D = CCA(2, metric="precomputed", n_epochs=5, random_state=0).fit_transform(D)
+    >>> bool(np.array_equal(Y_from_D, Y))
+    True
     """
 
-    def __init__(self, n_components=2, *, metric="precomputed", n_epochs=50, alpha0=0.5,
+    _parameter_constraints: dict = {
+        "n_components": [Interval(numbers.Integral, 1, None, closed="left")],
+        "metric": [StrOptions(set(_METRICS))],
+        "n_epochs": [Interval(numbers.Integral, 1, None, closed="left")],
+        "alpha0": [Interval(numbers.Real, 0, None, closed="neither")],
+        "lambda0": [Interval(numbers.Real, 0, None, closed="neither"), None],
+        "init": [StrOptions({"mds", "random"}), "array-like"],
+        "random_state": ["random_state", np.random.Generator],
+        "verbose": ["verbose"],
+        "lambda_end": [Interval(numbers.Real, 0, None, closed="neither")],
+        "kernel": [StrOptions(set(KERNELS))],
+    }
+
+    def __init__(self, n_components=2, *, metric="euclidean", n_epochs=50, alpha0=0.5,
                  lambda0=None, init="mds", random_state=None, verbose=0, lambda_end=0.01,
                  kernel="auto"):
         self.n_components = n_components
@@ -174,126 +311,119 @@ class CCA(BaseEstimator):
         self.lambda_end = lambda_end
         self.kernel = kernel
 
-    def fit(self, X, y=None):
-        self.fit_transform(X, y)
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.pairwise = self.metric == "precomputed"
+        tags.input_tags.positive_only = self.metric == "precomputed"
+        return tags
+
+    def fit(self, X, y=None, init=None):
+        """Compute the projection of the points of X.
+
+        Parameters
+        ----------
+        X : array-like of shape (P, n_features) or (P, P)
+            Points, or their distance matrix when ``metric="precomputed"``.
+        y : Ignored
+            Not used, present for API consistency by convention.
+        init : {"mds", "random"}, array-like of shape (P, n_components) or \
+None, default=None
+            Initial projection; None: the estimator's ``init``.
+
+        Returns
+        -------
+        self : object
+            The fitted estimator.
+        """
+        self.fit_transform(X, init=init)
         return self
 
-    def _check_params(self):
-        if not isinstance(self.n_components, numbers.Integral) or self.n_components < 1:
-            raise ValueError(f"n_components must be a positive integer, got {self.n_components!r}")
-        if self.metric not in _METRICS:
-            raise ValueError(f"metric must be one of {_METRICS}, got {self.metric!r}")
-        if not isinstance(self.n_epochs, numbers.Integral) or self.n_epochs < 1:
-            raise ValueError(f"n_epochs must be a positive integer, got {self.n_epochs!r}")
-        if not self.alpha0 > 0:
-            raise ValueError(f"alpha0 must be > 0, got {self.alpha0!r}")
-        if self.lambda0 is not None and not self.lambda0 > 0:
-            raise ValueError(f"lambda0 must be > 0 or None, got {self.lambda0!r}")
-        if not self.lambda_end > 0:
-            raise ValueError(f"lambda_end must be > 0, got {self.lambda_end!r}")
-        if self.kernel not in KERNELS:
-            raise ValueError(f"kernel must be one of {KERNELS}, got {self.kernel!r}")
+    @_fit_context(prefer_skip_nested_validation=True)
+    def fit_transform(self, X, y=None, init=None):
+        """Compute the projection of the points of X and return it.
+
+        Parameters
+        ----------
+        X : array-like of shape (P, n_features) or (P, P)
+            Points, or their distance matrix when ``metric="precomputed"``.
+        y : Ignored
+            Not used, present for API consistency by convention.
+        init : {"mds", "random"}, array-like of shape (P, n_components) or \
+None, default=None
+            Initial projection; None: the estimator's ``init``.
+
+        Returns
+        -------
+        embedding : ndarray of shape (P, n_components)
+            The projection (``embedding_``).
+        """
         if self.kernel == "numba" and not numba_available():
             raise ValueError("kernel 'numba' needs the numba package, which is not installed")
+        dx = self._distances(X)
+        rng = _generator(self.random_state)
+        Y = self._initial(self.init if init is None else init, dx, rng)
+        lambda0 = self._initial_radius(Y, dx)
+        samples, alpha, neg_inv_lambda = self._schedules(dx.shape[0], lambda0, rng)
+        # Coincident projections: cca.m replaces dy = 0 by 1; any positive
+        # floor works since their Dy = 0 anyway.
+        floor = 1e-12 * max(float(dx.max()), 1e-300)
+        steps = _compiled_steps if self.kernel != "numpy" and numba_available() else _numpy_steps
+        YT = np.ascontiguousarray(Y.T)
+        steps(YT, dx, samples, alpha, neg_inv_lambda, floor,
+              self._report_epoch if self.verbose else None)
+        self.embedding_ = np.ascontiguousarray(YT.T)
+        self.lambda0_ = lambda0
+        self.n_iter_ = int(self.n_epochs)
+        self._fitted_distances = dx
+        return self.embedding_
 
     def _distances(self, X) -> np.ndarray:
+        X = validate_data(self, X, dtype=np.float64, ensure_min_samples=2)
         if self.metric == "precomputed":
-            return check_distance_matrix(X)
-        data = np.asarray(X, dtype=float)
-        if data.ndim != 2 or data.shape[0] < 2:
-            raise ValueError(f"X must be a (P, D) data matrix with P >= 2, got shape {data.shape}")
-        if not np.all(np.isfinite(data)):
-            raise ValueError("X contains NaN or infinite values")
-        return np.ascontiguousarray(squareform(pdist(data, metric=self.metric)))
+            return np.ascontiguousarray(_check_distance_properties(X, "X"))
+        if _looks_like_distances(X):
+            warnings.warn("X is square, symmetric and non-negative with a zero diagonal, like a "
+                          "distance matrix, but metric='euclidean' reads its rows as points; "
+                          "pass metric='precomputed' if it holds distances", UserWarning,
+                          stacklevel=4)
+        return np.ascontiguousarray(squareform(pdist(X, metric="euclidean")))
 
     def _initial(self, init, dx, rng) -> np.ndarray:
         P, d = dx.shape[0], self.n_components
         if isinstance(init, str):
             if init == "mds":
-                return classical_mds(dx, d)
+                return np.ascontiguousarray(classical_mds(dx, d))
             if init == "random":
                 half_width = max(float(dx.max()), 1e-12) / 2.0
                 return rng.uniform(-half_width, half_width, size=(P, d))
             raise ValueError(f"init must be 'mds', 'random' or an array, got {init!r}")
-        Y = np.array(init, dtype=float)
+        # A copy: the steps move the projection in place.
+        Y = check_array(init, dtype=np.float64, ensure_2d=False, copy=True, input_name="init")
         if Y.shape != (P, d):
             raise ValueError(f"init array must have shape {(P, d)}, got {Y.shape}")
-        if not np.all(np.isfinite(Y)):
-            raise ValueError("init array contains NaN or infinite values")
-        return Y
+        return np.ascontiguousarray(Y)
 
-    def fit_transform(self, X, y=None, init=None):
-        self._check_params()
-        dx = self._distances(X)
-        rng = _generator(self.random_state)
-        Y = np.ascontiguousarray(self._initial(self.init if init is None else init, dx, rng))
-        P = dx.shape[0]
-        lambda0 = self.lambda0
-        if lambda0 is None:
-            lambda0 = 3.0 * float(np.max(np.std(Y, axis=0)))
-            if lambda0 <= 0:
-                lambda0 = max(float(dx.max()), 1e-12)
+    def _initial_radius(self, Y, dx) -> float:
+        if self.lambda0 is not None:
+            return self.lambda0
+        lambda0 = 3.0 * float(np.max(np.std(Y, axis=0)))
+        return lambda0 if lambda0 > 0 else max(float(dx.max()), 1e-12)
+
+    def _schedules(self, P, lambda0, rng):
+        """Sample order, step sizes and -1 / radius, one per step."""
         steps = int(self.n_epochs) * P
         samples = rng.integers(P, size=steps)
         fraction = np.arange(steps) / max(steps - 1, 1)
         alpha = self.alpha0 * 0.01 ** fraction
         neg_inv_lambda = -1.0 / (lambda0 * (self.lambda_end / lambda0) ** fraction)
-        # Coincident projections: cca.m replaces dy = 0 by 1; any positive
-        # floor works since their Dy = 0 anyway.
-        floor = 1e-12 * max(float(dx.max()), 1e-300)
-        if self.kernel != "numpy" and numba_available():
-            YT = np.ascontiguousarray(Y.T)
-            for epoch in range(int(self.n_epochs)):
-                span = slice(epoch * P, (epoch + 1) * P)
-                _cca_steps_compiled(YT, dx, samples[span], alpha[span], neg_inv_lambda[span],
-                                    floor)
-                if self.verbose:
-                    print(f"CCA epoch {epoch + 1}/{self.n_epochs}", file=sys.stderr)
-            return self._finish(dx, np.ascontiguousarray(YT.T), lambda0)
-        # Coordinates-major layout: every update is a few ufunc calls on
-        # contiguous rows (measured 19 us/step for P=650, d=2, vs 33 with
-        # einsum on (P, d)).
-        YT = np.ascontiguousarray(Y.T)
-        diff = np.empty_like(YT)
-        sq = np.empty_like(YT)
-        dy = np.empty(P)
-        gain = np.empty(P)
-        d = YT.shape[0]
-        for t in range(steps):
-            i = samples[t]
-            np.subtract(YT, YT[:, i:i + 1], out=diff)
-            np.multiply(diff, diff, out=sq)
-            if d == 1:
-                np.copyto(dy, sq[0])
-            else:
-                np.add(sq[0], sq[1], out=dy)
-                for k in range(2, d):
-                    np.add(dy, sq[k], out=dy)
-            np.sqrt(dy, out=dy)
-            np.maximum(dy, floor, out=dy)
-            np.divide(dx[i], dy, out=gain)
-            np.subtract(gain, 1.0, out=gain)
-            np.multiply(dy, neg_inv_lambda[t], out=dy)
-            np.exp(dy, out=dy)
-            np.multiply(gain, dy, out=gain)
-            np.multiply(gain, alpha[t], out=gain)
-            np.multiply(diff, gain, out=diff)
-            np.add(YT, diff, out=YT)
-            if self.verbose and (t + 1) % P == 0:
-                print(f"CCA epoch {(t + 1) // P}/{self.n_epochs}", file=sys.stderr)
-        return self._finish(dx, np.ascontiguousarray(YT.T), lambda0)
+        return samples, alpha, neg_inv_lambda
 
-    def _finish(self, dx, Y, lambda0):
-        self.embedding_ = Y
-        self.lambda0_ = lambda0
-        self.n_iter_ = int(self.n_epochs)
-        self._fitted_distances = dx
-        return Y
+    def _report_epoch(self, epoch: int) -> None:
+        print(f"CCA epoch {epoch}/{self.n_epochs}", file=sys.stderr)
 
     @property
     def stress_(self) -> float:
-        # On demand: P^2 exponentials per fit, ~10% of a regularisation
-        # iteration at P = 2645, and the pipeline never reads it.
+        # On demand: P^2 exponentials, and the pipeline never reads it.
         if not hasattr(self, "_fitted_distances"):
             raise AttributeError("stress_ is available after fit")
         return cca_stress(self._fitted_distances, self.embedding_, self.lambda_end)

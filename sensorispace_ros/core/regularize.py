@@ -160,7 +160,7 @@ def iterate_regularization(distance, pairs, set_ids, *, n_components, n_iteratio
         began = time.perf_counter()
         result.set_spread.append(sets.spread(current))
         target = sets.regularized(current)
-        estimator = CCA(n_components, random_state=rng, **cca_params)
+        estimator = CCA(n_components, metric="precomputed", random_state=rng, **cca_params)
         embedding = estimator.fit_transform(target, init=start)
         current = squareform(pdist(embedding))
         start = embedding

@@ -60,7 +60,7 @@ def test_iterations_lower_the_spread_and_make_the_embedding_affine():
     assert np.all(np.diff(result.set_spread) < 0)
     assert len(result.embeddings) == len(result.timings_s) == 4
     np.testing.assert_allclose(result.distances, squareform(pdist(result.embeddings[-1])))
-    initial = CCA(2, n_epochs=10, random_state=0).fit_transform(D0)
+    initial = CCA(2, metric="precomputed", n_epochs=10, random_state=0).fit_transform(D0)
     assert affine_residual(initial, lattice) > 0.1
     assert affine_residual(result.embeddings[-1], lattice) < 1e-3
 
