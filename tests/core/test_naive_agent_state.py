@@ -1,6 +1,6 @@
 """NaiveAgent.state() / from_state(): a pickled agent restored on a fresh body
-continues exactly as the uninterrupted agent (what the agent node's restart,
-issue #7, relies on)."""
+continues exactly as the uninterrupted agent (what the agent node's restart
+relies on)."""
 import pickle
 
 import numpy as np
@@ -111,7 +111,7 @@ def test_state_is_refused_inside_a_reaction(world):
 def test_agent_records_survive_a_round_trip_through_arrays(tmp_path):
     from dataclasses import fields
 
-    from sensorispace_ros.core.naive.agent import NaiveAgentRecords
+    from sensorispace_ros.core.naive.records import NaiveAgentRecords
     rng = np.random.default_rng(2)
     records = NaiveAgentRecords(
         povs=rng.normal(size=(3, 5, 4)), pov_events=np.array([0, 4, 9]),

@@ -8,9 +8,9 @@ import pytest
 
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.paper.exploration import build_world
-from sensorispace_ros.core.naive.agent import _CountingBody, _SensedSinceChange
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
+from sensorispace_ros.core.naive.sense_memory import CountingBody, SensedSinceChange
 
 from naive_flag_runs import assert_same_results, runs_on_and_off
 
@@ -34,7 +34,7 @@ class CountingFake:
 
 def test_recall_gives_the_stored_bits_only_for_rows_all_stored():
     rng = np.random.default_rng(0)
-    memory = _SensedSinceChange(4, 6)
+    memory = SensedSinceChange(4, 6)
     rows, sensations = rng.normal(size=(7, 4)), rng.normal(size=(7, 6))
     assert memory.recall(rows[:1]) is None                         # empty
     memory.store(rows, sensations)
@@ -54,7 +54,7 @@ def test_recall_gives_the_stored_bits_only_for_rows_all_stored():
 
 
 def test_rows_are_matched_by_their_bits():
-    memory = _SensedSinceChange(4, 6)
+    memory = SensedSinceChange(4, 6)
     memory.store(np.array([[0.0, 1.0, 2.0, 3.0]]), np.ones((1, 6)))
     assert memory.recall(np.array([[-0.0, 1.0, 2.0, 3.0]])) is None   # == 0.0, other bits
     assert memory.recall(np.array([[0.0, 1.0, 2.0, 3.0]])) is not None
@@ -63,7 +63,7 @@ def test_rows_are_matched_by_their_bits():
 
 def test_a_row_has_the_same_key_alone_and_in_any_batch():
     rng = np.random.default_rng(2)
-    memory = _SensedSinceChange(4, 6)
+    memory = SensedSinceChange(4, 6)
     rows = rng.normal(size=(600, 4))
     memory.store(rows, rng.normal(size=(600, 6)))
     for i in range(0, 600, 37):                       # one row, then the batch reversed
@@ -72,7 +72,7 @@ def test_a_row_has_the_same_key_alone_and_in_any_batch():
 
 
 def test_keys_that_collide_are_not_taken_for_the_row():
-    memory = _SensedSinceChange(4, 6)
+    memory = SensedSinceChange(4, 6)
     stored = np.array([[1.0, 2.0, 3.0, 4.0]])
     memory.store(stored, np.ones((1, 6)))
     other = np.array([[5.0, 6.0, 7.0, 8.0]])
@@ -82,7 +82,7 @@ def test_keys_that_collide_are_not_taken_for_the_row():
 
 def test_memory_grows_and_keeps_the_first_rows():
     rng = np.random.default_rng(1)
-    memory = _SensedSinceChange(4, 6)
+    memory = SensedSinceChange(4, 6)
     rows, sensations = rng.normal(size=(3000, 4)), rng.normal(size=(3000, 6))
     for chunk in range(0, 3000, 700):
         memory.store(rows[chunk:chunk + 700], sensations[chunk:chunk + 700])
@@ -93,7 +93,7 @@ def test_memory_grows_and_keeps_the_first_rows():
 
 def test_counting_body_sends_a_call_once_per_change():
     fake = CountingFake(with_move=False)
-    body = _CountingBody(fake)
+    body = CountingBody(fake)
     body.stage = "rank"
     rows = np.arange(8.0).reshape(2, 4)
     first = body.sense(rows)
@@ -110,7 +110,7 @@ def test_counting_body_sends_a_call_once_per_change():
 @pytest.mark.parametrize("with_move", [True, False])
 def test_rest_always_commands_the_arm_and_waits_only_without_move(with_move):
     fake = CountingFake(with_move)
-    body = _CountingBody(fake)
+    body = CountingBody(fake)
     body.stage = "rest"
     state = np.array([0.1, -1.5, 2.2, -3.0])
     sensed = body.sense(state[None])[0]
@@ -154,7 +154,7 @@ def test_remembering_changes_no_result_only_the_calls():
 
 def test_lookahead_rows_ride_on_the_next_call_and_answer_a_later_one():
     fake = CountingFake(with_move=False)
-    body = _CountingBody(fake, remember=True)
+    body = CountingBody(fake, remember=True)
     body.stage = "rank"
     asked, ahead = np.full((2, 4), 0.1), np.arange(12.0).reshape(3, 4) / 10
     with body.lookahead(ahead):
@@ -174,7 +174,7 @@ def test_lookahead_rows_ride_on_the_next_call_and_answer_a_later_one():
         body.sense(asked)                                  # remembered: nothing is sent
     body.sense(asked + 2.0)                                # after the block: nothing rides
     assert len(fake.sent[-1]) == 2
-    forgetful = _CountingBody(CountingFake(with_move=False), remember=False)
+    forgetful = CountingBody(CountingFake(with_move=False), remember=False)
     with forgetful.lookahead(ahead):
         forgetful.sense(asked)
     assert len(forgetful._body.sent[0]) == 2              # nothing to remember them in
@@ -184,7 +184,7 @@ def test_rank_call_carries_the_search_starts_same_results_fewer_calls(monkeypatc
     world = build_world(0, {"grid_count": 12})
     with_lookahead = run_naive(world, NaiveParams(), seed=0, paper_positions=np.zeros((0, 2)))
     # The same run with the lookahead rows dropped.
-    monkeypatch.setattr(_CountingBody, "lookahead", _no_lookahead)
+    monkeypatch.setattr(CountingBody, "lookahead", _no_lookahead)
     without = run_naive(world, NaiveParams(), seed=0, paper_positions=np.zeros((0, 2)))
     np.testing.assert_array_equal(with_lookahead.povs, without.povs)
     np.testing.assert_array_equal(with_lookahead.pairs, without.pairs)

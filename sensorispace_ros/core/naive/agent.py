@@ -1,5 +1,4 @@
-"""The naive agent: explores by compensating, from the sensorimotor flow alone
-(issue #3).
+"""The naive agent: explores by compensating, from the sensorimotor flow alone.
 
 ``NaiveAgent`` is event driven so the ROS agent node can wrap it unchanged:
 ``start(m0)`` once, then ``react(passive_sensation)`` after every change of
@@ -13,12 +12,12 @@ compensation plus the displacement since", knowing the displacement. The
 agent only has sensations, and a remembered sensation stays a valid target
 only until the object's lights are redistributed, which the agent cannot
 tell from an out-of-reach translation (both make compensation fail).
-Re-anchoring on every failure keeps one target at a time and covers only
-22-48 % of the reachable positions (issue #3). Here the agent keeps a small
-pool of *snapshots*: after each event it records, in the environment of that
-event, the sensation at its resting arm (the anchor) and the sensation of
-one sample of every known POV (a sweep). At the next event it sweeps the
-known POVs again (one ``sense`` call) and
+Re-anchoring on every failure would keep one target at a time and cover
+only a fraction of the reachable positions. Here the agent keeps a small
+pool of *snapshots* (``anchors``): after each event it records, in the
+environment of that event, the sensation at its resting arm (the anchor)
+and the sensation of one sample of every known POV (a sweep). At the next
+event it sweeps the known POVs again (one ``sense`` call) and
 
 * matches old sweeps with the new one: POV j' now sensing what POV j sensed
   at snapshot time means pose(j') - pose(j) is the object's displacement
@@ -45,272 +44,22 @@ sweep senses the resting POV again.
 """
 from __future__ import annotations
 
-import contextlib
-import time
-from dataclasses import dataclass, field, fields
-
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sensorispace_ros.core.naive.anchors import (Snapshot, anchor_requests,
+    full_rank_matches)
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetCollection, EqualitySetSweep, check_pose_rank, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.points_of_view import (SPLIT, jacobian_stencil,
+from sensorispace_ros.core.naive.points_of_view import (SPLIT, PovStore, jacobian_stencil,
     sample_sensory_points_of_view)
+from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
+from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
+from sensorispace_ros.core.naive.sense_memory import CountingBody
 
 EXPLORING = "exploring"
-EQUALITY_PASS = "equality_pass"
-# Stages the agent counts its queries in (queries_by_stage, calls_by_stage,
-# seconds_by_stage); fixed so offline and graph runs report the same keys.
-STAGES = ("pov", "sweep", "rank", "compensation", "rest", EQUALITY_PASS)
-
-
-@dataclass
-class CompensationRecord:
-    """One accepted compensation: the anchor recorded at the agent's event
-    ``anchor_event`` with the arm resting at ``anchor_motor_state`` was
-    compensated at event ``event`` by ``motor_state``, which belongs to POV
-    ``pov`` (-1 when its POV could not be sampled whole, e.g. split).
-    ``searched``: found by LM (False: a known POV matched the anchor)."""
-
-    event: int
-    anchor_event: int
-    anchor_motor_state: np.ndarray
-    motor_state: np.ndarray
-    pov: int
-    searched: bool
-
-
-@dataclass
-class Reaction:
-    """What one ``start``/``react`` call did.
-
-    ``rest_motor_state`` where the arm rests now (the last command sent);
-    ``new_pov_ids`` and ``new_povs`` ``(n, N, M)`` the POVs it added;
-    ``compensations`` the accepted compensations; ``equality_rows``
-    ``(k, 3)`` the equality-set rows it found, columns (set id, POV from,
-    POV to), set ids global; ``queries``/``calls`` it spent.
-    """
-
-    event: int
-    compensated: bool
-    rest_motor_state: np.ndarray
-    new_pov_ids: np.ndarray
-    new_povs: np.ndarray
-    compensations: list = field(default_factory=list)
-    equality_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=int))
-    queries: int = 0
-    calls: int = 0
-
-
-@dataclass
-class _Request:
-    """An anchor to search for: row ``row`` of snapshot ``snapshot``'s sweep
-    (-1: its resting anchor), recorded at ``anchor_motor_state``."""
-
-    snapshot: int
-    row: int
-    target: np.ndarray
-    anchor_motor_state: np.ndarray
-    start: np.ndarray | None = None
-
-
-@dataclass
-class _Snapshot:
-    event: int
-    sensations: np.ndarray          # (K_t, S): one per POV known at that event
-    rank: np.ndarray                # (K_t,) RANK_* of those sensations
-    rest_sensation: np.ndarray      # the anchor
-    rest_motor_state: np.ndarray
-    rest_pov: int
-    rest_rank: int = RANK_UNKNOWN   # of the anchor, in the snapshot's environment
-    fails: int = 0
-
-
-class _SensedSinceChange:
-    """The motor states sensed since the environment last changed, with their
-    sensations. The environment is static between two changes and the body
-    answers each row on its own, so a state sensed again would sense the same
-    bits: ``recall`` gives them without a ``sense`` call. Measured on the
-    paper config: 6,257 of 63,124 calls (the resting state after every
-    change, rank tests and walk starts at states the search just probed)
-    asked only for states already sensed. Rows are matched bit for bit: a
-    key mixes a row's uint64 views (integer arithmetic, so a row has the same
-    key in any batch; a float dot product does not), candidates must then
-    have the same bits (-0.0 is not 0.0 here)."""
-
-    # Odd 64-bit constants (splitmix64's); rows whose keys collide are caught
-    # by the bitwise check.
-    _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
-                     0xD6E8FEB86659FD93], dtype=np.uint64)
-
-    def __init__(self, n_motors: int, n_sensors: int):
-        self._mix = np.resize(self._MIX, n_motors)
-        self._keys = np.empty(1024, dtype=np.uint64)
-        self._motor_states = np.empty((1024, n_motors))
-        self._sensations = np.empty((1024, n_sensors))
-        self.count = 0
-
-    def clear(self) -> None:
-        self.count = 0
-
-    def recall(self, motor_states: np.ndarray) -> np.ndarray | None:
-        """Sensations of ``motor_states`` if every row was sensed, else None."""
-        if self.count == 0 or len(motor_states) == 0:
-            return None
-        keys = self._keys[:self.count]
-        wanted = motor_states.view(np.uint64) @ self._mix
-        if not (keys == wanted[0]).any():
-            return None                          # the usual case: a new state
-        equal = keys[None, :] == wanted[:, None]
-        if not equal.any(axis=1).all():
-            return None
-        where = equal.argmax(axis=1)
-        if not np.array_equal(self._motor_states[where].view(np.uint64),
-                              motor_states.view(np.uint64)):
-            return None
-        return self._sensations[where]
-
-    def store(self, motor_states: np.ndarray, sensations: np.ndarray) -> None:
-        end = self.count + len(motor_states)
-        if end > len(self._keys):
-            size = max(2 * len(self._keys), end)
-            for name in ("_keys", "_motor_states", "_sensations"):
-                old = getattr(self, name)
-                grown = np.empty((size,) + old.shape[1:], dtype=old.dtype)
-                grown[:self.count] = old[:self.count]
-                setattr(self, name, grown)
-        self._keys[self.count:end] = motor_states.view(np.uint64) @ self._mix
-        self._motor_states[self.count:end] = motor_states
-        self._sensations[self.count:end] = sensations
-        self.count = end
-
-
-class _CountingBody:
-    """Counts rows, calls and wall time per stage of the agent; exposes only
-    what the body exposes. A stage lasts from its ``stage = name`` to the
-    next one (or to ``pause()``). With ``remember``, a call whose motor
-    states were all sensed since the last ``forget()`` is answered from
-    ``_SensedSinceChange`` (counted in ``remembered``, not in ``calls``)."""
-
-    def __init__(self, body, remember: bool = True):
-        self._body = body
-        self.n_motors = int(body.n_motors)
-        self.n_sensors = int(body.n_sensors)
-        self._move = getattr(body, "move", None)
-        self._stage = None
-        self._since = 0.0
-        self.rows: dict[str, int] = {}
-        self.calls: dict[str, int] = {}
-        self.seconds: dict[str, float] = {}
-        self.remembered: dict[str, int] = {}
-        self._sensed = _SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
-        self._lookahead: np.ndarray | None = None
-
-    @property
-    def stage(self) -> str | None:
-        return self._stage
-
-    @stage.setter
-    def stage(self, name: str | None) -> None:
-        now = time.perf_counter()
-        if self._stage is not None:
-            self.seconds[self._stage] = self.seconds.get(self._stage, 0.0) + now - self._since
-        self._stage, self._since = name, now
-
-    def pause(self) -> None:
-        self.stage = None
-
-    def forget(self) -> None:
-        """The environment changed: what was sensed before says nothing now."""
-        if self._sensed is not None:
-            self._sensed.clear()
-
-    @contextlib.contextmanager
-    def lookahead(self, motor_states: np.ndarray):
-        """Inside the block, the first call that goes to the body also carries
-        ``motor_states`` (rows the agent expects to ask for next); their
-        sensations are remembered, so a later call asking only for remembered
-        states costs no round trip. Results are unchanged: every row is sensed
-        on its own. Without ``remember`` it does nothing."""
-        rows = np.ascontiguousarray(motor_states, dtype=float).reshape(-1, self.n_motors)
-        self._lookahead = rows if self._sensed is not None and len(rows) else None
-        try:
-            yield
-        finally:
-            self._lookahead = None
-
-    def _recall(self, motor_states: np.ndarray) -> np.ndarray | None:
-        return None if self._sensed is None else self._sensed.recall(motor_states)
-
-    def _count(self, n_rows: int) -> None:
-        self.rows[self.stage] = self.rows.get(self.stage, 0) + n_rows
-        self.calls[self.stage] = self.calls.get(self.stage, 0) + 1
-
-    def sense(self, motor_states):
-        motor_states = np.ascontiguousarray(motor_states, dtype=float)
-        known = self._recall(motor_states)
-        if known is not None:
-            self.remembered[self.stage] = self.remembered.get(self.stage, 0) + 1
-            return known
-        return self._command(motor_states)
-
-    def rest(self, motor_state: np.ndarray) -> np.ndarray:
-        """Move the arm to ``motor_state`` and return its sensation: always a
-        command (the arm must end there). When the state was sensed since the
-        last change and the body can ``move`` (the ROS agent collects that
-        answer before it settles), the agent goes on without waiting."""
-        row = np.ascontiguousarray(motor_state, dtype=float).reshape(1, -1)
-        known = self._recall(row) if self._move is not None else None
-        if known is None:
-            return self._command(row)[0]
-        self._count(1)
-        self._move(row)
-        return known[0].copy()
-
-    def _command(self, motor_states: np.ndarray) -> np.ndarray:
-        asked = len(motor_states)
-        if self._lookahead is not None:
-            motor_states = np.concatenate([motor_states, self._lookahead])
-            self._lookahead = None
-        self._count(len(motor_states))
-        answer = np.asarray(self._body.sense(motor_states), dtype=float)
-        if answer.shape != (len(motor_states), self.n_sensors):
-            raise ValueError(f"body.sense returned shape {answer.shape}, expected "
-                             f"({len(motor_states)}, {self.n_sensors})")
-        if self._sensed is not None:
-            self._sensed.store(motor_states, answer)
-        return answer[:asked]
-
-    @property
-    def total_rows(self) -> int:
-        return sum(self.rows.values())
-
-    @property
-    def total_calls(self) -> int:
-        return sum(self.calls.values())
-
-
-class _PovStore:
-    """Growing ``(P, N, M)`` array of POV samples (amortised appends)."""
-
-    def __init__(self, n_samples: int, n_motors: int):
-        self._data = np.zeros((16, n_samples, n_motors))
-        self.count = 0
-
-    def append(self, samples: np.ndarray) -> int:
-        if self.count == len(self._data):
-            grown = np.zeros((2 * len(self._data),) + self._data.shape[1:])
-            grown[:self.count] = self._data[:self.count]
-            self._data = grown
-        self._data[self.count] = samples
-        self.count += 1
-        return self.count - 1
-
-    @property
-    def samples(self) -> np.ndarray:
-        return self._data[:self.count]
 
 
 class NaiveAgent:
@@ -337,9 +86,9 @@ class NaiveAgent:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
         self.seed = int(seed)
-        self._body = _CountingBody(body, bool(self.params.remember_sensations))
+        self._body = CountingBody(body, bool(self.params.remember_sensations))
         self.n_motors = self._body.n_motors
-        self._store = _PovStore(self.params.n_samples, self.n_motors)
+        self._store = PovStore(self.params.n_samples, self.n_motors)
         # One motor state of every POV whose walk came back split (remember_split_povs).
         self._split_states = np.zeros((0, self.n_motors))
         self.split_walks_skipped = 0
@@ -348,7 +97,7 @@ class NaiveAgent:
         self.compensation_queries: list[int] = []  # per event with an accepted compensation
         self.compensations: list[CompensationRecord] = []
         self._sets = EqualitySetCollection(min_pairs=2)
-        self._pool: list[_Snapshot] = []
+        self._pool: list[Snapshot] = []
         self._event = -1
         self._rest: np.ndarray | None = None
         self._rest_pov = -1
@@ -412,7 +161,7 @@ class NaiveAgent:
         then the equality pass if one ran), for ``core.regularize``."""
         return self._sets.pairs, self._sets.set_ids
 
-    # ------------------------------------------------ persistence (issue #7)
+    # ---------------------------------------------------------- persistence
 
     def state(self) -> dict:
         """Everything the agent knows, without its body: picklable, for a
@@ -463,7 +212,7 @@ class NaiveAgent:
         self._body.stage = "rest"
         rest_sensation = self._body.rest(m0)
         current = np.asarray(sensations).reshape(-1, self._body.n_sensors)
-        self._pool = [_Snapshot(0, current, np.full(len(current), RANK_FULL), rest_sensation,
+        self._pool = [Snapshot(0, current, np.full(len(current), RANK_FULL), rest_sensation,
                                 m0.copy(), self._rest_pov,
                                 RANK_FULL if new else RANK_UNKNOWN)]
         self._body.pause()
@@ -538,19 +287,57 @@ class NaiveAgent:
                         equality_rows=self._sets.rows_since(n_before))
 
     def _react_exploring(self) -> Reaction:
-        p = self.params
+        """One change while exploring: sweep and match the snapshots, search
+        for their anchors, record the compensations and equality sets, rest,
+        and take this event's snapshot."""
         t = self._event
         rows_at_start = self._body.total_rows
         sets_before = self._sets.n_sets
-
-        # 1. Sweep the known POVs: this event's memory of (motor, sensation).
+        # This event's memory of (motor, sensation): the sweep of the known POVs.
         self._body.stage = "sweep"
         current, split_now = self._sweep_known()
-        rank_now = np.full(len(current), RANK_UNKNOWN)
         tree = cKDTree(current) if len(current) else None
-        match = dict(match_tol=p.match_tol, separation=p.match_separation, tree=tree)
+        matches, rest_hits, rank_now = self._match_snapshots(current, tree)
+        matches = self._test_ranks(matches, rest_hits, rank_now, current)
+        known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)
 
-        # 2. Match every snapshot's sweep, and its anchor, with this sweep.
+        # Search for the anchors; the new POVs' sensation now is the anchor's.
+        pov_rows_before = self._body.rows.get("pov", 0)
+        found, new_povs, new_sensations = self._search(requests, current, tree, split_now)
+        pov_rows = self._body.rows.get("pov", 0) - pov_rows_before
+        if new_povs:
+            current = np.vstack([current, np.asarray(new_sensations)])
+            rank_now = np.concatenate([rank_now, np.full(len(new_povs), RANK_FULL)])
+        found_rest = {r.snapshot: found[i] for i, r in enumerate(requests)
+                      if i in found and r.row < 0}
+        self._track_frontier(requests, found, new_povs)
+        self._add_equality_sets(matches, requests, found)
+
+        records, rest_choice = self._compensation_records(known_comp, found_rest, requests,
+                                                          found)
+        self.compensations.extend(records)
+        rest_sensation, rest_rank = self._rest_after(rest_choice, rank_now)
+        if records:
+            self.events_compensated += 1
+            self.compensation_queries.append(self._body.total_rows - rows_at_start - pov_rows)
+        self._renew_pool(matches, known_comp, found_rest,
+                         Snapshot(t, current, rank_now, rest_sensation, self._rest.copy(),
+                                  self._rest_pov, int(rest_rank)))
+
+        new_idx = np.asarray(new_povs, dtype=int)
+        return Reaction(event=t, compensated=bool(records), rest_motor_state=self._rest.copy(),
+                        new_pov_ids=new_idx, new_povs=self._store.samples[new_idx].copy(),
+                        compensations=records, equality_rows=self._sets.rows_since(sets_before))
+
+    def _match_snapshots(self, current, tree):
+        """Match every snapshot's sweep, and its anchor, with this sweep
+        ``current``. Returns ``(matches [(before, after), ...], rest_hits
+        (the POV now sensing each snapshot's anchor, -1: none), rank_now)``;
+        ``rank_now`` ``(K,)`` holds the ranks the matches carry over (a
+        match senses the same relative pose in the same light layout)."""
+        p = self.params
+        rank_now = np.full(len(current), RANK_UNKNOWN)
+        match = dict(match_tol=p.match_tol, separation=p.match_separation, tree=tree)
         matches = []
         for snap in self._pool:
             before, after = match_sensations(snap.sensations, current, **match)
@@ -564,11 +351,15 @@ class NaiveAgent:
                 rest_hits[k] = hit[0]
                 if snap.rest_rank != RANK_UNKNOWN:
                     rank_now[hit[0]] = snap.rest_rank
-        hit_pov = rest_hits[rest_hits >= 0]
-        # Rank tests (M + 1 rows each) only where a decision needs them: every
-        # match of the snapshots that feed equality sets, a few matches of
-        # the others (one full-rank match confirms a snapshot), anchor hits.
-        needed = [hit_pov]
+        return matches, rest_hits, rank_now
+
+    def _test_ranks(self, matches, rest_hits, rank_now, current):
+        """Rank tests (M + 1 rows each) only where a decision needs them:
+        every match of the snapshots that feed equality sets, a few matches
+        of the others (one full-rank match confirms a snapshot), anchor
+        hits. Fills ``rank_now`` in place; returns the full-rank matches."""
+        p = self.params
+        needed = [rest_hits[rest_hits >= 0]]
         for k, (_, after) in enumerate(matches):
             if k < p.equality_snapshots:
                 needed.append(after)
@@ -579,12 +370,11 @@ class NaiveAgent:
         if len(unknown):
             # Which anchors are searched depends on these tests. The call also
             # carries the stencils the search starts from if every tested state
-            # has full rank (the usual outcome): its first call is then answered
-            # from memory (paper config, seed 0: 2,659 of the 3,187 searches
-            # follow a rank test in the same change).
+            # has full rank (the usual outcome): the search's first call is
+            # then answered from memory.
             guess = rank_now.copy()
             guess[unknown] = RANK_FULL
-            _, guessed = self._anchor_requests(_full_rank_matches(matches, guess), rest_hits,
+            _, guessed = self._anchor_requests(full_rank_matches(matches, guess), rest_hits,
                                                guess)
             starts = self._search_plan(guessed, current)[-1] if guessed else np.zeros(
                 (0, self.n_motors))
@@ -594,29 +384,19 @@ class NaiveAgent:
                                           fd_step=p.fd_step, rank_ratio=p.rank_ratio,
                                           min_singular=p.min_singular)
             rank_now[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
-        matches = _full_rank_matches(matches, rank_now)
+        return full_rank_matches(matches, rank_now)
 
-        # 3. Anchors: matched by a known POV, or to search for.
-        known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)
-
-        # 4. Search (LM) for them; sample the POVs of new compensating states.
-        #    Their sensation now is the anchor's.
-        pov_rows_before = self._body.rows.get("pov", 0)
-        found, new_povs, new_sensations = self._search(requests, current, tree, split_now)
-        pov_rows = self._body.rows.get("pov", 0) - pov_rows_before
-        if new_povs:
-            current = np.vstack([current, np.asarray(new_sensations)])
-            rank_now = np.concatenate([rank_now, np.full(len(new_povs), RANK_FULL)])
-        found_rest = {r.snapshot: found[i] for i, r in enumerate(requests)
-                      if i in found and r.row < 0}
+    def _track_frontier(self, requests, found, new_povs) -> None:
+        """Moving average of the frontier searches that found a new POV."""
         frontier = [i for i, r in enumerate(requests) if r.row >= 0]
         if frontier:
             hits = sum(1 for i in frontier if i in found and found[i][0] >= 0
                        and found[i][0] in new_povs)
             self._frontier_success = 0.9 * self._frontier_success + 0.1 * hits / len(frontier)
 
-        # 5. Equality sets: the changes matched for one snapshot (and the
-        #    compensations of its anchors) all compensate one displacement.
+    def _add_equality_sets(self, matches, requests, found) -> None:
+        """Equality sets: the changes matched for one snapshot (and the
+        compensations of its anchors) all compensate one displacement."""
         for k, snap in enumerate(self._pool):
             before, after = matches[k]
             extra_before, extra_after = [], []
@@ -630,10 +410,15 @@ class NaiveAgent:
             self._sets.add(np.concatenate([before, extra_before]).astype(int),
                            np.concatenate([after, extra_after]).astype(int))
 
-        # 6. Accepted compensations; rest at the one of the most recent
-        #    anchor (tracking it), else stay where the arm is. A POV's first
-        #    sample is where its sensation was recorded: resting there keeps
-        #    the anchor and the sweeps on the very same motor state.
+    def _compensation_records(self, known_comp, found_rest, requests, found):
+        """Accepted compensations of this event: the snapshots' anchors (in
+        pool order, matched by a known POV or found by search), then the
+        frontier rows found. Returns them and the rest choice ``(motor
+        state, POV)``: the compensation of the most recent anchor that has
+        a POV (tracking it), or None. A POV's first sample is where its
+        sensation was recorded: resting there keeps the anchor and the
+        sweeps on the very same motor state."""
+        t = self._event
         records = []
         rest_choice = None
         for k, snap in enumerate(self._pool):
@@ -657,7 +442,13 @@ class NaiveAgent:
                     event=t, anchor_event=self._pool[r.snapshot].event,
                     anchor_motor_state=r.anchor_motor_state.copy(), motor_state=motor.copy(),
                     pov=int(pov), searched=True))
-        self.compensations.extend(records)
+        return records, rest_choice
+
+    def _rest_after(self, rest_choice, rank_now):
+        """Rest at ``rest_choice`` (else stay where the arm is); test the
+        rank there if it is not known (filling ``rank_now``). Returns the
+        anchor: the sensation at rest and its rank."""
+        p = self.params
         if rest_choice is not None:
             self._rest, self._rest_pov = rest_choice[0].copy(), rest_choice[1]
         rest_rank = rank_now[self._rest_pov] if self._rest_pov >= 0 else RANK_UNKNOWN
@@ -669,12 +460,12 @@ class NaiveAgent:
             if self._rest_pov >= 0:
                 rank_now[self._rest_pov] = rest_rank
         self._body.stage = "rest"
-        rest_sensation = self._body.rest(self._rest)
-        if records:
-            self.events_compensated += 1
-            self.compensation_queries.append(self._body.total_rows - rows_at_start - pov_rows)
+        return self._body.rest(self._rest), rest_rank
 
-        # 7. Snapshot of this event; forget superseded and long-failing ones.
+    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:
+        """Put this event's ``snapshot`` first; forget superseded and
+        long-failing ones, keep at most ``max_snapshots``."""
+        p = self.params
         kept = []
         for k, snap in enumerate(self._pool):
             alive = len(matches[k][0]) > 0 or k in known_comp or k in found_rest
@@ -685,15 +476,7 @@ class NaiveAgent:
             superseded = comp_pov is not None and comp_pov == self._rest_pov
             if not superseded and snap.fails < p.snapshot_patience:
                 kept.append(snap)
-        snapshot = _Snapshot(t, current, rank_now, rest_sensation, self._rest.copy(),
-                             self._rest_pov, int(rest_rank))
         self._pool = ([snapshot] + kept)[:p.max_snapshots]
-
-        new_idx = np.asarray(new_povs, dtype=int)
-        return Reaction(event=t, compensated=bool(records), rest_motor_state=self._rest.copy(),
-                        new_pov_ids=new_idx, new_povs=self._store.samples[new_idx].copy(),
-                        compensations=records, equality_rows=self._sets.rows_since(sets_before))
-
 
     def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
         """Sensation now of every known POV ``(K, S)`` and of every remembered
@@ -715,52 +498,10 @@ class NaiveAgent:
         return rows
 
     def _anchor_requests(self, matches, rest_hits, rank_now):
-        """Anchors: matched by a known POV, or searched for. A snapshot none
-        of whose POVs matches is from before a redistribution or from before
-        a long translation; its anchor is searched only while few POVs were
-        known (later a long translation puts the anchor's target out of reach
-        too, and the search would be wasted). ``matches`` of full rank only.
-        Returns ``({snapshot index: known POV}, [_Request, ...])``."""
-        p = self.params
-        known_comp: dict[int, int] = {}
-        requests: list[_Request] = []
-        unconfirmed_left = p.unconfirmed_attempts
-        for k, snap in enumerate(self._pool):
-            hit = rest_hits[k]
-            if hit >= 0 and rank_now[hit] == RANK_FULL:
-                known_comp[k] = int(hit)
-            elif snap.rest_rank == RANK_DEFICIENT:
-                continue                # a blank anchor would be "compensated" anywhere
-            elif len(matches[k][0]) > 0:
-                requests.append(_Request(k, -1, snap.rest_sensation, snap.rest_motor_state))
-            elif unconfirmed_left > 0 and len(snap.sensations) < p.unconfirmed_max_povs:
-                requests.append(_Request(k, -1, snap.rest_sensation, snap.rest_motor_state))
-                unconfirmed_left -= 1
-        requests.extend(self._frontier_requests(matches))
-        return known_comp, requests
-
-    def _frontier_requests(self, matches) -> list:
-        """Anchors beyond the rest: rows of the most recent confirmed snapshot
-        that no known POV matches, nearest (in that snapshot's sensations) to
-        a matched row. Their targets are the unknown positions next to the
-        known ones moved by the displacement; the matched neighbour's partner
-        is a start a lattice step from the target."""
-        p = self.params
-        for k, snap in enumerate(self._pool):
-            before, after = matches[k]
-            if len(before) == 0:
-                continue
-            unmatched = np.setdiff1d(np.flatnonzero(snap.rank != RANK_DEFICIENT), before)
-            unmatched = unmatched[unmatched != snap.rest_pov]
-            if len(unmatched) == 0 or p.frontier_attempts == 0:
-                return []
-            distance, nearest = cKDTree(snap.sensations[before]).query(
-                snap.sensations[unmatched], k=1)
-            order = np.argsort(distance, kind="stable")[:self._frontier_budget()]
-            return [_Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
-                             self._store.samples[unmatched[i], 0],
-                             self._store.samples[after[nearest[i]], 0]) for i in order]
-        return []
+        """``anchors.anchor_requests`` on the pool, with this event's frontier budget."""
+        return anchor_requests(self._pool, matches, rest_hits, rank_now, self.params,
+                               pov_samples=self._store.samples,
+                               frontier_budget=self._frontier_budget())
 
     def _frontier_budget(self) -> int:
         """Frontier searches this event: ``frontier_attempts`` while they
@@ -880,103 +621,6 @@ class NaiveAgent:
                     indices.append(-1)
                     sensations.append(None)
         return indices, sensations
-
-
-@dataclass
-class NaiveAgentRecords:
-    """What a naive run's agent produced, as plain data (never ground truth).
-
-    Offline it comes from the ``NaiveAgent`` object (``from_agent``); in the
-    ROS graph from the agent's topics (``/agent/points_of_view``,
-    ``/agent/pov_records``, ``/agent/compensation_records``,
-    ``/agent/compensations``, ``/agent/done``, ``/agent/stage_counters``),
-    so both runs are evaluated by the same ``evaluate_naive_records``; a
-    graph run without a bag uses the copy the agent node writes at the end
-    (``to_arrays`` / ``from_arrays``). It lives here, with the agent, because
-    the agent node builds it and must not import the evaluator's module (the
-    simulator and the forward model live there).
-
-    ``povs`` ``(P, N, M)``; ``pov_events`` / ``pov_queries`` ``(P,)`` the
-    agent's event that found each POV and its walk queries; the
-    ``compensation_*`` columns ``(C,)`` / ``(C, M)`` are the accepted
-    ``CompensationRecord`` fields; ``compensation_queries`` the rows of all
-    compensated events except their POV walks (summed over the
-    ``compensated`` events); ``queries_by_stage`` / ``calls_by_stage``
-    stage -> count (stages of ``NAIVE_STAGES``).
-    """
-
-    povs: np.ndarray
-    pov_events: np.ndarray
-    pov_queries: np.ndarray
-    compensation_event: np.ndarray
-    compensation_anchor_event: np.ndarray
-    compensation_motor_state: np.ndarray
-    compensation_anchor_motor_state: np.ndarray
-    compensation_searched: np.ndarray
-    pairs: np.ndarray
-    set_ids: np.ndarray
-    compensated: int
-    compensation_queries: int
-    queries_total: int
-    calls_total: int
-    queries_by_stage: dict
-    calls_by_stage: dict
-
-    @classmethod
-    def from_agent(cls, agent: NaiveAgent) -> "NaiveAgentRecords":
-        records = agent.compensations
-        n_motors = agent.n_motors
-        pairs, set_ids = agent.equality_sets()
-        return cls(
-            povs=agent.points_of_view,
-            pov_events=np.asarray(agent.pov_events, dtype=np.int64),
-            pov_queries=np.asarray(agent.pov_queries, dtype=np.int64),
-            compensation_event=np.asarray([r.event for r in records], dtype=np.int64),
-            compensation_anchor_event=np.asarray([r.anchor_event for r in records], dtype=np.int64),
-            compensation_motor_state=np.asarray([r.motor_state for r in records],
-                                                dtype=float).reshape(-1, n_motors),
-            compensation_anchor_motor_state=np.asarray(
-                [r.anchor_motor_state for r in records], dtype=float).reshape(-1, n_motors),
-            compensation_searched=np.asarray([r.searched for r in records], dtype=bool),
-            pairs=np.asarray(pairs, dtype=np.int64).reshape(-1, 2),
-            set_ids=np.asarray(set_ids, dtype=np.int64),
-            compensated=int(agent.compensated),
-            compensation_queries=int(sum(agent.compensation_queries)),
-            queries_total=int(agent.queries_total), calls_total=int(agent.calls_total),
-            queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage)
-
-    def to_arrays(self) -> dict:
-        """Flat ``{name: array}`` (``np.savez``); stage counts as
-        ``queries_by_stage.<stage>``, ``calls_by_stage.<stage>``."""
-        arrays = {}
-        for item in fields(self):
-            value = getattr(self, item.name)
-            if isinstance(value, dict):
-                arrays.update({f"{item.name}.{stage}": np.int64(count)
-                               for stage, count in value.items()})
-            else:
-                arrays[item.name] = np.asarray(value)
-        return arrays
-
-    @classmethod
-    def from_arrays(cls, arrays) -> "NaiveAgentRecords":
-        """Inverse of ``to_arrays``."""
-        values = {}
-        for item in fields(cls):        # item.type: the annotation's text (postponed)
-            if item.type == "dict":
-                prefix = f"{item.name}."
-                values[item.name] = {key[len(prefix):]: int(arrays[key]) for key in arrays
-                                     if key.startswith(prefix)}
-            elif item.type == "int":
-                values[item.name] = int(arrays[item.name])
-            else:
-                values[item.name] = np.asarray(arrays[item.name])
-        return cls(**values)
-
-
-def _full_rank_matches(matches, rank_now):
-    """``matches`` ``[(before, after), ...]`` kept where ``rank_now[after]`` is full."""
-    return [(b[rank_now[a] == RANK_FULL], a[rank_now[a] == RANK_FULL]) for b, a in matches]
 
 
 def _group_rows(rows: np.ndarray, tol: float) -> np.ndarray:

@@ -147,6 +147,28 @@ class SensoryPointsOfView:
     target_sensations: np.ndarray
 
 
+class PovStore:
+    """Growing ``(P, N, M)`` array of POV samples (amortised appends);
+    ``append`` returns the new POV's index."""
+
+    def __init__(self, n_samples: int, n_motors: int):
+        self._data = np.zeros((16, n_samples, n_motors))
+        self.count = 0
+
+    def append(self, samples: np.ndarray) -> int:
+        if self.count == len(self._data):
+            grown = np.zeros((2 * len(self._data),) + self._data.shape[1:])
+            grown[:self.count] = self._data[:self.count]
+            self._data = grown
+        self._data[self.count] = samples
+        self.count += 1
+        return self.count - 1
+
+    @property
+    def samples(self) -> np.ndarray:
+        return self._data[:self.count]
+
+
 def sample_sensory_points_of_view(
         body, motor_states: np.ndarray, *, n_samples: int = 100, fd_step: float = 1e-6,
         initial_step: float = 0.05, min_step: float = 1e-3, max_step: float = 0.15,

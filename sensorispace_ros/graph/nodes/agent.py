@@ -80,9 +80,10 @@ from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.graph import tracing
 from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal,
     CheckpointError, command_check, read_journal, read_snapshot, write_snapshot)
-from sensorispace_ros.core.naive.agent import STAGES as NAIVE_STAGES
-from sensorispace_ros.core.naive.agent import NaiveAgent, NaiveAgentRecords
+from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
+from sensorispace_ros.core.naive.records import NaiveAgentRecords
 from sensorispace_ros.graph.framework import GraphNode, frame, run_node
 
 

@@ -1,0 +1,180 @@
+"""What the naive agent sensed since the environment last changed, and the
+body proxy that answers from it.
+
+Between two changes the environment is static and the body answers every
+motor state on its own, so a motor state sensed again senses the same bits.
+``CountingBody`` wraps the agent's body: it counts rows, calls and time per
+stage of the agent, answers a call whose states were all sensed since the
+last change from ``SensedSinceChange`` (no round trip), and can carry the
+rows the agent expects to ask for next with the call it sends now
+(``lookahead``). None of this changes a result: only fewer calls are sent.
+"""
+from __future__ import annotations
+
+import contextlib
+import time
+
+import numpy as np
+
+
+class SensedSinceChange:
+    """The motor states sensed since the environment last changed, with their
+    sensations. The environment is static between two changes and the body
+    answers each row on its own, so a state sensed again would sense the same
+    bits: ``recall`` gives them without a ``sense`` call. Such calls are the
+    resting state after every change, rank tests and walk starts at states
+    the search just probed (how many: docs/benchmarks.md). Rows are matched
+    bit for bit: a key mixes a row's uint64 views (integer arithmetic, so a
+    row has the same key in any batch; a float dot product does not),
+    candidates must then have the same bits (-0.0 is not 0.0 here)."""
+
+    # Odd 64-bit constants (splitmix64's); rows whose keys collide are caught
+    # by the bitwise check.
+    _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
+                     0xD6E8FEB86659FD93], dtype=np.uint64)
+
+    def __init__(self, n_motors: int, n_sensors: int):
+        self._mix = np.resize(self._MIX, n_motors)
+        self._keys = np.empty(1024, dtype=np.uint64)
+        self._motor_states = np.empty((1024, n_motors))
+        self._sensations = np.empty((1024, n_sensors))
+        self.count = 0
+
+    def clear(self) -> None:
+        self.count = 0
+
+    def recall(self, motor_states: np.ndarray) -> np.ndarray | None:
+        """Sensations of ``motor_states`` if every row was sensed, else None."""
+        if self.count == 0 or len(motor_states) == 0:
+            return None
+        keys = self._keys[:self.count]
+        wanted = motor_states.view(np.uint64) @ self._mix
+        if not (keys == wanted[0]).any():
+            return None                          # the usual case: a new state
+        equal = keys[None, :] == wanted[:, None]
+        if not equal.any(axis=1).all():
+            return None
+        where = equal.argmax(axis=1)
+        if not np.array_equal(self._motor_states[where].view(np.uint64),
+                              motor_states.view(np.uint64)):
+            return None
+        return self._sensations[where]
+
+    def store(self, motor_states: np.ndarray, sensations: np.ndarray) -> None:
+        end = self.count + len(motor_states)
+        if end > len(self._keys):
+            size = max(2 * len(self._keys), end)
+            for name in ("_keys", "_motor_states", "_sensations"):
+                old = getattr(self, name)
+                grown = np.empty((size,) + old.shape[1:], dtype=old.dtype)
+                grown[:self.count] = old[:self.count]
+                setattr(self, name, grown)
+        self._keys[self.count:end] = motor_states.view(np.uint64) @ self._mix
+        self._motor_states[self.count:end] = motor_states
+        self._sensations[self.count:end] = sensations
+        self.count = end
+
+
+class CountingBody:
+    """Counts rows, calls and wall time per stage of the agent; exposes only
+    what the body exposes. A stage lasts from its ``stage = name`` to the
+    next one (or to ``pause()``). With ``remember``, a call whose motor
+    states were all sensed since the last ``forget()`` is answered from
+    ``SensedSinceChange`` (counted in ``remembered``, not in ``calls``)."""
+
+    def __init__(self, body, remember: bool = True):
+        self._body = body
+        self.n_motors = int(body.n_motors)
+        self.n_sensors = int(body.n_sensors)
+        self._move = getattr(body, "move", None)
+        self._stage = None
+        self._since = 0.0
+        self.rows: dict[str, int] = {}
+        self.calls: dict[str, int] = {}
+        self.seconds: dict[str, float] = {}
+        self.remembered: dict[str, int] = {}
+        self._sensed = SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
+        self._lookahead: np.ndarray | None = None
+
+    @property
+    def stage(self) -> str | None:
+        return self._stage
+
+    @stage.setter
+    def stage(self, name: str | None) -> None:
+        now = time.perf_counter()
+        if self._stage is not None:
+            self.seconds[self._stage] = self.seconds.get(self._stage, 0.0) + now - self._since
+        self._stage, self._since = name, now
+
+    def pause(self) -> None:
+        self.stage = None
+
+    def forget(self) -> None:
+        """The environment changed: what was sensed before says nothing now."""
+        if self._sensed is not None:
+            self._sensed.clear()
+
+    @contextlib.contextmanager
+    def lookahead(self, motor_states: np.ndarray):
+        """Inside the block, the first call that goes to the body also carries
+        ``motor_states`` (rows the agent expects to ask for next); their
+        sensations are remembered, so a later call asking only for remembered
+        states costs no round trip. Results are unchanged: every row is sensed
+        on its own. Without ``remember`` it does nothing."""
+        rows = np.ascontiguousarray(motor_states, dtype=float).reshape(-1, self.n_motors)
+        self._lookahead = rows if self._sensed is not None and len(rows) else None
+        try:
+            yield
+        finally:
+            self._lookahead = None
+
+    def _recall(self, motor_states: np.ndarray) -> np.ndarray | None:
+        return None if self._sensed is None else self._sensed.recall(motor_states)
+
+    def _count(self, n_rows: int) -> None:
+        self.rows[self.stage] = self.rows.get(self.stage, 0) + n_rows
+        self.calls[self.stage] = self.calls.get(self.stage, 0) + 1
+
+    def sense(self, motor_states):
+        motor_states = np.ascontiguousarray(motor_states, dtype=float)
+        known = self._recall(motor_states)
+        if known is not None:
+            self.remembered[self.stage] = self.remembered.get(self.stage, 0) + 1
+            return known
+        return self._command(motor_states)
+
+    def rest(self, motor_state: np.ndarray) -> np.ndarray:
+        """Move the arm to ``motor_state`` and return its sensation: always a
+        command (the arm must end there). When the state was sensed since the
+        last change and the body can ``move`` (the ROS agent collects that
+        answer before it settles), the agent goes on without waiting."""
+        row = np.ascontiguousarray(motor_state, dtype=float).reshape(1, -1)
+        known = self._recall(row) if self._move is not None else None
+        if known is None:
+            return self._command(row)[0]
+        self._count(1)
+        self._move(row)
+        return known[0].copy()
+
+    def _command(self, motor_states: np.ndarray) -> np.ndarray:
+        asked = len(motor_states)
+        if self._lookahead is not None:
+            motor_states = np.concatenate([motor_states, self._lookahead])
+            self._lookahead = None
+        self._count(len(motor_states))
+        answer = np.asarray(self._body.sense(motor_states), dtype=float)
+        if answer.shape != (len(motor_states), self.n_sensors):
+            raise ValueError(f"body.sense returned shape {answer.shape}, expected "
+                             f"({len(motor_states)}, {self.n_sensors})")
+        if self._sensed is not None:
+            self._sensed.store(motor_states, answer)
+        return answer[:asked]
+
+    @property
+    def total_rows(self) -> int:
+        return sum(self.rows.values())
+
+    @property
+    def total_calls(self) -> int:
+        return sum(self.calls.values())
