@@ -1,16 +1,17 @@
 """The ``sensorispace`` command: errors are one line, compare shows differences,
-subcommands of other modules plug in."""
+every verb has its module."""
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
-import sys
-import types
+import re
 from pathlib import Path
 
 import pytest
 
 from sensorispace_ros.cli import main as cli
+from sensorispace_ros.cli.compare import compare_table
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "config" / "smoke.yaml"
@@ -145,7 +146,7 @@ def test_compare_only_different_hides_equal_values(tmp_path, capsys):
 
 
 def test_compare_of_a_run_with_itself_shows_no_difference(tmp_path):
-    text = cli.compare_table(RUN_A, RUN_A)
+    text = compare_table(RUN_A, RUN_A)
     rows = rows_by_key(text)
     assert rows["exploration.compensated"].split()[1:] == ["648", "648"]
     for marker in ("%", "differs", "only in", "max |diff|"):
@@ -154,43 +155,58 @@ def test_compare_of_a_run_with_itself_shows_no_difference(tmp_path):
 
 
 # ---------------------------------------------------------------------------
-# Subcommands contributed by other modules
+# Verbs
 
 
-def test_missing_extension_modules_are_tolerated(monkeypatch):
-    monkeypatch.setattr(cli, "EXTENSIONS", ("sensorispace_ros.no_such_module",))
-    parser, errors = cli.build_parser()
-    assert errors == ()
-    assert parser.parse_args(["compare", "a", "b"]).handler is cli.run_compare
+def listed_verbs(capsys) -> list[str]:
+    """The verbs ``sensorispace --help`` lists."""
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["--help"])
+    assert caught.value.code == 0
+    usage = capsys.readouterr().out
+    verbs = re.findall(r"^    ([a-z][\w-]*)", usage.split("COMMAND", 2)[2], re.M)
+    assert verbs, usage
+    return verbs
 
 
-def test_extension_with_a_broken_import_is_not_hidden(monkeypatch, tmp_path):
-    broken = tmp_path / "broken_extension.py"
-    broken.write_text("import no_such_dependency_xyz\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(cli, "EXTENSIONS", ("broken_extension",))
-    with pytest.raises(ModuleNotFoundError, match="no_such_dependency_xyz"):
-        cli.build_parser()
+def test_every_listed_verb_has_its_module_and_handler(capsys):
+    verbs = listed_verbs(capsys)
+    assert {"reproduce", "compare", "launch", "analyze", "replay", "bag"} <= set(verbs)
+    parser, _ = cli.build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for verb in verbs:
+        module = importlib.import_module(f"sensorispace_ros.cli.{verb}")
+        assert callable(module.register), verb
+        handler = subparsers.choices[verb].get_default("handler")
+        if handler is None:                     # a verb of actions: each has its handler
+            actions = next(a for a in subparsers.choices[verb]._actions
+                           if isinstance(a, argparse._SubParsersAction))
+            handlers = [p.get_default("handler") for p in actions.choices.values()]
+        else:
+            handlers = [handler]
+        assert handlers and all(h is not None and h.__module__ == module.__name__
+                                for h in handlers), verb
 
 
-def test_extension_registers_a_subcommand_and_its_user_errors(monkeypatch, capsys):
-    class BagProblem(Exception):
-        pass
+def test_a_verbs_user_error_is_one_line(monkeypatch, capsys):
+    from sensorispace_ros.cli import replay
+    from sensorispace_ros.recording.bag_format import BagError
 
-    def register(subparsers):
-        parser = subparsers.add_parser("probe")
-        parser.add_argument("bag")
-
-        def handler(args: argparse.Namespace) -> int:
-            raise BagProblem(f"{args.bag}: truncated\nsecond line")
-        parser.set_defaults(handler=handler)
-
-    module = types.ModuleType("fake_extension")
-    module.register, module.USER_ERRORS = register, (BagProblem,)
-    monkeypatch.setitem(sys.modules, "fake_extension", module)
-    monkeypatch.setattr(cli, "EXTENSIONS", ("fake_extension",))
-    assert cli.main(["probe", "x.mcap"]) == 2
+    def truncated(args: argparse.Namespace) -> int:
+        raise BagError(f"{args.bag}: truncated\nsecond line")
+    monkeypatch.setattr(replay, "run", truncated)
+    assert cli.main(["replay", "x.mcap"]) == 2
     assert one_error_line(capsys.readouterr()) == "sensorispace: error: x.mcap: truncated second line"
+
+
+def test_an_error_that_is_not_the_users_shows_its_traceback(monkeypatch):
+    from sensorispace_ros.cli import compare
+
+    def broken(args: argparse.Namespace) -> int:
+        raise RuntimeError("a bug")
+    monkeypatch.setattr(compare, "run", broken)
+    with pytest.raises(RuntimeError, match="a bug"):
+        cli.main(["compare", "a", "b"])
 
 
 # ---------------------------------------------------------------------------

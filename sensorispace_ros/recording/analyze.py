@@ -1,6 +1,6 @@
 """``sensorispace analyze BAG --out DIR``: a run's representation and numbers from its bag alone.
 
-What the bag gives (see bags.py, nodes/recorder.py):
+What the bag gives (see recording.bag_format, nodes/recorder.py):
 
 - configuration and seed: the first ``/session/config`` message (the ROS
   params file every node of the run was started with);
@@ -42,7 +42,13 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_format import SESSION_CONFIG_TOPIC, BagError
+from sensorispace_ros.recording.bag_reader import (
+    bag_info,
+    check_contract,
+    read_bag_messages,
+    read_session_config,
+)
 from sensorispace_ros.recording.completeness import DONE, POVS, ROWS
 POV_RECORDS, COMPENSATION_RECORDS = "/agent/pov_records", "/agent/compensation_records"
 STAGE_COUNTERS = "/agent/stage_counters"
@@ -53,15 +59,15 @@ def config_from_bag(bag_dir) -> dict:
     """The run's validated configuration, from its /session/config message."""
     from sensorispace_ros import config
 
-    text = bags.read_session_config(bag_dir)
+    text = read_session_config(bag_dir)
     with tempfile.NamedTemporaryFile("w", suffix=".yaml") as handle:
         handle.write(text)
         handle.flush()
         try:
             return config.load_config(handle.name)
         except config.ConfigError as exc:
-            raise bags.BagError(f"bag {bag_dir}: its {bags.SESSION_CONFIG_TOPIC} is not a valid "
-                                f"configuration: {' '.join(str(exc).split())}") from None
+            raise BagError(f"bag {bag_dir}: its {SESSION_CONFIG_TOPIC} is not a valid "
+                           f"configuration: {' '.join(str(exc).split())}") from None
 
 
 def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
@@ -72,14 +78,14 @@ def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
 
     columns = contracts.contract(topic).columns
     tables = {}
-    for _, _, _, msg in bags.read_bag_messages(bag_dir, [topic]):
+    for _, _, _, msg in read_bag_messages(bag_dir, [topic]):
         parsed = parse_frame(msg.header.frame_id)
         if parsed is None or parsed[0] not in kinds or msg.header.frame_id in tables:
             continue
         try:
             tables[msg.header.frame_id] = messages.cloud_to_table(msg, columns).copy()
         except messages.MessageError as exc:
-            raise bags.BagError(f"bag {bag_dir}: a {topic} message does not decode: {exc}") from None
+            raise BagError(f"bag {bag_dir}: a {topic} message does not decode: {exc}") from None
     return tables
 
 
@@ -92,7 +98,7 @@ def agent_data(bag_dir) -> dict:
     pov_tables = _tables(bag_dir, POVS)
     row_tables = _tables(bag_dir, ROWS)
     if not pov_tables:
-        raise bags.BagError(f"bag {bag_dir} holds no {POVS} message: nothing to analyse")
+        raise BagError(f"bag {bag_dir} holds no {POVS} message: nothing to analyse")
     ids, povs = assemble_points_of_view(list(pov_tables.values()))
     rows = (np.concatenate(list(row_tables.values())) if row_tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))
@@ -125,7 +131,7 @@ def true_poses(bag_dir, povs: np.ndarray) -> tuple[np.ndarray, int]:
     wanted = {row.tobytes(): k for k, row in enumerate(first)}
     poses = np.asarray(arm.forward(first), dtype=float).reshape(-1, 3)
     found = np.zeros(len(first), dtype=bool)
-    info = bags.bag_info(bag_dir)
+    info = bag_info(bag_dir)
     if info.counts.get(COMMAND) and info.counts.get(POSE):
         command_columns = contracts.contract(COMMAND).columns
         pose_columns = contracts.contract(POSE).columns
@@ -133,7 +139,7 @@ def true_poses(bag_dir, povs: np.ndarray) -> tuple[np.ndarray, int]:
         # The recorder writes messages of different topics in the order its
         # callbacks ran, not in causal order: a pose may come before its command.
         early_poses = {}
-        for topic, _, _, msg in bags.read_bag_messages(bag_dir, [COMMAND, POSE]):
+        for topic, _, _, msg in read_bag_messages(bag_dir, [COMMAND, POSE]):
             frame_id = msg.header.frame_id
             if topic == COMMAND:
                 if frame_id in commands:
@@ -163,7 +169,7 @@ def events(bag_dir) -> dict[str, np.ndarray]:
 def _concatenated(bag_dir, topic: str) -> np.ndarray:
     from sensorispace_ros import contracts, messages
 
-    present = topic in bags.bag_info(bag_dir).topics
+    present = topic in bag_info(bag_dir).topics
     tables = list(_tables(bag_dir, topic).values()) if present else []
     return (np.concatenate(tables) if tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(topic).columns)))
@@ -176,7 +182,7 @@ def naive_records(bag_dir, data: dict, totals: dict | None):
     from sensorispace_ros.core.naive.agent import STAGES
     from sensorispace_ros.core.naive.run import NaiveAgentRecords
 
-    info = bags.bag_info(bag_dir)
+    info = bag_info(bag_dir)
     if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
         return None
     counters = _tables(bag_dir, STAGE_COUNTERS, kinds=("end",))
@@ -188,8 +194,8 @@ def naive_records(bag_dir, data: dict, totals: dict | None):
     _, first = np.unique(pov_rows["pov"], return_index=True)     # a re-send counts once
     pov_rows = pov_rows[first]
     if not np.array_equal(pov_rows["pov"], ids):
-        raise bags.BagError(f"bag {bag_dir}: {POV_RECORDS} names POVs {pov_rows['pov'].tolist()}, "
-                            f"{POVS} holds {ids.tolist()}")
+        raise BagError(f"bag {bag_dir}: {POV_RECORDS} names POVs {pov_rows['pov'].tolist()}, "
+                       f"{POVS} holds {ids.tolist()}")
     comp = _concatenated(bag_dir, COMPENSATION_RECORDS)     # one copy of each change's rows
     motor = np.stack([comp[f"m{j}"] for j in range(4)], axis=-1).astype(float)
     anchor = np.stack([comp[f"a{j}"] for j in range(4)], axis=-1).astype(float)
@@ -221,8 +227,8 @@ def naive_ground_truth(cfg: dict, change_events: dict, n_changes: int, poses: np
     kind_of_code = {code: kind for kind, code in KIND_CODES.items()}
     centers, kinds, grid_index = [np.asarray(world.initial_center, float)], ["initial"], [-1]
     if n_changes > len(world.events):
-        raise bags.BagError(f"the run ended after {n_changes} changes; its configuration "
-                            f"schedules {len(world.events)}")
+        raise BagError(f"the run ended after {n_changes} changes; its configuration "
+                       f"schedules {len(world.events)}")
     for k in range(1, n_changes + 1):
         event = change_events.get(f"change/{k}")
         if event is None:       # sent while the recorder was down: the seeded schedule
@@ -261,7 +267,7 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
 
     started = time.perf_counter()
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)
-    bags.check_contract(bag_dir, {n: c.type_name for n, c in contracts.load_contracts().items()})
+    check_contract(bag_dir, {n: c.type_name for n, c in contracts.load_contracts().items()})
     cfg = config_from_bag(bag_dir) if cfg is None else config.validate_config(cfg)
     seed = int(cfg["seed"])
 

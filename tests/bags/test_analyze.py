@@ -10,7 +10,14 @@ import yaml
 from rclpy.serialization import serialize_message
 from std_msgs.msg import UInt64
 
-from sensorispace_ros.recording import analyze, bags
+from sensorispace_ros.recording import analyze
+from sensorispace_ros.recording.bag_format import (
+    SESSION_CONFIG_TOPIC,
+    SESSION_CONFIG_TYPE,
+    BagError,
+    session_config_cdr,
+)
+from sensorispace_ros.recording.bag_writer import BagWriter
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core import arm
 
@@ -45,11 +52,11 @@ def write_run(bag, with_poses=True, config=CONFIG, pose_first=False):
     povs = rng.uniform(-np.pi, np.pi, size=(P, N, 4))
     rows = np.array([[0, 0, 1], [0, 2, 3], [1, 4, 5], [1, 6, 7], [2, 8, 9], [2, 10, 11]])
     topics = {name: c.type_name for name, c in contracts.load_contracts().items()}
-    topics[bags.SESSION_CONFIG_TOPIC] = bags.SESSION_CONFIG_TYPE
+    topics[SESSION_CONFIG_TOPIC] = SESSION_CONFIG_TYPE
     t = iter(range(10, 10_000))
-    with bags.BagWriter(bag, topics) as writer:
+    with BagWriter(bag, topics) as writer:
         if config is not None:
-            writer.write(bags.SESSION_CONFIG_TOPIC, 1, bags.session_config_cdr(config))
+            writer.write(SESSION_CONFIG_TOPIC, 1, session_config_cdr(config))
         if with_poses:
             commanded = np.vstack([povs[:RECORDED, 0], rng.uniform(-1, 1, size=(3, 4))])
             command = cloud("/body/motor_command", {f"m{j}": commanded[:, j] for j in range(4)},
@@ -124,15 +131,15 @@ def test_config_and_seed_come_from_the_bag(tmp_path):
 
 def test_bags_without_config_or_of_another_schema_are_one_line_errors(tmp_path):
     write_run(tmp_path / "bag", config=None)
-    with pytest.raises(bags.BagError) as error:
+    with pytest.raises(BagError) as error:
         analyze.analyze_bag(tmp_path / "bag", tmp_path / "out")
     assert "holds no /session/config" in str(error.value) and "\n" not in str(error.value)
     write_run(tmp_path / "bad", config="/**:\n  ros__parameters:\n    seed: -3\n")
-    with pytest.raises(bags.BagError, match="not a valid configuration: seed"):
+    with pytest.raises(BagError, match="not a valid configuration: seed"):
         analyze.config_from_bag(tmp_path / "bad")
-    with bags.BagWriter(tmp_path / "other", {"/body/sensation": "std_msgs/msg/String"}):
+    with BagWriter(tmp_path / "other", {"/body/sensation": "std_msgs/msg/String"}):
         pass
-    with pytest.raises(bags.BagError, match="another schema"):
+    with pytest.raises(BagError, match="another schema"):
         analyze.analyze_bag(tmp_path / "other", tmp_path / "out")
 
 

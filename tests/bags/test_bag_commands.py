@@ -4,7 +4,8 @@ from __future__ import annotations
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_reader import read_bag
+from sensorispace_ros.recording.bag_writer import BagWriter
 from sensorispace_ros.cli import main as cli
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
@@ -18,8 +19,8 @@ def uint64_cdr(n: int) -> bytes:
 def killed_bag(tmp_path, n=500):
     """A bag as a killed recorder leaves it: MCAP cut inside the last chunk, no metadata.yaml."""
     full = tmp_path / "full"
-    with bags.BagWriter(full, {"/agent/settled": "std_msgs/msg/UInt64"},
-                        chunk_interval_s=1e-9) as writer:
+    with BagWriter(full, {"/agent/settled": "std_msgs/msg/UInt64"},
+                   chunk_interval_s=1e-9) as writer:
         for i in range(n):
             writer.write("/agent/settled", 100 + i, uint64_cdr(i))
     data = (full / "full.mcap").read_bytes()
@@ -34,7 +35,7 @@ def test_bag_recover_command(tmp_path, capsys):
     assert cli.main(["bag", "recover", str(killed)]) == 0
     out = capsys.readouterr().out
     assert "recovered" in out
-    values = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in bags.read_bag(killed)]
+    values = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in read_bag(killed)]
     assert len(values) > 200 and values == list(range(len(values)))
     assert cli.main(["bag", "recover", str(killed)]) == 0
     assert "already complete" in capsys.readouterr().out
@@ -56,7 +57,7 @@ def test_truncated_bag_is_one_line_exit_2_with_the_fix(tmp_path, capsys):
 
 
 def test_bag_of_another_schema_is_one_line_exit_2(tmp_path, capsys):
-    with bags.BagWriter(tmp_path / "other", {"/agent/settled": "std_msgs/msg/String"}):
+    with BagWriter(tmp_path / "other", {"/agent/settled": "std_msgs/msg/String"}):
         pass
     assert cli.main(["replay", str(tmp_path / "other"), "--fast"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

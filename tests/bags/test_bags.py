@@ -1,4 +1,5 @@
-"""bags.py without ROS: format, independent readers, recovery of a truncated MCAP, errors."""
+"""Bag writer, reader and recovery without ROS: format, independent readers, recovery
+of a truncated MCAP, errors."""
 from __future__ import annotations
 
 import shutil
@@ -12,13 +13,27 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_copy import copy_bag
+from sensorispace_ros.recording.bag_format import (
+    SESSION_CONFIG_TOPIC,
+    SESSION_CONFIG_TYPE,
+    BagError,
+    session_config_cdr,
+)
+from sensorispace_ros.recording.bag_reader import (
+    bag_info,
+    check_contract,
+    read_bag,
+    read_session_config,
+)
+from sensorispace_ros.recording.bag_recovery import recover_bag
+from sensorispace_ros.recording.bag_writer import BagWriter
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 SETTLED = "/agent/settled"
 SENSATION = "/body/sensation"
 TOPICS = {SETTLED: "std_msgs/msg/UInt64", SENSATION: "sensor_msgs/msg/PointCloud2",
-          bags.SESSION_CONFIG_TOPIC: bags.SESSION_CONFIG_TYPE}
+          SESSION_CONFIG_TOPIC: SESSION_CONFIG_TYPE}
 
 
 def read_ros2_messages(mcap_path: str):
@@ -51,10 +66,10 @@ def write_bag(path: Path, n: int, chunk_interval_s: float = 1.0, cut_at: int | N
     """Bag of n settled + n sensation messages; returns the MCAP size when message
     cut_at was written and the number of messages in chunks closed by then."""
     cut = None
-    with bags.BagWriter(path, TOPICS, qos={SETTLED: {"reliability": "reliable",
-                                                     "history": "keep_all"}},
-                        chunk_interval_s=chunk_interval_s) as writer:
-        writer.write(bags.SESSION_CONFIG_TOPIC, 1, bags.session_config_cdr("seed: 3\n"))
+    with BagWriter(path, TOPICS, qos={SETTLED: {"reliability": "reliable",
+                                                "history": "keep_all"}},
+                   chunk_interval_s=chunk_interval_s) as writer:
+        writer.write(SESSION_CONFIG_TOPIC, 1, session_config_cdr("seed: 3\n"))
         for i in range(n):
             writer.write(SETTLED, 10 + 2 * i, settled_cdr(i))
             writer.write(SENSATION, 11 + 2 * i, sensation_cdr(i))
@@ -74,7 +89,7 @@ def test_bag_opens_with_both_independent_readers_and_counts_agree(tmp_path):
     assert meta["version"] == 9 and meta["storage_identifier"] == "mcap"
     meta_counts = {t["topic_metadata"]["name"]: t["message_count"]
                    for t in meta["topics_with_message_count"]}
-    assert meta_counts == {SETTLED: 300, SENSATION: 300, bags.SESSION_CONFIG_TOPIC: 1}
+    assert meta_counts == {SETTLED: 300, SENSATION: 300, SESSION_CONFIG_TOPIC: 1}
 
     with open(bag / "run.mcap", "rb") as stream:
         reader = make_reader(stream)
@@ -99,11 +114,11 @@ def test_bag_opens_with_both_independent_readers_and_counts_agree(tmp_path):
 
 def test_read_bag_yields_exact_bytes_in_time_order(tmp_path):
     write_bag(tmp_path / "run", 50)
-    rows = list(bags.read_bag(tmp_path / "run", [SETTLED, SENSATION]))
+    rows = list(read_bag(tmp_path / "run", [SETTLED, SENSATION]))
     assert [r[2] for r in rows] == sorted(r[2] for r in rows)
     assert [r[3] for r in rows if r[0] == SETTLED] == [settled_cdr(i) for i in range(50)]
     assert [r[3] for r in rows if r[0] == SENSATION] == [sensation_cdr(i) for i in range(50)]
-    assert bags.read_session_config(tmp_path / "run") == "seed: 3\n"
+    assert read_session_config(tmp_path / "run") == "seed: 3\n"
 
 
 def test_recover_truncated_mcap_keeps_every_message_of_closed_chunks(tmp_path):
@@ -114,14 +129,14 @@ def test_recover_truncated_mcap_keeps_every_message_of_closed_chunks(tmp_path):
     killed.mkdir()
     # what a kill -9 leaves: the file as it was on disk at that moment, no metadata.yaml
     (killed / "killed.mcap").write_bytes((full / "full.mcap").read_bytes()[:size + 7])
-    with pytest.raises(bags.BagError, match="bag recover"):
-        bags.bag_info(killed)
+    with pytest.raises(BagError, match="bag recover"):
+        bag_info(killed)
 
-    report = bags.recover_bag(killed)
+    report = recover_bag(killed)
     assert report.truncated
     assert sum(report.counts.values()) >= complete
     assert (killed / "killed.mcap.truncated").exists()
-    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in bags.read_bag(killed, [SETTLED])]
+    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in read_bag(killed, [SETTLED])]
     assert settled == list(range(len(settled)))  # a prefix, nothing invented or reordered
     assert len(settled) >= (complete - 1) // 2
     meta = yaml.safe_load((killed / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -130,7 +145,7 @@ def test_recover_truncated_mcap_keeps_every_message_of_closed_chunks(tmp_path):
     assert summary.statistics.message_count == meta["message_count"] == sum(report.counts.values())
     assert len(list(read_ros2_messages(str(killed / "killed.mcap")))) == meta["message_count"]
     # a second recovery leaves the bag alone
-    assert not bags.recover_bag(killed).truncated
+    assert not recover_bag(killed).truncated
 
 
 def test_recover_without_any_complete_chunk_is_a_one_line_error(tmp_path):
@@ -138,8 +153,8 @@ def test_recover_without_any_complete_chunk_is_a_one_line_error(tmp_path):
     broken = tmp_path / "broken"
     broken.mkdir()
     (broken / "broken.mcap").write_bytes((tmp_path / "full" / "full.mcap").read_bytes()[:40])
-    with pytest.raises(bags.BagError) as error:
-        bags.recover_bag(broken)
+    with pytest.raises(BagError) as error:
+        recover_bag(broken)
     assert "cannot be recovered" in str(error.value) and "\n" not in str(error.value)
 
 
@@ -155,26 +170,26 @@ def test_errors_are_one_line(tmp_path):
         garbage: "unreadable",
     }
     for path, expected in cases.items():
-        with pytest.raises(bags.BagError) as error:
-            list(bags.read_bag(path))
+        with pytest.raises(BagError) as error:
+            list(read_bag(path))
         assert expected in str(error.value) and "\n" not in str(error.value)
-    with pytest.raises(bags.BagError, match="another schema: topic /agent/settled has type"):
-        bags.check_contract(tmp_path / "good", {SETTLED: "std_msgs/msg/String"})
-    with pytest.raises(bags.BagError, match="another schema: none of its topics"):
-        bags.check_contract(tmp_path / "good", {"/other": "std_msgs/msg/String"})
-    with pytest.raises(bags.BagError, match="unknown message type"):
-        bags.BagWriter(tmp_path / "new", {"/x": "nope_msgs/msg/Nothing"})
-    with pytest.raises(bags.BagError, match="cannot create bag"):
-        bags.BagWriter(tmp_path / "good", TOPICS)
+    with pytest.raises(BagError, match="another schema: topic /agent/settled has type"):
+        check_contract(tmp_path / "good", {SETTLED: "std_msgs/msg/String"})
+    with pytest.raises(BagError, match="another schema: none of its topics"):
+        check_contract(tmp_path / "good", {"/other": "std_msgs/msg/String"})
+    with pytest.raises(BagError, match="unknown message type"):
+        BagWriter(tmp_path / "new", {"/x": "nope_msgs/msg/Nothing"})
+    with pytest.raises(BagError, match="cannot create bag"):
+        BagWriter(tmp_path / "good", TOPICS)
 
 
 def test_copy_bag_keeps_chosen_topics_bytes_and_timestamps(tmp_path):
     write_bag(tmp_path / "full", 40)
-    counts = bags.copy_bag(tmp_path / "full", tmp_path / "part", [SETTLED, bags.SESSION_CONFIG_TOPIC])
-    assert counts == {SETTLED: 40, bags.SESSION_CONFIG_TOPIC: 1}
-    assert bags.bag_info(tmp_path / "part").topics == {
-        SETTLED: "std_msgs/msg/UInt64", bags.SESSION_CONFIG_TOPIC: bags.SESSION_CONFIG_TYPE}
-    original = [r for r in bags.read_bag(tmp_path / "full") if r[0] != SENSATION]
-    assert list(bags.read_bag(tmp_path / "part")) == original
-    with pytest.raises(bags.BagError, match="has no topic /nothing"):
-        bags.copy_bag(tmp_path / "full", tmp_path / "other", ["/nothing"])
+    counts = copy_bag(tmp_path / "full", tmp_path / "part", [SETTLED, SESSION_CONFIG_TOPIC])
+    assert counts == {SETTLED: 40, SESSION_CONFIG_TOPIC: 1}
+    assert bag_info(tmp_path / "part").topics == {
+        SETTLED: "std_msgs/msg/UInt64", SESSION_CONFIG_TOPIC: SESSION_CONFIG_TYPE}
+    original = [r for r in read_bag(tmp_path / "full") if r[0] != SENSATION]
+    assert list(read_bag(tmp_path / "part")) == original
+    with pytest.raises(BagError, match="has no topic /nothing"):
+        copy_bag(tmp_path / "full", tmp_path / "other", ["/nothing"])

@@ -19,7 +19,8 @@ import zlib
 import numpy as np
 import pytest
 
-from sensorispace_ros.recording import analyze, bags
+from sensorispace_ros.recording import analyze
+from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 
 from conftest import REPO
 
@@ -81,12 +82,12 @@ def recorded_tiny_run(tiny_run):
 
 
 def frames(bag, topic) -> list[str]:
-    return [m.header.frame_id for _, _, _, m in bags.read_bag_messages(bag, [topic])]
+    return [m.header.frame_id for _, _, _, m in read_bag_messages(bag, [topic])]
 
 
 def test_graph_recording_drops_nothing(recorded_tiny_run):
     bag = recorded_tiny_run
-    counts = bags.bag_info(bag).counts
+    counts = bag_info(bag).counts
     totals = analyze.agent_totals(bag)
     assert totals is not None, counts
     changes = totals["changes"]
@@ -106,7 +107,7 @@ def test_graph_recording_drops_nothing(recorded_tiny_run):
         assert set(frames(bag, topic)) == sensations, topic
     assert set(frames(bag, "/environment/lights")) == passive
     assert set(frames(bag, "/environment/event")) == {f"change/{k}" for k in range(1, changes)}
-    settled = [m.data for _, _, _, m in bags.read_bag_messages(bag, ["/agent/settled"])]
+    settled = [m.data for _, _, _, m in read_bag_messages(bag, ["/agent/settled"])]
     assert sorted(set(settled)) == list(range(changes + 1))
     data = analyze.agent_data(bag)
     assert len(data["ids"]) == totals["points_of_view"]

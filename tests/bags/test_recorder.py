@@ -13,7 +13,8 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_reader import bag_info, read_bag, read_session_config
+from sensorispace_ros.recording.bag_recovery import recover_bag
 
 from bag_test_support import PARAMS_FILE, wait_for
 
@@ -84,7 +85,7 @@ def test_recorder_records_every_message_and_closes_cleanly_on_sigterm(
     output, _ = recorder.communicate(timeout=30)
     assert recorder.returncode == 0, output
 
-    info = bags.bag_info(bag)
+    info = bag_info(bag)
     for topic, sent in publishers.sent.items():
         assert info.counts[topic] == sent, (topic, info.counts[topic], sent)
     with AnyReader([bag], default_typestore=STORE) as reader:
@@ -102,7 +103,7 @@ def test_recorder_records_every_message_and_closes_cleanly_on_sigterm(
     assert {summary.channels[c].topic: n
             for c, n in summary.statistics.channel_message_counts.items()} == info.counts
     # the run's configuration travels in the bag
-    config = yaml.safe_load(bags.read_session_config(bag))["/**"]["ros__parameters"]
+    config = yaml.safe_load(read_session_config(bag))["/**"]["ros__parameters"]
     assert config["seed"] == 7 and config["world"]["grid_count"] == 5
     rate = re.search(r"\(([0-9]+) msgs/s sustained\)", output)
     assert rate, output
@@ -128,16 +129,16 @@ def test_recorder_killed_with_sigkill_is_recoverable_up_to_the_last_closed_chunk
     recorder.wait(timeout=10)
     assert not (bag / "metadata.yaml").exists()
 
-    report = bags.recover_bag(bag)
+    report = recover_bag(bag)
     assert report.truncated
     for topic, count in on_disk.items():
         assert report.counts[topic] >= count, (topic, report.counts[topic], count)
-    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in bags.read_bag(bag, [SETTLED])]
+    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in read_bag(bag, [SETTLED])]
     assert settled == list(range(len(settled)))
     with AnyReader([bag], default_typestore=STORE) as reader:
         assert sum(1 for c, _, raw in reader.messages()
                    if reader.deserialize(raw, c.msgtype) is not None) == sum(report.counts.values())
-    assert bags.read_session_config(bag).startswith("/**:")
+    assert read_session_config(bag).startswith("/**:")
     print(f"recovered {report.counts} (>= {on_disk} acknowledged before the last chunk closed)")
 
 
@@ -165,8 +166,8 @@ def test_recorder_restarted_after_sigkill_merges_both_parts(ros_env, ros_context
     assert restarted.returncode == 0, output
 
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("bag")) == ["bag"]
-    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in bags.read_bag(bag, [SETTLED])]
+    settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in read_bag(bag, [SETTLED])]
     assert settled == list(range(800))  # both parts, nothing lost, in order
-    info = bags.bag_info(bag)
+    info = bag_info(bag)
     assert info.counts[SENSATION] == 800 and info.counts[JOINTS] == 200
-    assert bags.read_session_config(bag).startswith("/**:")
+    assert read_session_config(bag).startswith("/**:")

@@ -5,7 +5,12 @@ import time
 
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_format import (
+    SESSION_CONFIG_TOPIC,
+    SESSION_CONFIG_TYPE,
+    session_config_cdr,
+)
+from sensorispace_ros.recording.bag_writer import BagWriter
 
 from bag_test_support import wait_for
 
@@ -35,10 +40,10 @@ def on_the_wire(cdr: bytes) -> bytes:
 
 
 def make_bag(path, n, spacing_ns):
-    with bags.BagWriter(path, {SETTLED: "std_msgs/msg/UInt64",
-                               SENSATION: "sensor_msgs/msg/PointCloud2",
-                               bags.SESSION_CONFIG_TOPIC: bags.SESSION_CONFIG_TYPE}) as writer:
-        writer.write(bags.SESSION_CONFIG_TOPIC, 0, bags.session_config_cdr("seed: 1\n"))
+    with BagWriter(path, {SETTLED: "std_msgs/msg/UInt64",
+                          SENSATION: "sensor_msgs/msg/PointCloud2",
+                          SESSION_CONFIG_TOPIC: SESSION_CONFIG_TYPE}) as writer:
+        writer.write(SESSION_CONFIG_TOPIC, 0, session_config_cdr("seed: 1\n"))
         for i in range(n):
             writer.write(SETTLED, 1_000 + i * spacing_ns, uint64_cdr(i))
             writer.write(SENSATION, 1_001 + i * spacing_ns, cloud_cdr(i))

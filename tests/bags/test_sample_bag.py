@@ -1,5 +1,5 @@
 """The committed sample bag (bags/sample_smoke): a launched smoke run (config/smoke.yaml)
-copied without the bulky /body/* probing streams (bags.copy_bag), ~350 KB."""
+copied without the bulky /body/* probing streams (copy_bag), ~350 KB."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +9,9 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros.recording import analyze, bags
+from sensorispace_ros.recording import analyze
+from sensorispace_ros.recording.bag_copy import copy_bag
+from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 from sensorispace_ros import contracts, messages
 
 from conftest import REPO
@@ -49,7 +51,7 @@ def test_sample_rebuilds_the_recorded_embeddings():
 
     columns = contracts.contract("/representation/embedding").columns
     recorded = {}
-    for _, _, _, msg in bags.read_bag_messages(SAMPLE, ["/representation/embedding"]):
+    for _, _, _, msg in read_bag_messages(SAMPLE, ["/representation/embedding"]):
         recorded[msg.header.frame_id] = messages.cloud_to_table(msg, columns)
     assert len(recorded) == 2 * (cfg["representation"]["regularization"]["iterations"] + 1)
     for frame_id, table in recorded.items():
@@ -64,7 +66,7 @@ def test_sample_rebuilds_the_recorded_embeddings():
 def test_a_bag_without_the_agent_records_is_analysed_without_naive_metrics():
     # The sample was recorded before /agent/pov_records, /agent/compensation_records and
     # /agent/stage_counters existed: analyze must say so, not fail on the missing topics.
-    info = bags.bag_info(SAMPLE)
+    info = bag_info(SAMPLE)
     assert analyze.STAGE_COUNTERS not in info.topics and analyze.POV_RECORDS not in info.topics
     data = analyze.agent_data(SAMPLE)
     assert analyze.naive_records(SAMPLE, data, analyze.agent_totals(SAMPLE)) is None

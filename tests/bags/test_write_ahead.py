@@ -9,7 +9,10 @@ import sys
 import textwrap
 from pathlib import Path
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_format import session_config_cdr
+from sensorispace_ros.recording.bag_reader import read_bag
+from sensorispace_ros.recording.bag_recovery import recover_bag
+from sensorispace_ros.recording.bag_writer import WAL_NAME, BagWriter
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -21,11 +24,11 @@ def killed_writer(bag: Path, body: str, write_ahead: bool = True) -> None:
         import os, signal, sys
         sys.path.insert(0, {str(REPO)!r})
         from rosbags.typesys import Stores, get_typestore
-        from sensorispace_ros.recording import bags
+        from sensorispace_ros.recording.bag_writer import BagWriter
         store = get_typestore(Stores.ROS2_JAZZY)
         UInt64 = store.types["std_msgs/msg/UInt64"]
-        w = bags.BagWriter({str(bag)!r}, {{"/x": "std_msgs/msg/UInt64"}},
-                           chunk_interval_s=1000.0, write_ahead={write_ahead})
+        w = BagWriter({str(bag)!r}, {{"/x": "std_msgs/msg/UInt64"}},
+                      chunk_interval_s=1000.0, write_ahead={write_ahead})
         def send(i):
             w.write("/x", i + 1, bytes(store.serialize_cdr(UInt64(data=i), "std_msgs/msg/UInt64")))
     """) + textwrap.dedent(body) + "\nos.kill(os.getpid(), signal.SIGKILL)\n"
@@ -34,8 +37,8 @@ def killed_writer(bag: Path, body: str, write_ahead: bool = True) -> None:
 
 
 def recovered_values(bag: Path) -> list[int]:
-    bags.recover_bag(bag)
-    return [int.from_bytes(cdr[4:12], "little") for _, _, _, cdr in bags.read_bag(bag, ["/x"])]
+    recover_bag(bag)
+    return [int.from_bytes(cdr[4:12], "little") for _, _, _, cdr in read_bag(bag, ["/x"])]
 
 
 def test_every_committed_message_survives_a_kill_and_an_uncommitted_one_does_not(tmp_path):
@@ -80,14 +83,14 @@ def test_a_record_cut_short_by_the_kill_is_left_out(tmp_path):
             send(i)
         w.commit()
     """)
-    with open(bag / bags.WAL_NAME, "ab") as log:
+    with open(bag / WAL_NAME, "ab") as log:
         log.write(b"\\x02\\x00" + b"\\x00" * 7)          # half a record header
     assert recovered_values(bag) == list(range(10))
 
 
 def test_a_closed_bag_keeps_no_log(tmp_path):
-    with bags.BagWriter(tmp_path / "bag", {"/x": "std_msgs/msg/String"}, write_ahead=True) as w:
-        w.write("/x", 1, bags.session_config_cdr("a: 1"))
+    with BagWriter(tmp_path / "bag", {"/x": "std_msgs/msg/String"}, write_ahead=True) as w:
+        w.write("/x", 1, session_config_cdr("a: 1"))
         w.commit()
-        assert (tmp_path / "bag" / bags.WAL_NAME).stat().st_size > 0
-    assert not (tmp_path / "bag" / bags.WAL_NAME).exists()
+        assert (tmp_path / "bag" / WAL_NAME).stat().st_size > 0
+    assert not (tmp_path / "bag" / WAL_NAME).exists()

@@ -79,10 +79,10 @@ RECORDER_MARGIN_S = 0.2
 def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]) -> dict:
     """What the (merged) bag lacks: /agent/settled values and /environment/event
     changes expected in it; duplicates are fine."""
-    from sensorispace_ros.recording import bags
+    from sensorispace_ros.recording.bag_reader import read_bag_messages
 
     settled, changes = set(), set()
-    for topic, _, _, msg in bags.read_bag_messages(bag, ["/agent/settled", "/environment/event"]):
+    for topic, _, _, msg in read_bag_messages(bag, ["/agent/settled", "/environment/event"]):
         if topic == "/agent/settled":
             settled.add(int(msg.data))
         else:

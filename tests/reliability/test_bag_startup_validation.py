@@ -21,7 +21,12 @@ from pathlib import Path
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_format import (
+    SESSION_CONFIG_TOPIC,
+    SESSION_CONFIG_TYPE,
+    session_config_cdr,
+)
+from sensorispace_ros.recording.bag_writer import BagWriter
 
 from .conftest import REPO
 
@@ -72,7 +77,7 @@ def truncated_unrecoverable(tmp: Path) -> Path:
 def foreign_topics_only(tmp: Path) -> Path:
     """A healthy rosbag2 bag of some other system: one std_msgs/String topic."""
     bag = tmp / "foreign"
-    with bags.BagWriter(bag, {"/chatter": "std_msgs/msg/String"}) as writer:
+    with BagWriter(bag, {"/chatter": "std_msgs/msg/String"}) as writer:
         for i in range(5):
             writer.write("/chatter", 1000 + i, _string_cdr(f"hello {i}"))
     return bag
@@ -81,10 +86,10 @@ def foreign_topics_only(tmp: Path) -> Path:
 def wrong_type_on_points_of_view(tmp: Path) -> Path:
     """Our topic names, but /agent/points_of_view is not a PointCloud2."""
     bag = tmp / "wrong_type"
-    with bags.BagWriter(bag, {"/agent/points_of_view": "std_msgs/msg/String",
-                              bags.SESSION_CONFIG_TOPIC: bags.SESSION_CONFIG_TYPE}) as writer:
-        writer.write(bags.SESSION_CONFIG_TOPIC, 1000,
-                     bags.session_config_cdr((REPO / "config" / "smoke.yaml").read_text()))
+    with BagWriter(bag, {"/agent/points_of_view": "std_msgs/msg/String",
+                         SESSION_CONFIG_TOPIC: SESSION_CONFIG_TYPE}) as writer:
+        writer.write(SESSION_CONFIG_TOPIC, 1000,
+                     session_config_cdr((REPO / "config" / "smoke.yaml").read_text()))
         writer.write("/agent/points_of_view", 1001, _string_cdr("not a table"))
     return bag
 

@@ -1,6 +1,6 @@
 """recorder: every topic of the contract, raw CDR, into a rosbag2 MCAP bag.
 
-Subscriptions are raw (exact bytes as sent, see bags.py) with each topic's
+Subscriptions are raw (exact bytes as sent, see recording.bag_format) with each topic's
 contract QoS (RELIABLE + KEEP_ALL on data topics, so nothing is dropped).
 Messages are stamped with their receive time, as ``ros2 bag record`` does.
 
@@ -12,7 +12,7 @@ whole configuration (seed included) without help from the launcher.
 SIGTERM / Ctrl-C: stop, drain what is already queued, close the bag (summary
 + metadata.yaml). kill -9: every message a subscription callback has stored is
 kept, because each callback ends with one unbuffered write of what it stored to
-the bag's write-ahead log (bags.BagWriter, ``recorder.write_ahead``, default
+the bag's write-ahead log (BagWriter, ``recorder.write_ahead``, default
 true; false: the open chunk, <= ``recorder.chunk_interval_s``, is lost). What
 the middleware had received but the recorder not yet taken is lost.
 ``sensorispace bag recover`` (or the restarted recorder) rebuilds the bag.
@@ -38,7 +38,16 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from sensorispace_ros.recording import bags, completeness as recording_complete
+from sensorispace_ros.recording import completeness as recording_complete
+from sensorispace_ros.recording.bag_copy import merge_bags
+from sensorispace_ros.recording.bag_format import (
+    SESSION_CONFIG_TOPIC,
+    SESSION_CONFIG_TYPE,
+    BagError,
+    session_config_cdr,
+)
+from sensorispace_ros.recording.bag_recovery import recover_bag
+from sensorispace_ros.recording.bag_writer import DEFAULT_CHUNK_INTERVAL_S, BagWriter
 from sensorispace_ros import contracts
 
 # Parameters that are not the run's configuration: the launcher's plumbing
@@ -90,7 +99,7 @@ def set_aside_earlier_recording(bag: Path) -> list[Path]:
     """A restarted recorder (e.g. after kill -9) finds its bag directory: recover it and
     move it aside as ``<bag>.part-<n>``; returns every part waiting to be merged."""
     if bag.exists():
-        bags.recover_bag(bag)
+        recover_bag(bag)
         existing = sorted(bag.parent.glob(f"{bag.name}{RESTART_SUFFIX}*"))
         bag.rename(bag.with_name(f"{bag.name}{RESTART_SUFFIX}{len(existing) + 1}"))
     return sorted(bag.parent.glob(f"{bag.name}{RESTART_SUFFIX}*"),
@@ -101,7 +110,7 @@ def merge_parts(bag: Path, parts: list[Path]) -> None:
     """Replace ``bag`` by the merge of the earlier parts and itself; remove the parts."""
     staging = Path(tempfile.mkdtemp(dir=bag.parent, prefix=f".{bag.name}.merge-"))
     merged = staging / bag.name  # same name, so the MCAP file is <bag>.mcap already
-    bags.merge_bags([*parts, bag], merged)
+    merge_bags([*parts, bag], merged)
     shutil.rmtree(bag)
     merged.rename(bag)
     staging.rmdir()
@@ -117,7 +126,7 @@ class Recorder(Node):
         bag_path = (self._own("graph.bag_dir", "") or self._own("bag_path", "")
                     or default_bag_path())
         chunk_interval_s = float(self._own("recorder.chunk_interval_s",
-                                           bags.DEFAULT_CHUNK_INTERVAL_S))
+                                           DEFAULT_CHUNK_INTERVAL_S))
         self.stats_period_s = float(self._own("recorder.stats_period_s", 5.0))
         write_ahead = self._own("recorder.write_ahead", True)
         if not isinstance(write_ahead, bool):
@@ -142,14 +151,14 @@ class Recorder(Node):
         topics = {name: c.type_name for name, c in self.contracts.items()}
         qos = {name: qos_spec(c.qos) for name, c in self.contracts.items()}
         if run_config:
-            topics[bags.SESSION_CONFIG_TOPIC] = bags.SESSION_CONFIG_TYPE
+            topics[SESSION_CONFIG_TOPIC] = SESSION_CONFIG_TYPE
         self.earlier_parts = set_aside_earlier_recording(Path(bag_path))
         if self.earlier_parts:
             self.get_logger().warning(
                 f"{bag_path} exists (recorder restarted): recovered it; it is merged with "
                 f"this recording when the bag is closed")
-        self.writer = bags.BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s,
-                                     write_ahead=write_ahead)
+        self.writer = BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s,
+                                write_ahead=write_ahead)
         # Counted from this process's own messages: a restarted recorder gets the
         # agent's whole TRANSIENT_LOCAL history again.
         self.completeness = recording_complete.RunCompleteness()
@@ -158,8 +167,8 @@ class Recorder(Node):
             # not recording the agent's data (recorder.topics): nothing to wait for
             self._mark_complete()
         if run_config:
-            self.writer.write(bags.SESSION_CONFIG_TOPIC, time.time_ns(),
-                              bags.session_config_cdr(config_yaml(run_config)))
+            self.writer.write(SESSION_CONFIG_TOPIC, time.time_ns(),
+                              session_config_cdr(config_yaml(run_config)))
             self.writer.flush_chunk()
         else:
             self.get_logger().warning(
@@ -271,7 +280,7 @@ def main(args=None) -> int:
     try:
         try:
             recorder = Recorder()
-        except (ValueError, bags.BagError) as exc:
+        except (ValueError, BagError) as exc:
             print(f"recorder: {exc}", file=sys.stderr)
             return 2
         executor = SingleThreadedExecutor()

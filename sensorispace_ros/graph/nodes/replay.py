@@ -16,7 +16,8 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from sensorispace_ros.recording import bags
+from sensorispace_ros.recording.bag_format import BagError
+from sensorispace_ros.recording.bag_reader import check_contract, message_class, read_bag
 from sensorispace_ros import contracts
 from sensorispace_ros.graph.nodes.recorder import lossless
 
@@ -27,7 +28,7 @@ SESSION_CONFIG_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 
 
 def _message_class(type_name: str):
-    return bags.message_class(type_name)
+    return message_class(type_name)
 
 
 def publish_blocking(publisher, cdr: bytes, give_up_s: float = 30.0) -> None:
@@ -68,7 +69,7 @@ class Replay(Node):
             raise ValueError("bag_path: required (the bag directory to replay)")
         self.bag_path = bag_path
         available = contracts.load_contracts()
-        info = bags.check_contract(bag_path, {n: c.type_name for n, c in available.items()})
+        info = check_contract(bag_path, {n: c.type_name for n, c in available.items()})
         unknown = sorted(set(wanted) - set(info.topics))
         if unknown:
             raise ValueError(f"topics: {', '.join(unknown)} not in bag {bag_path}")
@@ -107,7 +108,7 @@ class Replay(Node):
         self.get_logger().info(f"replaying {self.bag_path} {mode}")
         start_wall = time.monotonic()
         first_stamp = None
-        for topic, _, stamp_ns, cdr in bags.read_bag(self.bag_path, self.topics):
+        for topic, _, stamp_ns, cdr in read_bag(self.bag_path, self.topics):
             if self.rate > 0:
                 if first_stamp is None:
                     first_stamp = stamp_ns
@@ -145,7 +146,7 @@ def main(args=None) -> int:
         node = Replay()
         node.run()
         return 0
-    except (ValueError, bags.BagError) as exc:
+    except (ValueError, BagError) as exc:
         print(f"replay: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -1,0 +1,34 @@
+"""``sensorispace analyze``: a run's representation and metrics rebuilt from its bag
+alone (recording.analyze.analyze_bag)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from sensorispace_ros.cli.summary import summary_table
+from sensorispace_ros.recording.bag_format import BagError
+
+# A bag that is missing, unreadable, truncated or of another schema: one line, exit 2.
+USER_ERRORS = (BagError,)
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "analyze", help="rebuild a run's representation and metrics from its bag",
+        description="Rebuild points of view, metric, embeddings and reaching from a bag "
+                    "alone (configuration and seed are stored in it), join the recorded "
+                    "ground truth and write DIR/metrics.json, arrays.npz and figures.")
+    parser.add_argument("bag", metavar="BAG", help="bag directory")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="output directory (default: results/<bag name>-analyzed)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from sensorispace_ros.recording import analyze
+
+    bag = Path(args.bag)
+    out = Path(args.out) if args.out else Path("results") / f"{bag.resolve().name}-analyzed"
+    metrics = analyze.analyze_bag(bag, out)
+    print(summary_table(metrics, out))
+    return 0

@@ -1,0 +1,48 @@
+"""``sensorispace launch``: the naive agent as a ROS 2 graph, one process per node
+(graph.launcher.launch_graph)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "launch", help="run the naive agent as a ROS 2 node graph (one process per node)",
+        description="Start environment, body, agent, representation (and the recorder) as "
+                    "separate processes with localhost-only discovery and a private domain id, "
+                    "follow the run, then write results/<run>/metrics.json and figures.")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="ROS parameter file (default: config/paper.yaml)")
+    parser.add_argument("--run", default=None, help="run name (default: graph-seed<S>-<time>)")
+    parser.add_argument("--domain-id", type=int, default=None,
+                        help="ROS_DOMAIN_ID (default: a free one in 1..100, printed)")
+    parser.add_argument("--no-record", action="store_true", help="do not start the recorder")
+    parser.add_argument("--results", type=Path, default=Path("results"),
+                        help="results root (default: results)")
+    parser.add_argument("--timeout", type=float, default=None, help="give up after this many s")
+    parser.add_argument("--respawn", type=int, nargs="?", const=3, default=0, metavar="N",
+                        help="start a node killed by a signal again, up to N times per node "
+                             "(N = 3 if omitted; default 0: the run fails at once); it "
+                             "resumes from results/<run>/checkpoints")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from sensorispace_ros.config import ConfigError
+    from sensorispace_ros.graph.launcher import launch_graph
+
+    if args.respawn < 0:
+        print(f"sensorispace launch: --respawn must be >= 0, got {args.respawn}", file=sys.stderr)
+        return 2
+    try:
+        result = launch_graph(args.config, args.run, args.domain_id, record=not args.no_record,
+                              results_root=args.results, timeout_s=args.timeout,
+                              respawn=args.respawn)
+    except ConfigError as exc:
+        print(f"sensorispace launch: invalid configuration: {exc}", file=sys.stderr)
+        return 2
+    if result.exit_code:
+        print(f"sensorispace launch: {result.message}", file=sys.stderr)
+    return result.exit_code

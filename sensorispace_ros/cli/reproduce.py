@@ -1,0 +1,55 @@
+"""``sensorispace reproduce``: run a strategy offline, write metrics.json and figures."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from sensorispace_ros.cli.summary import summary_table
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "reproduce", help="run a strategy offline; write metrics.json, arrays.npz and figures",
+        description="Run the paper's two simulations with one strategy and write "
+                    "DIR/metrics.json, DIR/arrays.npz and DIR/figures/*.png.")
+    parser.add_argument("--strategy", choices=("paper", "naive"), default="paper",
+                        help="paper: analytic shortcuts; naive: sensorimotor flow only "
+                             "(default: paper)")
+    parser.add_argument("--seed", type=_seed, default=None,
+                        help="seed of every random choice (default: the config's seed)")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="output directory (default: results/<strategy>-seed<S>)")
+    parser.add_argument("--config", metavar="FILE", default=None,
+                        help="parameter file (default: the paper's values, "
+                             "as in config/paper.yaml)")
+    parser.add_argument("--no-figures", action="store_true", help="skip the figures")
+    parser.add_argument("--quiet", action="store_true", help="no progress display")
+    parser.set_defaults(handler=run)
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return value
+
+
+def run(args: argparse.Namespace) -> int:
+    from sensorispace_ros import config as config_mod
+    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.progress import Progress
+
+    overrides = {}
+    if args.seed is not None:
+        overrides["seed"] = args.seed
+    if args.no_figures:
+        overrides["output.figures"] = False
+    cfg = config_mod.load_config(args.config, overrides)
+    out = Path(args.out) if args.out else Path("results") / f"{args.strategy}-seed{cfg['seed']}"
+    progress = Progress(enabled=not args.quiet)
+    metrics = pipeline.reproduce(cfg, args.strategy, out_dir=out, progress=progress)
+    print(summary_table(metrics, out))
+    return 0
