@@ -19,24 +19,25 @@ ROS parameters cannot be null. A parameter whose value is ``None`` here
 left out of the YAML files; an absent key takes its default. A plain mapping
 without the ``/**: ros__parameters:`` wrapper is accepted too.
 
-Every value is checked (``validate_config``); a bad value or an unknown key
-raises ``ConfigError`` naming the dotted parameter and the reason, so a typo
-can never pass silently.
+Every parameter is one ``Param`` of ``SCHEMA`` (default, check, one-line
+meaning), the naive agent's too (``naive.*``, the fields of
+``core.naive.params.NaiveParams``); the graph's own ``graph.*`` are
+``GRAPH_SCHEMA``'s. Every value is checked (``validate_config``,
+``load_graph``); a bad value or an unknown key raises ``ConfigError`` naming
+the dotted parameter and the reason, so a typo can never pass silently.
+This module is pure Python (and yaml): ``core`` may import it.
 """
 from __future__ import annotations
 
 import copy
 import math
-from dataclasses import fields, is_dataclass
+import numbers
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import yaml
 
 ROS_WRAPPER = "ros__parameters"
-# The ``naive`` section is passed through to the naive strategy's parameters;
-# its keys are those of ``core.naive.params.NaiveParams``.
-OPEN_SECTIONS = ("naive",)
 
 
 class ConfigError(ValueError):
@@ -54,11 +55,12 @@ def _fail(name: str, requirement: str, value: Any) -> None:
 
 def _is_int(value: Any) -> bool:
     # bool is an int subclass in Python; a YAML `true` is not a count.
-    return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 def _is_real(value: Any) -> bool:
-    return (_is_int(value) or isinstance(value, float)) and math.isfinite(value)
+    return (_is_int(value) or isinstance(value, numbers.Real) and not isinstance(value, bool)) \
+        and math.isfinite(value)
 
 
 def integer(minimum: int | None = None) -> Callable[[str, Any], int]:
@@ -99,6 +101,7 @@ def choice(*options: str) -> Callable[[str, Any], str]:
         if value not in options:
             _fail(name, "one of " + ", ".join(options), value)
         return value
+    check.options = options
     return check
 
 
@@ -117,77 +120,213 @@ def real_vector(length: int) -> Callable[[str, Any], list[float]]:
     return check
 
 
+def text(empty: bool = False) -> Callable[[str, Any], str]:
+    def check(name, value):
+        if not isinstance(value, str) or (not empty and not value):
+            _fail(name, "a string" if empty else "a non-empty string", value)
+        return value
+    return check
+
+
+def text_list(name: str, value: Any) -> list[str]:
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v for v in value):
+        _fail(name, "a list of non-empty strings", value)
+    return list(value)
+
+
+class Param(NamedTuple):
+    """One parameter: its default, its check and what it means (one line)."""
+    default: Any
+    check: Callable[[str, Any], Any]
+    meaning: str
+
+
+P = Param
+
 # ---------------------------------------------------------------------------
-# The schema: default value and check of every parameter. Defaults are the
-# paper's values (issue #2); comments give the source.
+# The run configuration: every parameter of the offline pipeline and the
+# nodes. World, arm, POV, compensation and representation defaults are the
+# paper's values (Sec. 3-5) where it gives them.
+
+WORLD = {
+    "grid_half_width": P(6.0, real(0.0, low_open=True), "object positions span "
+                         "[-w, w]^2 (12 x 12 units, Sec. 3.2)"),
+    "grid_count": P(62, integer(2), "object positions per axis (62^2; the text's 64^2 is a typo)"),
+    "schedule": P("random", choice("random", "tracking"), "order of the object positions: "
+                  "random (\"in no particular order\") or neighbouring (boustrophedon)"),
+    "redistribution_probability": P(0.1, real(0.0, 1.0), "chance that an event redraws the "
+                                    "lights instead of moving the object (10 %)"),
+    "lights": {
+        "count": P(10, integer(1), "lights L in the environment (L = 10)"),
+        "radius_min": P(3.5, real(0.0), "inner radius of the lights' annulus; not in the "
+                        "paper: outside the arm's reach 3"),
+        "radius_max": P(7.0, real(0.0, low_open=True), "outer radius of the lights' annulus"),
+        "min_in_view": P(3, integer(0), "lights the initial pose must see, so the sensation "
+                         "pins the eye's pose"),
+    },
+    "retina": {
+        "receptors": P(6, integer(1), "receptors of the retina"),
+        "half_width": P(1.0, real(0.0, low_open=True), "half width of the retina"),
+    },
+}
+
+# The naive agent (core.naive.params.NaiveParams takes its fields and
+# defaults from here). Meanings refer to core.naive.points_of_view
+# (sample_sensory_points_of_view), core.naive.compensation (compensate) and
+# core.naive.equality_sets (match_sensations).
+NAIVE = {
+    "n_samples": P(100, integer(2), "motor states kept per POV (N, as pov.n_samples)"),
+    "fd_step": P(1e-6, real(0.0, low_open=True), "finite-difference step (rad) of every "
+                 "sensory Jacobian the agent estimates"),
+    "pov_initial_step": P(0.05, real(0.0, low_open=True), "first knot interval (rad) of a "
+                          "POV walk; within [pov_min_step, pov_max_step]"),
+    "pov_min_step": P(1e-3, real(0.0, low_open=True), "smallest knot interval (rad) of a "
+                      "POV walk"),
+    "pov_max_step": P(0.15, real(0.0, low_open=True), "largest knot interval (rad) of a "
+                      "POV walk"),
+    "pov_predictor_tol": P(1e-3, real(0.0, low_open=True), "Gauss-Newton correction the "
+                           "walk's step size aims at; a probe beyond 4x it is dropped"),
+    "pov_max_queries": P(5000, integer(1), "sensed rows per POV walk before it gives up"),
+    "pov_polish_iterations": P(2, integer(0), "Gauss-Newton iterations that bring a "
+                               "closed POV's samples back onto the level set"),
+    "lm_max_iterations": P(40, integer(1), "Levenberg-Marquardt iterations per "
+                           "compensation search"),
+    "lm_stall_iterations": P(3, integer(1), "a search stops when its error has not halved "
+                             "in this many iterations (a local minimum)"),
+    "lm_error_tol": P(1e-10, real(0.0, low_open=True), "accepted sensory error; tight: "
+                      "matches between sweeps need exact poses (pose error e ~ sensation "
+                      "error e)"),
+    "lm_motor_tol": P(1e-8, real(0.0, low_open=True), "accepted motor residual (rad); tight "
+                      "for the same reason"),
+    "lm_max_step": P(0.5, real(0.0, low_open=True), "largest motor step (rad) of one "
+                     "Levenberg-Marquardt iteration"),
+    "lm_initial_damping": P(1e-7, real(0.0, low_open=True), "initial damping, relative to "
+                            "J's mean squared singular value: small = nearly Gauss-Newton"),
+    "lm_restarts": P(2, integer(1), "remembered states tried per target besides the "
+                     "resting state (the nearest ones)"),
+    "match_tol": P(1e-6, real(0.0, low_open=True), "two sensations within it are the same "
+                   "pose; < match_separation"),
+    "match_separation": P(1e-4, real(0.0, low_open=True), "a match counts only if no other "
+                          "sensation lies within it (uniqueness radius)"),
+    "rank_ratio": P(1e-3, real(0.0, low_open=True), "smallest 3rd/1st singular-value ratio "
+                    "of the sensory Jacobian for rank 3"),
+    "min_singular": P(1e-4, real(0.0), "smallest 3rd singular value of the sensory "
+                      "Jacobian for rank 3"),
+    "max_snapshots": P(12, integer(1), "snapshots (remembered sensations of known POVs) "
+                       "kept as anchors"),
+    "snapshot_patience": P(20, integer(1), "events without a match or a compensation "
+                           "after which a snapshot is dropped"),
+    "unconfirmed_attempts": P(4, integer(0), "anchors of unconfirmed snapshots searched "
+                              "per event (most recent first)"),
+    "unconfirmed_max_povs": P(100, integer(0), "only snapshots that knew fewer POVs than "
+                              "this are searched while unconfirmed"),
+    "frontier_attempts": P(8, integer(0), "other rows of the most recent confirmed "
+                           "snapshot searched per event"),
+    "equality_snapshots": P(2, integer(0), "the most recent snapshots whose matches are "
+                            "all rank-tested and become equality sets"),
+    "confirm_checks": P(3, integer(1), "rank tests at most that confirm an older snapshot"),
+    "remember_sensations": P(True, boolean, "calls-only switch: answer a repeated sense "
+                             "request from memory; tests prove it changes no bit"),
+    "remember_split_povs": P(True, boolean, "calls-only switch: skip walking a state that "
+                             "senses as a known split POV; tests prove it changes no bit"),
+}
 
 SCHEMA: dict[str, Any] = {
-    "seed": (0, integer(0)),
-    "world": {
-        "grid_half_width": (6.0, real(0.0, low_open=True)),     # 12 x 12 units, Sec. 3.2
-        "grid_count": (62, integer(2)),                          # 62^2 positions
-        "schedule": ("random", choice("random", "tracking")),    # "in no particular order"
-        "redistribution_probability": (0.1, real(0.0, 1.0)),    # 10 %
-        "lights": {
-            "count": (10, integer(1)),                           # L = 10
-            "radius_min": (3.5, real(0.0)),                      # not in the paper: outside reach 3
-            "radius_max": (7.0, real(0.0, low_open=True)),
-            "min_in_view": (3, integer(0)),                      # the sensation must pin the pose
-        },
-        "retina": {
-            "receptors": (6, integer(1)),
-            "half_width": (1.0, real(0.0, low_open=True)),
-        },
-    },
+    "seed": P(0, integer(0), "every random choice (world, schedule, representation) comes "
+              "from it through named streams (core.seeding)"),
+    "world": WORLD,
     "arm": {
-        "initial_motor_state": ([0.1, -1.5, 2.2, -3.0], real_vector(4)),   # m0, Sec. 3.2
+        "initial_motor_state": P([0.1, -1.5, 2.2, -3.0], real_vector(4),
+                                 "the arm's first motor state m0 (rad, Sec. 3.2)"),
     },
     "pov": {
-        "n_samples": (100, integer(3)),                          # N = 100
-        "step": (1e-3, real(0.0, low_open=True)),                # epsilon
-        "min_steps": (50, integer(1)),
-        "close_tol": (1e-2, real(0.0, low_open=True)),
+        "n_samples": P(100, integer(3), "motor states kept per POV (N = 100)"),
+        "step": P(1e-3, real(0.0, low_open=True), "step epsilon (rad) of the "
+                  "Jacobian-kernel walk"),
+        "min_steps": P(50, integer(1), "steps a walk takes before it may close"),
+        "close_tol": P(1e-2, real(0.0, low_open=True), "the walk closes within this "
+                       "periodic motor distance (rad) of its start"),
     },
     "compensation": {
-        "threshold": (1e-3, real(0.0, low_open=True)),           # xi, on the error norm
-        "initial_simplex": (0.25, real(0.0, low_open=True)),     # rad; scipy's default gets stuck
+        "threshold": P(1e-3, real(0.0, low_open=True), "xi: accepted norm of the sensory "
+                       "error"),
+        "initial_simplex": P(0.25, real(0.0, low_open=True), "Nelder-Mead simplex size "
+                             "(rad); scipy's default gets stuck"),
     },
-    "naive": {},                                                 # open: NaiveParams overrides
+    "naive": NAIVE,
     "representation": {
         "cca": {
-            "n_epochs": (50, integer(1)),
-            "alpha0": (0.5, real(0.0, low_open=True)),
-            "lambda0": (None, real(0.0, low_open=True, optional=True)),
+            "n_epochs": P(50, integer(1), "CCA epochs over the POVs"),
+            "alpha0": P(0.5, real(0.0, low_open=True), "CCA's initial step size (decays "
+                        "to alpha0 / 100)"),
+            "lambda0": P(None, real(0.0, low_open=True, optional=True), "CCA's initial "
+                         "neighbourhood radius; null: chosen from the distances"),
         },
         "regularization": {
-            "iterations": (10, integer(1)),                      # "repeated 10 times"
+            "iterations": P(10, integer(1), "regularisation passes (\"repeated 10 times\")"),
         },
         "reaching": {
-            "pairs": (100, integer(1)),
-            "max_degree": (50, integer(1)),                      # "not more than 50 nodes"
-            "radius": (None, real(0.0, low_open=True, optional=True)),
+            "pairs": P(100, integer(1), "random start/target pairs for the straightness "
+                       "median"),
+            "max_degree": P(50, integer(1), "pruning: at most this many neighbours per "
+                            "node (\"not more than 50 nodes\")"),
+            "radius": P(None, real(0.0, low_open=True, optional=True), "pruning radius; "
+                        "null: the largest keeping every degree <= max_degree"),
         },
     },
     "output": {
-        "figures": (True, boolean),
+        "figures": P(True, boolean, "draw the paper's figures after a run"),
     },
+}
+
+# The graph's own parameters (``graph.*``): where results go and how nodes
+# talk, not the science. They are no part of the run configuration (not in
+# metrics.json nor in a bag's stored configuration).
+GRAPH_PREFIX = "graph."
+GRAPH_SCHEMA: dict[str, Param] = {
+    "results_dir": P("results/graph", text(), "where the agent and the representation "
+                     "write their results"),
+    "resend_period_s": P(0.25, real(0.0, low_open=True), "re-send period (s) of a change "
+                         "or a settle not yet acknowledged"),
+    "wait_for_nodes": P(["body", "agent"], text_list, "nodes the environment waits for "
+                        "before its first change"),
+    "exit_when_done": P(False, boolean, "the environment and the representation exit "
+                        "after the last change"),
+    "checkpoint_dir": P("", text(empty=True), "where a node persists what it needs to "
+                        "resume after a kill -9 (<dir>/<node>.*); empty: no persistence"),
+    "command_timeout_s": P(2.0, real(0.0, low_open=True), "the agent re-sends a motor "
+                           "command unanswered this long (s); a late duplicate is dropped"),
+    "executor": P("events", choice("events", "single_threaded"), "what spins a node: "
+                  "rclpy's EventsExecutor, or SingleThreadedExecutor (its fallback, and "
+                  "the reference it is measured against)"),
 }
 
 
 def _is_spec(node: Any) -> bool:
-    return isinstance(node, tuple) and len(node) == 2 and callable(node[1])
+    return isinstance(node, Param)
 
 
 def _defaults_of(schema: dict) -> dict:
     out = {}
     for key, node in schema.items():
-        out[key] = copy.deepcopy(node[0]) if _is_spec(node) else _defaults_of(node)
+        out[key] = copy.deepcopy(node.default) if _is_spec(node) else _defaults_of(node)
     return out
 
 
 def defaults() -> dict:
     """The paper configuration as a nested dict (a fresh copy)."""
     return _defaults_of(SCHEMA)
+
+
+def parameters(schema: dict = SCHEMA, prefix: str = "") -> dict[str, Param]:
+    """Every parameter of ``schema`` by dotted name."""
+    out = {}
+    for key, node in schema.items():
+        if _is_spec(node):
+            out[prefix + key] = node
+        else:
+            out.update(parameters(node, f"{prefix}{key}."))
+    return out
 
 
 # ---------------------------------------------------------------------------
@@ -209,8 +348,25 @@ def validate_config(cfg: dict) -> dict:
     if lights["min_in_view"] > lights["count"]:
         raise ConfigError("world.lights.min_in_view: must be <= world.lights.count "
                           f"({lights['count']}), got {lights['min_in_view']}")
-    out["naive"] = _validate_naive(out["naive"])
+    _check_naive_relations(out["naive"])
     return out
+
+
+def validate_naive(values: dict) -> dict:
+    """Check a complete ``naive`` section (``NaiveParams``' fields); return it normalised."""
+    out = _validate_section(values, NAIVE, "naive.")
+    _check_naive_relations(out)
+    return out
+
+
+def _check_naive_relations(naive: dict) -> None:
+    if not naive["pov_min_step"] <= naive["pov_initial_step"] <= naive["pov_max_step"]:
+        raise ConfigError("naive.pov_initial_step: must lie in [naive.pov_min_step "
+                          f"({naive['pov_min_step']!r}), naive.pov_max_step "
+                          f"({naive['pov_max_step']!r})], got {naive['pov_initial_step']!r}")
+    if not naive["match_tol"] < naive["match_separation"]:
+        raise ConfigError("naive.match_tol: must be < naive.match_separation "
+                          f"({naive['match_separation']!r}), got {naive['match_tol']!r}")
 
 
 def _validate_section(section: Any, schema: dict, prefix: str) -> dict:
@@ -228,34 +384,18 @@ def _validate_section(section: Any, schema: dict, prefix: str) -> dict:
             raise ConfigError(f"{name}: missing")
         value = section[key]
         if _is_spec(node):
-            out[key] = node[1](name, value)
-        elif key in OPEN_SECTIONS:
-            if not isinstance(value, dict):
-                raise ConfigError(f"{name}: must be a mapping, got {value!r}")
-            out[key] = copy.deepcopy(value)
+            out[key] = node.check(name, value)
         else:
             out[key] = _validate_section(value, node, name + ".")
     return out
 
 
-def _validate_naive(overrides: dict) -> dict:
-    """Reject keys the naive strategy does not know, and let it check values."""
-    try:
-        from sensorispace_ros.core.naive.params import NaiveParams
-    except ModuleNotFoundError:     # naive strategy not built yet: keys cannot be checked
-        return overrides
-    if is_dataclass(NaiveParams):
-        known = {f.name for f in fields(NaiveParams)}
-        for key in sorted(overrides, key=str):
-            if key not in known:
-                raise ConfigError(f"naive.{key}: unknown parameter "
-                                  f"(known here: {', '.join(sorted(known))})")
-    try:
-        NaiveParams(**overrides)
-    except (TypeError, ValueError) as exc:
-        message = str(exc)
-        raise ConfigError(message if message.startswith("naive.") else f"naive: {message}") from exc
-    return overrides
+def load_graph(overrides: dict | None = None) -> dict:
+    """The ``graph.*`` parameters: defaults, then ``overrides`` (names without
+    the ``graph.`` prefix); validated like the run configuration."""
+    values = _defaults_of(GRAPH_SCHEMA)
+    values.update(copy.deepcopy(overrides or {}))
+    return _validate_section(values, GRAPH_SCHEMA, GRAPH_PREFIX)
 
 
 # ---------------------------------------------------------------------------

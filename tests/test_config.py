@@ -2,9 +2,6 @@
 from __future__ import annotations
 
 import math
-import sys
-import types
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -94,6 +91,11 @@ BAD_VALUES = [
     ("output.figures", 1, "true or false"),
     ("world.lights", 5, "must be a mapping"),
     ("naive", [1, 2], "must be a mapping"),
+    ("naive.lm_max_step", 0, "must be a finite number > 0.0, got 0"),
+    ("naive.n_samples", 1, "must be an integer >= 2, got 1"),
+    ("naive.lm_restarts", 1.5, "must be an integer >= 1"),
+    ("naive.min_singular", -1e-4, ">= 0.0"),
+    ("naive.remember_split_povs", 1, "true or false"),
 ]
 
 
@@ -143,7 +145,7 @@ def test_integers_are_accepted_for_reals_and_normalised():
 
 
 @pytest.mark.parametrize("name", ["grid_count", "world.gridcount", "world.lights.colour",
-                                  "representation.cca.epochs", "output.figure"])
+                                  "representation.cca.epochs", "output.figure", "naive.seed"])
 def test_unknown_keys_are_rejected(name):
     with pytest.raises(ConfigError) as caught:
         load_config(overrides={name: 3})
@@ -163,32 +165,74 @@ def test_missing_key_in_an_incomplete_dict_is_reported():
         validate_config(cfg)
 
 
-@pytest.fixture
-def naive_params_module(monkeypatch):
-    """A stand-in naive strategy with two parameters, one of them checked."""
-
-    @dataclass
-    class NaiveParams:
-        batch: int = 64
-        rank_tol: float = 1e-6
-
-        def __post_init__(self):
-            if self.batch < 1:
-                raise ValueError(f"naive.batch: must be >= 1, got {self.batch}")
-
-    module = types.ModuleType("sensorispace_ros.core.naive.params")
-    module.NaiveParams = NaiveParams
-    monkeypatch.setitem(sys.modules, module.__name__, module)
-    return NaiveParams
+# ---------------------------------------------------------------------------
+# The naive agent's and the graph's parameters are schema entries too
 
 
-def test_naive_section_is_checked_against_the_naive_parameters(naive_params_module):
-    cfg = load_config(overrides={"naive": {"batch": 8}})
-    assert cfg["naive"] == {"batch": 8}
-    with pytest.raises(ConfigError, match=r"^naive\.batchsize: unknown parameter"):
-        load_config(overrides={"naive.batchsize": 8})
-    with pytest.raises(ConfigError, match=r"^naive\.batch: must be >= 1"):
-        load_config(overrides={"naive.batch": 0})
+def test_naive_section_is_checked_like_any_other():
+    cfg = load_config(overrides={"naive": {"lm_restarts": 3}})
+    assert cfg["naive"]["lm_restarts"] == 3
+    assert cfg["naive"]["lm_max_step"] == 0.5             # untouched default
+    with pytest.raises(ConfigError, match=r"^naive\.lm_restart: unknown parameter \(known here: "):
+        load_config(overrides={"naive.lm_restart": 3})
+    with pytest.raises(ConfigError,
+                       match=r"^naive\.lm_max_step: must be a finite number > 0\.0, got 0$"):
+        load_config(overrides={"naive.lm_max_step": 0})
+
+
+def test_a_bad_naive_value_in_a_file_is_named(tmp_path):
+    path = write(tmp_path, {"naive": {"remember_sensations": "yes"}})
+    with pytest.raises(ConfigError, match=r"^naive\.remember_sensations: must be true or false"):
+        load_config(path)
+
+
+def test_naive_cross_field_constraints():
+    with pytest.raises(ConfigError, match=r"^naive\.pov_initial_step: must lie in "):
+        load_config(overrides={"naive.pov_initial_step": 0.2})
+    with pytest.raises(ConfigError, match=r"^naive\.match_tol: must be < naive\.match_separation"):
+        load_config(overrides={"naive.match_tol": 1e-3})
+
+
+def test_naive_params_are_the_naive_section():
+    """NaiveParams has one field per naive.* entry, with its default; it checks as the
+    config does."""
+    from sensorispace_ros.core.naive.params import NaiveParams
+
+    assert NaiveParams().__dict__ == load_config()["naive"]
+    assert NaiveParams(**load_config(overrides={"naive.lm_restarts": 5})["naive"]).lm_restarts == 5
+    with pytest.raises(ConfigError, match=r"^naive\.lm_max_step: must be a finite number > 0"):
+        NaiveParams(lm_max_step=-1.0)
+    assert isinstance(NaiveParams(lm_max_step=1).lm_max_step, float)     # normalised as here
+
+
+def test_every_parameter_has_a_default_that_passes_its_check_and_a_meaning():
+    for schema, prefix in ((config.SCHEMA, ""), (config.GRAPH_SCHEMA, "graph.")):
+        entries = config.parameters(schema, prefix)
+        for name, param in entries.items():
+            assert param.check(name, param.default) == param.default, name
+            assert param.meaning.strip() and "\n" not in param.meaning, name
+    assert {"seed", "world.grid_count", "naive.lm_max_step"} <= set(config.parameters())
+    assert "graph.executor" in config.parameters(config.GRAPH_SCHEMA, "graph.")
+
+
+def test_graph_parameters_are_checked_with_the_same_messages():
+    graph = config.load_graph({"resend_period_s": 1})
+    assert graph["resend_period_s"] == 1.0 and graph["executor"] == "events"
+    assert graph["wait_for_nodes"] == ["body", "agent"]
+    with pytest.raises(ConfigError, match=r"^graph\.resend_period_s: must be a finite number > 0"):
+        config.load_graph({"resend_period_s": 0.0})
+    with pytest.raises(ConfigError, match=r"^graph\.executor: must be one of events, single_threaded"):
+        config.load_graph({"executor": "multi_threaded"})
+    with pytest.raises(ConfigError, match=r"^graph\.result_dir: unknown parameter"):
+        config.load_graph({"result_dir": "x"})
+    with pytest.raises(ConfigError, match=r"^graph\.wait_for_nodes: must be a list of non-empty"):
+        config.load_graph({"wait_for_nodes": "body"})
+
+
+def test_graph_parameters_are_no_part_of_the_run_configuration():
+    assert "graph" not in load_config()
+    with pytest.raises(ConfigError, match=r"^graph: unknown parameter"):
+        load_config(overrides={"graph.results_dir": "x"})
 
 
 # ---------------------------------------------------------------------------
@@ -242,9 +286,8 @@ def test_flatten_gives_dotted_ros_names_and_unflatten_inverts_it():
     assert flat["world.lights.radius_max"] == 7.0
     assert flat["arm.initial_motor_state"] == [0.1, -1.5, 2.2, -3.0]
     assert all(not isinstance(v, dict) for v in flat.values())
-    rebuilt = unflatten(flat)
-    rebuilt.setdefault("naive", {})            # an empty section has no ROS parameter
-    assert rebuilt == cfg
+    assert flat["naive.lm_max_step"] == 0.5
+    assert unflatten(flat) == cfg
 
 
 def test_unflatten_rejects_a_value_used_as_a_section():

@@ -23,25 +23,9 @@ from rclpy.publisher import Publisher
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.graph import tracing
 
-# Parameters of the graph itself (not of the science): results directory,
-# start-up handshake. Kept apart from the validated run configuration.
-GRAPH_PREFIX = "graph."
-GRAPH_DEFAULTS = {
-    "graph.results_dir": "results/graph",
-    "graph.resend_period_s": 0.25,
-    "graph.wait_for_nodes": ["body", "agent"],
-    "graph.exit_when_done": False,
-    # Where a node persists what it needs to resume after a kill -9
-    # (<dir>/<node>.*); "" = no persistence (issue #7).
-    "graph.checkpoint_dir": "",
-    # The agent re-sends a motor command the body has not answered within this
-    # time (a restarted body lost it); a late duplicate answer is dropped.
-    "graph.command_timeout_s": 2.0,
-    # What spins each node's process (make_executor): "events", rclpy's
-    # EventsExecutor (C++), or "single_threaded", rclpy's SingleThreadedExecutor.
-    "graph.executor": "events",
-}
-EXECUTORS = ("events", "single_threaded")
+# Parameters of the graph itself (not of the science): config.GRAPH_SCHEMA.
+GRAPH_PREFIX = config.GRAPH_PREFIX
+EXECUTORS = config.GRAPH_SCHEMA["executor"].check.options
 # Parameters every rclpy node has; not part of the run configuration.
 _ROS_OWN = {"use_sim_time", "start_type_description_service"}
 # How long publish() keeps retrying after "cannot publish data" (RCLError): a
@@ -83,9 +67,9 @@ class GraphNode(Node):
     """A node whose parameters are the run configuration (plus ``graph.*``).
 
     Parameters are declared from the parameter file
-    (``automatically_declare_parameters_from_overrides``) so that the open
-    ``naive.*`` section and every typo reach ``config.validate_config``,
-    which names the bad parameter.
+    (``automatically_declare_parameters_from_overrides``) so that every one,
+    typos included, reaches ``config.load_config`` / ``config.load_graph``,
+    which name the bad parameter.
     """
 
     def __init__(self, name: str, *, context=None, parameter_overrides=None):
@@ -93,7 +77,7 @@ class GraphNode(Node):
                          allow_undeclared_parameters=False,
                          automatically_declare_parameters_from_overrides=True,
                          start_parameter_services=False)
-        flat, graph = {}, dict(GRAPH_DEFAULTS)
+        flat, graph = {}, {}
         for pname, param in self.get_parameters_by_prefix("").items():
             if pname in _ROS_OWN or pname.startswith("qos_overrides."):
                 continue
@@ -103,17 +87,11 @@ class GraphNode(Node):
             elif isinstance(value, (list, tuple)):
                 value = list(value)
             if pname.startswith(GRAPH_PREFIX):
-                if pname not in GRAPH_DEFAULTS:
-                    raise config.ConfigError(f"{pname}: unknown parameter (known here: "
-                                             + ", ".join(sorted(GRAPH_DEFAULTS)) + ")")
-                graph[pname] = value
+                graph[pname[len(GRAPH_PREFIX):]] = value
             else:
                 flat[pname] = value
         self.cfg = config.load_config(None, overrides=flat)
-        self.graph = {key[len(GRAPH_PREFIX):]: value for key, value in graph.items()}
-        if self.graph["executor"] not in EXECUTORS:
-            raise config.ConfigError(f"graph.executor: must be one of {', '.join(EXECUTORS)}, "
-                                     f"got {self.graph['executor']!r}")
+        self.graph = config.load_graph(graph)
         self.dropped: dict[str, int] = {}
         self._cloud_readers: dict[str, messages.CloudCdrReader] = {}
         # Messages read_float_cloud could not take by the fast path, per topic:
@@ -256,7 +234,7 @@ def make_executor(kind: str = "events", context=None):
     middleware's new-message events, where ``SingleThreadedExecutor`` rebuilds
     a wait set from every entity of its nodes at each ``spin_once`` and runs
     each callback as a Task. A paper run spins ~130,000 times in the agent and
-    as often in the body. Measured (bench/RESULTS.md): mean round trip of a
+    as often in the body. Measured (docs/benchmarks.md): mean round trip of a
     smoke run 0.53 ms with it, ~0.67 ms with "single_threaded" (paper run
     with it: 0.49-0.50 ms); the body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms.
     Without it (an older rclpy) "events" falls back to "single_threaded".

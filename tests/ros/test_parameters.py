@@ -13,6 +13,12 @@ from .conftest import SMOKE
     ("agent", "pov.n_sampels:=3", "pov.n_sampels"),
     ("representation", "graph.results_dirr:=x", "graph.results_dirr"),
     ("body", "graph.executor:=multi_threaded", "graph.executor: must be one of"),
+    ("environment", "graph.resend_period_s:=0.0",
+     "graph.resend_period_s: must be a finite number > 0.0, got 0.0"),
+    ("agent", "naive.lm_max_step:=0.0", "naive.lm_max_step: must be a finite number > 0.0, got 0.0"),
+    ("agent", "naive.lm_restart:=3", "naive.lm_restart: unknown parameter"),
+    ("representation", "naive.remember_sensations:=1",
+     "naive.remember_sensations: must be true or false, got 1"),
 ])
 def test_invalid_parameter_stops_node_with_its_name(node, override, name, node_env):
     done = subprocess.run(
