@@ -12,7 +12,7 @@ environment -> lights -> body -> passive sensation -> the agent's reaction),
 then how long the agent sits idle, its next sweep sent, before each passive
 sensation is published, and that sensation's hop to the idle agent
 (``tracing.idle_waits``).
-One machine's numbers are in bench/RESULTS.md (sessions 12-13); ``graph_walltime.py``
+One machine's numbers are in docs/benchmarks.md; ``graph_walltime.py``
 gives the wall time against the offline run.
 """
 from __future__ import annotations

@@ -21,8 +21,8 @@ the echoes with prebuilt messages, waiting the same way: the client's side is
 the same for every kind. All are measured in the same run, interleaved in
 rounds so load changes hit them alike. Servers are stopped by PID.
 
-Ratios (medians): ``ratio_median`` = graph / bare, the raw ratio (issue #6's
-bar, <= 1.3): the bare echo does no work at all, so it includes the body's
+Ratios (medians): ``ratio_median`` = graph / bare, the raw ratio (the
+target: <= 1.3): the bare echo does no work at all, so it includes the body's
 simulation of the rows (compiled: ~2 us for 1 row, ~0.2 ms for 649 rows x 10
 lights x 6 receptors). ``ratio_median_vs_lean_bare`` = graph / the lean echo.
 ``ratio_median_net_of_simulation`` = (graph - simulation) / bare, with the

@@ -7,7 +7,7 @@ CLOCK_MONOTONIC on Linux, so stamps of different processes on one machine are
 comparable. Unset (the default), ``stamp`` only tests a module global.
 
 Why: the graph's extra wall time over the offline run is spread over many
-steps of 40-140 us each (bench/RESULTS.md, session 12), and a machine's
+steps of 40-140 us each (docs/benchmarks.md), and a machine's
 numbers differ; this lets anyone see where a run's time goes on theirs.
 
 Tags (see ``ROUND_TRIP`` and ``HAND_OVER``): the agent's command publication
