@@ -1,4 +1,4 @@
-"""Equality sets from sensation matching (naive simulation 2, issue #3).
+"""Equality sets from sensation matching (naive simulation 2).
 
 The paper's second simulation (Sec. 4.4) finds, for one object displacement
 e_i -> e_i+1, the POV changes M_ij -> M_i+1,j that compensate it from many

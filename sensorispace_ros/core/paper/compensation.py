@@ -5,7 +5,7 @@ Analytic, not naive: it uses the forward model f and the object's known
 displacement. The compensating motor state minimises
 ``||f(m) - [x_tip + dx_obj, y_tip + dy_obj, alpha_tip]||^2`` by Nelder-Mead,
 and counts as a compensation iff the error *norm* is at most xi = 1e-3
-(issue #2: the squared error would admit targets just beyond reach).
+(the squared error would admit targets just beyond reach).
 """
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ def compensate_pose(motor_start: np.ndarray, target_pose: np.ndarray, *,
     threshold``. ``motor`` is unwrapped, continuous with ``motor_start``.
 
     ``initial_simplex_size``: scipy's default simplex (5 % of each
-    coordinate) gets stuck once the arm is stretched (issue #2, measured);
-    a simplex of ~0.25 rad around the start does not. ``xatol``/``fatol``
+    coordinate) gets stuck once the arm is stretched; a simplex of ~0.25 rad
+    around the start does not. ``xatol``/``fatol``
     stop the search once the simplex has collapsed: ``fatol = 1e-14`` on the
     squared error means a compensation lands ~1e-7 from its target, so
     anchoring later targets on it does not accumulate error over ~650
@@ -63,8 +63,8 @@ def _squared_pose_error(target: np.ndarray):
     """``||f(m) - target||^2`` (orientation wrapped) for one motor vector.
 
     Written with ``math`` for the three unit segments of ``arm``: Nelder-Mead
-    calls it a few hundred times per event and the batched numpy
-    ``arm.forward`` costs ~15 us per single call against ~1 us here.
+    calls it a few hundred times per event, and on a single motor vector the
+    batched numpy ``arm.forward`` costs many times more (docs/benchmarks.md).
     Tested against ``arm.forward``.
     """
     if arm.SEGMENT_LENGTHS != (1.0, 1.0, 1.0):

@@ -21,8 +21,8 @@ from sensorispace_ros.core import arm, retina, world as world_mod
 from sensorispace_ros.core.paper.compensation import compensate_pose
 from sensorispace_ros.core.seeding import rng_for
 
-# Paper values (Sec. 4); receptor and light layouts are ours (issue #2: the
-# paper leaves them open), see retina.draw_receptor_positions and
+# Paper values (Sec. 4); receptor and light layouts are ours (the paper
+# leaves them open), see retina.draw_receptor_positions and
 # world.draw_light_offsets.
 PAPER_PARAMS = {
     "m0": (0.1, -1.5, 2.2, -3.0),
@@ -154,11 +154,12 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     """Walk the event list and compensate every change the analytic shortcut can.
 
     Translation: the target pose is the pose at the *last successful*
-    compensation plus the object's displacement since then (issue #2: the
-    only reading that reproduces the paper's 648 and Fig. 7a; "current pose
-    + this event's displacement" re-anchors after every failure). Nelder-Mead
-    starts from the arm's current state (the last compensating one: after a
-    failure "the arm resumes its previous configuration").
+    compensation plus the object's displacement since then (the only
+    reading that reproduces the paper's 648 compensations and its Fig. 7a;
+    "current pose + this event's displacement" re-anchors after every
+    failure). Nelder-Mead starts from the arm's current state (the last
+    compensating one: after a failure "the arm resumes its previous
+    configuration").
 
     Redistribution: the analytic shortcut only knows rigid translations of
     the light set (paper Eq. displacementobject). Its stand-in for "no motor
@@ -180,6 +181,53 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     ``grid`` is the object's grid (checked against the events' grid
     indices). ``progress(done, total)`` is called every 100 events.
     """
+    m0 = _checked_exploration(m0, grid, events, threshold, rigid_tol)
+    options = dict(compensation_options or {})
+    started = time.perf_counter()
+
+    motor = m0.copy()
+    pose0 = arm.forward(m0)
+    anchor_pose = pose0.copy()
+    anchor_center = np.asarray(initial_center, dtype=float)
+    lights = anchor_center + events[0].offsets if events else None
+    tally = _Tally(states=[m0.copy()], event_ids=[-1], poses=[pose0], grid_ids=[-1])
+    reach = float(sum(arm.SEGMENT_LENGTHS))
+
+    for k, event in enumerate(events):
+        new_lights = event.lights
+        _, residual = rigid_translation_fit(lights, new_lights)
+        lights = new_lights
+        is_redistribution = event.kind == world_mod.REDISTRIBUTION
+        tally.state_changes += is_redistribution
+        if residual > rigid_tol:
+            tally.failures[STATE_CHANGE] += 1
+            continue
+        tally.state_changes_compensated += is_redistribution
+        center = event.center
+        target = anchor_pose + np.array([*(center - anchor_center), 0.0])
+        target_reach = np.hypot(target[0], target[1])
+        certain = _certain_failure(target_reach, reach, threshold)
+        if skip_certain_failures and certain is not None:
+            tally.failures[certain] += 1
+            continue
+        candidate, pose, success = tally.compensate(motor, target, target_reach, event,
+                                                    threshold=threshold, options=options)
+        if success:
+            motor = candidate
+            anchor_pose, anchor_center = pose, center.copy()
+            tally.states.append(candidate)
+            tally.event_ids.append(event.index)
+            tally.poses.append(pose)
+            tally.grid_ids.append(event.grid_index)
+        if progress is not None and (k + 1) % 100 == 0:
+            progress(k + 1, len(events))
+    if progress is not None:
+        progress(len(events), len(events))
+    return tally.result(len(events), time.perf_counter() - started)
+
+
+def _checked_exploration(m0, grid, events, threshold, rigid_tol) -> np.ndarray:
+    """``m0`` as a float array, after checking ``explore_paper``'s arguments."""
     m0 = np.asarray(m0, dtype=float)
     if m0.shape != (arm.N_JOINTS,):
         raise ValueError(f"m0 must have {arm.N_JOINTS} joint angles, got {m0}")
@@ -194,76 +242,69 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
         raise ValueError(f"threshold must be > 0, got {threshold}")
     if not rigid_tol >= 0:
         raise ValueError(f"rigid_tol must be >= 0, got {rigid_tol}")
-    options = dict(compensation_options or {})
-    started = time.perf_counter()
+    return m0
 
-    motor = m0.copy()
-    pose0 = arm.forward(m0)
-    anchor_pose = pose0.copy()
-    anchor_center = np.asarray(initial_center, dtype=float)
-    center = anchor_center.copy()
-    lights = anchor_center + events[0].offsets if events else None
-    states, event_ids, poses, grid_ids = [m0.copy()], [-1], [pose0], [-1]
-    failures = {NOT_CONVERGED: 0, SPLIT_POINT_OF_VIEW: 0, STATE_CHANGE: 0}
-    state_changes = state_changes_compensated = 0
-    missed_in_ring = []
-    compensation_time = 0.0
-    reach = float(sum(arm.SEGMENT_LENGTHS))
-    n_calls = 0
 
-    for k, event in enumerate(events):
-        new_lights = event.lights
-        _, residual = rigid_translation_fit(lights, new_lights)
-        lights = new_lights
-        is_redistribution = event.kind == world_mod.REDISTRIBUTION
-        state_changes += is_redistribution
-        if residual > rigid_tol:
-            failures[STATE_CHANGE] += 1
-            center = event.center
-            continue
-        state_changes_compensated += is_redistribution
-        center = event.center
-        target = anchor_pose + np.array([*(center - anchor_center), 0.0])
-        target_reach = np.hypot(target[0], target[1])
-        if skip_certain_failures and target_reach > reach + threshold:
-            failures[NOT_CONVERGED] += 1
-            continue
-        if skip_certain_failures and target_reach < 1.0 - threshold:
-            failures[SPLIT_POINT_OF_VIEW] += 1
-            continue
+def _certain_failure(target_reach, reach, threshold) -> str | None:
+    """Why a target at ``target_reach`` from the base cannot be compensated
+    whatever the search does (None: it may be)."""
+    if target_reach > reach + threshold:
+        return NOT_CONVERGED
+    if target_reach < 1.0 - threshold:
+        return SPLIT_POINT_OF_VIEW
+    return None
+
+
+@dataclass
+class _Tally:
+    """``explore_paper``'s running outcome: the compensating states so far
+    (with their event, true pose and grid index), the failures by reason,
+    the state changes met and compensated, the missed ring positions and the
+    time spent in Nelder-Mead."""
+
+    states: list
+    event_ids: list
+    poses: list
+    grid_ids: list
+    failures: dict = field(default_factory=lambda: {NOT_CONVERGED: 0, SPLIT_POINT_OF_VIEW: 0,
+                                                    STATE_CHANGE: 0})
+    state_changes: int = 0
+    state_changes_compensated: int = 0
+    missed_in_ring: list = field(default_factory=list)
+    compensation_time: float = 0.0
+    n_calls: int = 0
+
+    def compensate(self, motor, target, target_reach, event, *, threshold, options):
+        """Nelder-Mead from ``motor`` toward ``target``; a solution whose POV
+        is split counts as a failure. Returns ``(candidate, its pose,
+        success)``."""
         t0 = time.perf_counter()
         candidate, _, success = compensate_pose(motor, target, threshold=threshold, **options)
-        compensation_time += time.perf_counter() - t0
-        n_calls += 1
+        self.compensation_time += time.perf_counter() - t0
+        self.n_calls += 1
         pose = arm.forward(candidate)
         if success and np.hypot(pose[0], pose[1]) < 1.0:
             # The kernel walk traces only one of the two loops of such a POV
             # (points_of_view flags it "split" from its winding; tests check
             # both criteria agree), so the paper ignores these positions.
-            failures[SPLIT_POINT_OF_VIEW] += 1
+            self.failures[SPLIT_POINT_OF_VIEW] += 1
             success = False
         elif not success:
-            failures[NOT_CONVERGED] += 1
+            self.failures[NOT_CONVERGED] += 1
             if 1.0 <= target_reach <= 3.0:
-                missed_in_ring.append(event.grid_index)
-        if success:
-            motor = candidate
-            anchor_pose, anchor_center = pose, center.copy()
-            states.append(candidate)
-            event_ids.append(event.index)
-            poses.append(pose)
-            grid_ids.append(event.grid_index)
-        if progress is not None and (k + 1) % 100 == 0:
-            progress(k + 1, len(events))
-    if progress is not None:
-        progress(len(events), len(events))
+                self.missed_in_ring.append(event.grid_index)
+        return candidate, pose, success
 
-    total = time.perf_counter() - started
-    return ExplorationResult(
-        motor_states=np.asarray(states), events_index=np.asarray(event_ids),
-        true_poses=np.asarray(poses), grid_index=np.asarray(grid_ids),
-        events=len(events), state_changes=int(state_changes),
-        compensated=len(states) - 1, state_changes_compensated=int(state_changes_compensated),
-        failures_by_reason=failures, missed_in_ring=np.asarray(missed_in_ring, dtype=int),
-        timings_s={"compensation": compensation_time, "total": total,
-                   "compensation_ms_per_call": 1e3 * compensation_time / max(n_calls, 1)})
+    def result(self, n_events: int, total: float) -> ExplorationResult:
+        states = self.states
+        return ExplorationResult(
+            motor_states=np.asarray(states), events_index=np.asarray(self.event_ids),
+            true_poses=np.asarray(self.poses), grid_index=np.asarray(self.grid_ids),
+            events=n_events, state_changes=int(self.state_changes),
+            compensated=len(states) - 1,
+            state_changes_compensated=int(self.state_changes_compensated),
+            failures_by_reason=self.failures,
+            missed_in_ring=np.asarray(self.missed_in_ring, dtype=int),
+            timings_s={"compensation": self.compensation_time, "total": total,
+                       "compensation_ms_per_call":
+                           1e3 * self.compensation_time / max(self.n_calls, 1)})

@@ -101,12 +101,26 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
     in arc length, each projected back onto ``f(m) = f(m_i)``.
 
     ``record_every``: the walk path is kept every that many steps (plus the
-    closing state) to bound memory (650 loops x ~10^4 steps); the chords
+    closing state) to bound memory (hundreds of loops of ~10^4 steps); the chords
     between records leave the manifold by O((record_every * step)^2 *
     curvature), which the final projection removes.
     ``progress(done, total)`` is called as POVs close.
     """
     start = np.array(motor_states, dtype=float, copy=True)
+    _check_walk(start, step=step, n_samples=n_samples, min_steps=min_steps,
+                close_tol=close_tol, max_steps=max_steps, record_every=record_every)
+    target = arm.forward(start)
+    walk = _walk_kernels(start, target, step=step, min_steps=min_steps, close_tol=close_tol,
+                         max_steps=max_steps, record_every=record_every, progress=progress)
+    samples, winding, reason = _resample_walks(walk, n_samples, record_every)
+    samples, drift = project_onto_pose(samples, target, tol=newton_tol)
+    return PointsOfViewResult(samples=samples, valid=np.array([r == VALID for r in reason]),
+                              reason=reason, steps=walk.steps,
+                              max_pose_drift=float(drift.max()) if drift.size else 0.0,
+                              winding=winding)
+
+
+def _check_walk(start, *, step, n_samples, min_steps, close_tol, max_steps, record_every):
     if start.ndim != 2 or start.shape[1] != arm.N_JOINTS:
         raise ValueError(f"motor_states must have shape (P, {arm.N_JOINTS}), got {start.shape}")
     if not np.all(np.isfinite(start)):
@@ -122,8 +136,30 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
     if min_steps > max_steps:
         raise ValueError(f"min_steps ({min_steps}) must not exceed max_steps ({max_steps})")
 
+
+@dataclass
+class _KernelWalks:
+    """What ``_walk_kernels`` found, per POV: ``steps`` until the loop closed
+    (``max_steps`` if it did not), ``closed``, ``lap_end``/``lap_steps`` the
+    first state back within ``close_tol`` and its step (0: never left the
+    ball), ``final_state``; the walk's records as ``(POV, state)`` rows in
+    walk order (``record_index``, ``record_state``)."""
+
+    start: np.ndarray
+    steps: np.ndarray
+    closed: np.ndarray
+    lap_end: np.ndarray
+    lap_steps: np.ndarray
+    final_state: np.ndarray
+    record_index: np.ndarray
+    record_state: np.ndarray
+
+
+def _walk_kernels(start, target, *, step, min_steps, close_tol, max_steps, record_every,
+                  progress) -> _KernelWalks:
+    """Walk every POV's kernel from ``start`` until its loop closes (at least
+    ``min_steps`` steps, back within ``close_tol``) or ``max_steps``."""
     n_pov = len(start)
-    target = arm.forward(start)
     steps = np.zeros(n_pov, dtype=int)
     closed = np.zeros(n_pov, dtype=bool)
     lap_end = np.zeros_like(start)                  # first state back within close_tol
@@ -176,41 +212,42 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
                 progress(int(closed.sum()), n_pov)
     steps[ids] = max_steps
     final_state[ids] = m.T
-    state = final_state
+    return _KernelWalks(start, steps, closed, lap_end, lap_steps, final_state,
+                        np.concatenate(record_index), np.concatenate(record_state))
 
+
+def _resample_walks(walk: _KernelWalks, n_samples, record_every):
+    """Each POV's walked loop (its first lap) resampled at ``n_samples``
+    points; returns ``(samples (P, n_samples, 4), winding (P, 4), reason)``."""
+    n_pov = len(walk.start)
     samples = np.empty((n_pov, int(n_samples), arm.N_JOINTS))
     winding = np.zeros((n_pov, arm.N_JOINTS), dtype=int)
     reason = []
-    record_index = np.concatenate(record_index)
+    record_index = walk.record_index
     order = np.argsort(record_index, kind="stable")     # per POV, in walk order
     bounds = np.searchsorted(record_index[order], np.arange(n_pov + 1))
-    record_state = np.concatenate(record_state)[order]
+    record_state = walk.record_state[order]
     for p in range(n_pov):
         path = record_state[bounds[p]:bounds[p + 1]]
-        if lap_steps[p]:
+        if walk.lap_steps[p]:
             # Loops shorter than min_steps * step are walked more than once:
             # keep the first lap only.
-            kept = 1 + lap_steps[p] // record_every
-            path = np.vstack([path[:kept], lap_end[p][None, :]])
+            kept = 1 + walk.lap_steps[p] // record_every
+            path = np.vstack([path[:kept], walk.lap_end[p][None, :]])
         else:
             # Never left the close_tol ball (a loop of diameter < close_tol,
             # tip at |r| ~ 3): all records lie on it anyway.
-            path = np.vstack([path, state[p][None, :]])
+            path = np.vstack([path, walk.final_state[p][None, :]])
         path = path[np.r_[True, np.any(np.diff(path, axis=0) != 0.0, axis=1)]]
-        winding[p] = loop_winding(path) if closed[p] else 0
+        winding[p] = loop_winding(path) if walk.closed[p] else 0
         samples[p] = resample_closed_path(path, n_samples)
-        if not closed[p]:
+        if not walk.closed[p]:
             reason.append(NOT_CLOSED)
         elif np.any(winding[p] != 0):
             reason.append(SPLIT)
         else:
             reason.append(VALID)
-
-    samples, drift = project_onto_pose(samples, target, tol=newton_tol)
-    return PointsOfViewResult(samples=samples, valid=np.array([r == VALID for r in reason]),
-                              reason=reason, steps=steps,
-                              max_pose_drift=float(drift.max()) if drift.size else 0.0,
-                              winding=winding)
+    return samples, winding, reason
 
 
 def project_onto_pose(motor: np.ndarray, target_pose: np.ndarray, *, tol: float = 1e-12,
@@ -255,7 +292,7 @@ def _periodic_sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Squared paper motor metric between joint-major ``(4, n)`` arrays."""
     diff = a - b
     # Same as arm.wrap_angle (up to the sign at +-pi, squared away) but
-    # ~4x faster than the float modulo on the walk's hot path.
+    # faster than the float modulo on the walk's hot path.
     diff -= TWO_PI * np.rint(diff * (1.0 / TWO_PI))
     return np.einsum("ij,ij->j", diff, diff)
 
@@ -266,13 +303,13 @@ def _corrected_kernel_step(m: np.ndarray, pose_target: np.ndarray):
 
     This is ``arm.forward``, ``arm.jacobian`` and ``arm.kernel_direction``
     written out for the 3-segment arm with one trigonometric pass: the walk
-    runs ~3 10^4 steps over ~650 POVs and the generic batched versions
-    (``np.linalg.det``/``solve`` on 3x3 stacks) made it ~10x slower
-    (measured ~1.1 ms vs ~0.1 ms per step). Tests check it against arm.py.
+    takes tens of thousands of steps over hundreds of POVs, and the generic
+    batched versions (``np.linalg.det``/``solve`` on 3x3 stacks) are several
+    times slower per step (docs/benchmarks.md). Tests check it against arm.py.
 
     Our addition, not the paper's: plain Euler kernel steps drift off the
-    fibre by O(step^2) each (measured: pose error 2.8e-3 after one loop of
-    15 000 steps, above the 1e-6 a POV must keep), so every step is followed by the least-norm
+    fibre by O(step^2) each, which over one loop exceeds the pose accuracy
+    a POV must keep, so every step is followed by the least-norm
     Newton step ``dm = -J^+ (f(m) - f(m_i))`` (``J^+ = J^T (J J^T)^-1``),
     which moves across the fibre, not along it. The Jacobian taken before
     the correction also gives the kernel (the correction is ~1e-7 rad).
