@@ -1,0 +1,103 @@
+"""launch/graph.launch.py, read as source (no launch/launch_ros here): it starts
+console scripts that exist, the nodes the graph runs, with parameter files that exist."""
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+
+from packaging_support import CONFIG_DIR, LAUNCH_FILE, PACKAGE, console_scripts
+
+from sensorispace_ros.graph.launcher import GRAPH_NODES, RECORDER, launch_graph
+
+
+def tree() -> ast.Module:
+    return ast.parse(LAUNCH_FILE.read_text(), filename=str(LAUNCH_FILE))
+
+
+def module_constants() -> dict:
+    return {target.id: node.value.value for node in tree().body if isinstance(node, ast.Assign)
+            for target in node.targets if isinstance(target, ast.Name)
+            and isinstance(node.value, ast.Constant)}
+
+
+def node_calls() -> list[ast.Call]:
+    return [call for call in ast.walk(tree()) if isinstance(call, ast.Call)
+            and getattr(call.func, "id", getattr(call.func, "attr", None)) == "Node"]
+
+
+def literal(expr: ast.expr, constants: dict):
+    """A string the launch file writes literally or through a module constant."""
+    if isinstance(expr, ast.Constant):
+        return expr.value
+    if isinstance(expr, ast.Name) and expr.id in constants:
+        return constants[expr.id]
+    raise AssertionError(f"{LAUNCH_FILE.name}:{expr.lineno}: not a literal: {ast.unparse(expr)}")
+
+
+def keywords(call: ast.Call) -> dict[str, ast.expr]:
+    return {k.arg: k.value for k in call.keywords}
+
+
+def launched() -> dict[str, ast.Call]:
+    constants = module_constants()
+    nodes = {}
+    for call in node_calls():
+        kw = keywords(call)
+        assert literal(kw["package"], constants) == PACKAGE
+        nodes[literal(kw["executable"], constants)] = call
+    return nodes
+
+
+def test_every_executable_is_a_console_script_of_setup_py():
+    scripts = console_scripts()
+    unknown = sorted(set(launched()) - set(scripts))
+    assert not unknown, f"{LAUNCH_FILE.name} starts {unknown}, not console scripts of setup.py"
+
+
+def test_it_starts_every_node_the_graph_runs():
+    assert set(launched()) == {*GRAPH_NODES, RECORDER}
+
+
+def test_every_parameter_file_it_names_is_in_config():
+    names = [n.value for n in ast.walk(tree()) if isinstance(n, ast.Constant)
+             and isinstance(n.value, str) and n.value.endswith((".yaml", ".yml"))]
+    assert names, "the launch file names no parameter file"
+    missing = [name for name in names if not (CONFIG_DIR / name).is_file()]
+    assert not missing, f"{LAUNCH_FILE.name} names {missing}, not files of {CONFIG_DIR}"
+
+
+def test_every_node_gets_the_config_argument_as_its_first_parameter_file():
+    for executable, call in launched().items():
+        parameters = keywords(call)["parameters"]
+        assert isinstance(parameters, ast.List) and parameters.elts, executable
+        first = parameters.elts[0]
+        assert isinstance(first, ast.Name) and first.id == "config", executable
+    assigned = [n for n in ast.walk(tree()) if isinstance(n, ast.Assign)
+                and any(getattr(t, "id", None) == "config" for t in n.targets)]
+    assert [ast.unparse(n.value) for n in assigned] == ["arg['config']"]
+    declared = [literal(call.args[0], {}) for call in ast.walk(tree())
+                if isinstance(call, ast.Call) and getattr(call.func, "id", "") ==
+                "DeclareLaunchArgument"]
+    assert "config" in declared
+
+
+def graph_parameter_names(source: ast.AST) -> set[str]:
+    return {n.value for n in ast.walk(source) if isinstance(n, ast.Constant)
+            and isinstance(n.value, str) and n.value.startswith("graph.")}
+
+
+def test_graph_parameters_it_sets_are_those_sensorispace_launch_sets():
+    """Nodes refuse an unknown graph.* name; `sensorispace launch` is the reference."""
+    ours = graph_parameter_names(tree())
+    reference = graph_parameter_names(ast.parse(inspect.getsource(launch_graph)))
+    assert ours and not sorted(ours - reference)
+
+
+def test_what_it_imports_from_the_package_exists():
+    for node in ast.walk(tree()):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith(PACKAGE):
+            module = importlib.import_module(node.module)
+            for alias in node.names:
+                assert hasattr(module, alias.name), f"{node.module}.{alias.name}"
+
