@@ -8,9 +8,9 @@ graph <= 1.5x offline):
 
 * offline: a fresh Python process (``--offline-child``) that imports the
   project, builds the world, steps the naive agent through the schedule
-  (``core.naive_evaluation.explore_naive``) and builds the representation
-  (``pipeline.build_representation``), timed from its spawn to its exit. No
-  ground-truth evaluation: ``run_naive`` / ``pipeline.run_naive_strategy``
+  (``core.naive.run.explore_naive``) and builds the representation
+  (``offline.representation.build_representation``), timed from its spawn to its exit. No
+  ground-truth evaluation: ``offline.strategies.run_naive_strategy``
   also run the paper strategy for the coverage denominator (~3 s on
   paper.yaml), which the graph does after its clock stops. Until session 8
   this script timed ``run_naive_strategy`` in-process (imports excluded,
@@ -44,18 +44,19 @@ def offline_child(config_path: str) -> int:
     """The offline run, in this (fresh) process; prints its stage times as JSON."""
     started = time.perf_counter()
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline.representation import build_representation
+    from sensorispace_ros.offline.strategies import world_params
     from sensorispace_ros.core.paper.exploration import build_world
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import explore_naive
     imported = time.perf_counter()
     cfg = config.load_config(config_path)
-    world = build_world(cfg["seed"], pipeline.world_params(cfg))
+    world = build_world(cfg["seed"], world_params(cfg))
     explored = explore_naive(world, NaiveParams(**cfg["naive"]), cfg["seed"])
     agent = explored.agent
     pairs, set_ids = agent.equality_sets()
     explored_at = time.perf_counter()
-    pipeline.build_representation(agent.points_of_view, pairs, set_ids, cfg, cfg["seed"])
+    build_representation(agent.points_of_view, pairs, set_ids, cfg, cfg["seed"])
     done = time.perf_counter()
     print(json.dumps({"import_s": imported - started, "exploration_s": explored_at - imported,
                       "representation_s": done - explored_at,
@@ -84,12 +85,12 @@ def legacy_offline(config_path: str) -> float:
     """Session 1-7's offline number: ``run_naive_strategy`` (ground-truth
     evaluation included) + representation, in this process, imports excluded."""
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline.representation import build_representation
+    from sensorispace_ros.offline.strategies import run_naive_strategy
     cfg = config.load_config(config_path)
     started = time.perf_counter()
-    produced = pipeline.run_naive_strategy(cfg, cfg["seed"])
-    pipeline.build_representation(produced.povs, produced.pairs, produced.set_ids, cfg,
-                                  cfg["seed"])
+    produced = run_naive_strategy(cfg, cfg["seed"])
+    build_representation(produced.povs, produced.pairs, produced.set_ids, cfg, cfg["seed"])
     return time.perf_counter() - started
 
 

@@ -10,7 +10,7 @@ Benchmarks (each prints its baseline and its ratio, measured in the same run):
                (smoke.yaml with --quick).
   hausdorff    fast matrix vs blocked NumPy brute force on the paper run's
                POVs (seed 0; from --povs-from, else from the end_to_end paper
-               run, else produced with pipeline.run_paper).
+               run, else produced with offline.strategies.run_paper).
   cca          CCA per epoch vs a per-step (P, d) reference; regularisation
                per iteration and its averaging vs a Python loop.
   probe        graph probe round trip vs bare rclpy ping-pong, 1 row and a
@@ -83,10 +83,10 @@ def paper_povs(povs_from: Path | None, e2e: dict | None, quick: bool):
         with np.load(Path(directory) / "arrays.npz") as arrays:
             return arrays["povs"], arrays["pairs"], arrays["set_ids"], str(directory)
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline.strategies import run_paper
     cfg = config.load_config(REPO / "config" / ("smoke.yaml" if quick else "paper.yaml"))
-    produced = pipeline.run_paper(cfg, 0)
-    return produced.povs, produced.pairs, produced.set_ids, "pipeline.run_paper (in process)"
+    produced = run_paper(cfg, 0)
+    return produced.povs, produced.pairs, produced.set_ids, "strategies.run_paper (in process)"
 
 
 def table(results: dict) -> str:

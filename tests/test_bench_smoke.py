@@ -64,7 +64,7 @@ def test_graph_walltime_offline_side_does_the_graphs_work_without_evaluation():
     import subprocess
 
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import strategies
     smoke = str(REPO / "config" / "smoke.yaml")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (str(REPO), os.environ.get("PYTHONPATH")) if p)}
@@ -73,7 +73,7 @@ def test_graph_walltime_offline_side_does_the_graphs_work_without_evaluation():
                           capture_output=True, text=True, cwd=REPO, timeout=300, check=True)
     stages = json.loads(done.stdout.strip().splitlines()[-1])
     cfg = config.load_config(smoke)
-    produced = pipeline.run_naive_strategy(cfg, cfg["seed"])
+    produced = strategies.run_naive_strategy(cfg, cfg["seed"])
     assert stages["points_of_view"] == produced.metrics["pov.count"] > 10
     assert stages["calls"] == produced.metrics["naive.calls_total"]
     assert set(stages) >= {"import_s", "exploration_s", "representation_s"}

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sensorispace_ros.offline import figures, pipeline
+from sensorispace_ros.offline import evaluation, figures, reproduce, run_files, strategies
+from sensorispace_ros.offline.representation import DIMENSIONS, Representation, build_representation
 from sensorispace_ros.config import load_config
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,12 +34,12 @@ REQUIRED_KEYS = [
 @pytest.fixture(scope="module")
 def smoke_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("smoke")
-    metrics = pipeline.reproduce(load_config(SMOKE), "paper", out_dir=out)
+    metrics = reproduce.reproduce(load_config(SMOKE), "paper", out_dir=out)
     return out, metrics
 
 
 def flat(metrics: dict) -> dict:
-    return pipeline.flatten_metrics({k: v for k, v in metrics.items() if k != "config"})
+    return run_files.flatten_metrics({k: v for k, v in metrics.items() if k != "config"})
 
 
 def test_smoke_run_has_every_metric(smoke_run):
@@ -57,7 +58,7 @@ def test_smoke_run_has_every_metric(smoke_run):
 
 def test_smoke_run_counts_are_consistent(smoke_run):
     out, metrics = smoke_run
-    arrays = np.load(out / pipeline.ARRAYS_FILE)
+    arrays = np.load(out / run_files.ARRAYS_FILE)
     n_pov = metrics["pov"]["count"]
     # m0 is a POV of its own, then one per compensation (all valid in the ring).
     assert n_pov == metrics["exploration"]["compensated"] + 1 - metrics["pov"]["invalid"]
@@ -91,13 +92,13 @@ def test_smoke_run_writes_every_figure(smoke_run):
     import matplotlib.image
 
     for name in figures.FIGURES:
-        path = out / pipeline.FIGURES_DIR / f"{name}.png"
+        path = out / run_files.FIGURES_DIR / f"{name}.png"
         assert path.is_file(), name
         image = matplotlib.image.imread(path)
         assert image.shape[0] > 300 and image.shape[1] > 300
         assert image[..., :3].std() > 0.05, f"{name} looks blank"
     # Fig. 6 (drawn in a forked process) is the figure of the stored example POVs
-    arrays = np.load(out / pipeline.ARRAYS_FILE)
+    arrays = np.load(out / run_files.ARRAYS_FILE)
     assert arrays["pov_example"].shape[1] == 4 and arrays["pov_examples_x"].ndim == 3
 
 
@@ -119,7 +120,7 @@ def test_reaching_examples_skip_pairs_a_pruned_graph_does_not_connect():
 
 def test_draw_all_draws_only_the_named_figures(smoke_run, tmp_path):
     out, _ = smoke_run
-    arrays = dict(np.load(out / pipeline.ARRAYS_FILE))
+    arrays = dict(np.load(out / run_files.ARRAYS_FILE))
     written = figures.draw_all(arrays, tmp_path, only=["fig08_projections_before"])
     assert [p.name for p in written] == ["fig08_projections_before.png"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig08_projections_before.png"]
@@ -129,7 +130,7 @@ def test_draw_all_draws_only_the_named_figures(smoke_run, tmp_path):
 
 def test_metrics_json_is_sorted_and_rounded(smoke_run):
     out, _ = smoke_run
-    text = (out / pipeline.METRICS_FILE).read_text()
+    text = (out / run_files.METRICS_FILE).read_text()
 
     def check_sorted(pairs):
         keys = [k for k, _ in pairs]
@@ -142,7 +143,7 @@ def test_metrics_json_is_sorted_and_rounded(smoke_run):
 def test_same_seed_gives_the_same_metrics(smoke_run, tmp_path):
     _, first = smoke_run
     cfg = load_config(SMOKE, overrides={"output.figures": False})
-    second = pipeline.reproduce(cfg, "paper", out_dir=tmp_path)
+    second = reproduce.reproduce(cfg, "paper", out_dir=tmp_path)
     first, second = json.loads(json.dumps(first)), json.loads(json.dumps(second))
     for run in (first, second):
         run.pop("timings_s")
@@ -154,13 +155,13 @@ def test_chains_in_two_processes_equal_one_process(smoke_run):
     """The 2-D and 3-D chains have their own seeded streams: running them in
     two processes changes no bit."""
     out, _ = smoke_run
-    arrays = dict(np.load(out / pipeline.ARRAYS_FILE))
+    arrays = dict(np.load(out / run_files.ARRAYS_FILE))
     cfg = json.loads(str(arrays["config_json"]))
     cfg["representation"]["regularization"]["iterations"] = 2
-    runs = [pipeline.build_representation(arrays["povs"], arrays["pairs"], arrays["set_ids"],
-                                          cfg, int(arrays["seed"]), processes=processes)
+    runs = [build_representation(arrays["povs"], arrays["pairs"], arrays["set_ids"],
+                                 cfg, int(arrays["seed"]), processes=processes)
             for processes in (1, 2)]
-    for dim in pipeline.DIMENSIONS:
+    for dim in DIMENSIONS:
         assert np.array_equal(runs[0].before[dim], runs[1].before[dim])
         assert np.array_equal(runs[0].iterations[dim], runs[1].iterations[dim])
         assert np.array_equal(runs[0].set_spread[dim], runs[1].set_spread[dim])
@@ -168,8 +169,8 @@ def test_chains_in_two_processes_equal_one_process(smoke_run):
     # the smoke run itself (default processes) gave the same first iteration
     assert np.array_equal(runs[0].before["2d"], arrays["embedding_2d_before"])
     with pytest.raises(ValueError, match="processes"):
-        pipeline.build_representation(arrays["povs"], arrays["pairs"], arrays["set_ids"], cfg,
-                                       0, processes=0)
+        build_representation(arrays["povs"], arrays["pairs"], arrays["set_ids"], cfg,
+                             0, processes=0)
 
 
 def test_points_of_view_in_two_processes_equal_one_batch():
@@ -178,8 +179,8 @@ def test_points_of_view_in_two_processes_equal_one_batch():
     cfg = load_config(SMOKE)
     rng = np.random.default_rng(3)
     motor = np.array(cfg["arm"]["initial_motor_state"]) + rng.uniform(-1.0, 1.0, (64, 4))
-    one = pipeline._sample_points_of_view(motor, cfg, processes=1)
-    two = pipeline._sample_points_of_view(motor, cfg, processes=2)
+    one = strategies._sample_points_of_view(motor, cfg, processes=1)
+    two = strategies._sample_points_of_view(motor, cfg, processes=2)
     assert np.array_equal(one.samples, two.samples)
     assert np.array_equal(one.valid, two.valid) and one.reason == two.reason
     assert np.array_equal(one.steps, two.steps) and np.array_equal(one.winding, two.winding)
@@ -190,10 +191,10 @@ def test_points_of_view_in_two_processes_equal_one_batch():
 def test_run_arrays_reproduce_the_evaluation(smoke_run):
     """arrays.npz alone gives back the representation's numbers."""
     out, metrics = smoke_run
-    arrays = dict(np.load(out / pipeline.ARRAYS_FILE))
+    arrays = dict(np.load(out / run_files.ARRAYS_FILE))
     cfg = json.loads(str(arrays["config_json"]))
-    representation = pipeline.representation_from_arrays(arrays)
-    again = pipeline.evaluate(representation, arrays["true_positions"], arrays["povs"], cfg,
+    representation = run_files.representation_from_arrays(arrays)
+    again = evaluation.evaluate(representation, arrays["true_positions"], arrays["povs"], cfg,
                               int(arrays["seed"]))
     again.pop("timings_s.reaching")
     written = flat(metrics)
@@ -211,14 +212,15 @@ def test_graph_run_evaluation_matches_reproduce(smoke_run, tmp_path):
     """The ROS side hands over only the agent's arrays; ground truth comes from
     the forward model and the numbers are those of ``reproduce``."""
     out, metrics = smoke_run
-    stored = np.load(out / pipeline.ARRAYS_FILE)
+    stored = np.load(out / run_files.ARRAYS_FILE)
     agent_side = {key: stored[key] for key in
                   ("povs", "pairs", "set_ids", "hausdorff", "embedding_2d_before",
                    "embedding_3d_before", "embedding_2d_iterations", "embedding_3d_iterations",
                    "set_spread_2d", "set_spread_3d")}
     cfg = load_config(SMOKE, overrides={"output.figures": False})
-    graph = pipeline.evaluate_graph_run(agent_side, cfg, tmp_path, metrics={"naive.coverage": 1.0})
-    assert (tmp_path / pipeline.METRICS_FILE).is_file()
+    graph = evaluation.evaluate_graph_run(agent_side, cfg, tmp_path,
+                                          metrics={"naive.coverage": 1.0})
+    assert (tmp_path / run_files.METRICS_FILE).is_file()
     assert graph["naive"]["coverage"] == 1.0
     for dim in ("2d", "3d"):
         for stage in ("before", "after"):
@@ -241,10 +243,10 @@ def ring_grid(step: float = 0.5) -> np.ndarray:
     return grid[(radius >= 1.0) & (radius <= 3.0)]
 
 
-def representation_of(points_2d: np.ndarray) -> pipeline.Representation:
+def representation_of(points_2d: np.ndarray) -> Representation:
     points_3d = np.c_[points_2d, np.zeros(len(points_2d))]
     distance = np.linalg.norm(points_2d[:, None] - points_2d[None], axis=-1)
-    return pipeline.Representation(
+    return Representation(
         distance=distance, before={"2d": points_2d, "3d": points_3d},
         iterations={"2d": points_2d[None], "3d": points_3d[None]},
         set_spread={"2d": np.array([0.0, 0.0]), "3d": np.array([0.0, 0.0])})
@@ -256,7 +258,7 @@ def test_evaluation_of_an_exact_representation():
     # An affine image of the truth (rotation, scale, shift) is perfect.
     angle = 0.7
     rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-    metrics = pipeline.evaluate(representation_of(2.5 * positions @ rotation.T + 4.0),
+    metrics = evaluation.evaluate(representation_of(2.5 * positions @ rotation.T + 4.0),
                                 positions, None, cfg, seed=0)
     assert metrics["quality.2d.before.affine_residual"] < 1e-9
     assert metrics["quality.3d.after.affine_residual"] < 1e-9
@@ -273,7 +275,7 @@ def test_evaluation_of_a_warped_representation_is_worse():
     # Radial warp (|x| -> |x|^2) keeps topology but breaks the metric.
     radius = np.hypot(*positions.T)[:, None]
     warped = positions * radius
-    metrics = pipeline.evaluate(representation_of(warped), positions, None, cfg, seed=0)
+    metrics = evaluation.evaluate(representation_of(warped), positions, None, cfg, seed=0)
     assert metrics["quality.2d.before.affine_residual"] > 0.05
     assert metrics["metric.2d.before.unit_step_cv"] > 0.2
 
@@ -284,17 +286,17 @@ def test_neighbours_true_fraction_counts_swapped_points():
     # Swap two far-apart POVs: each now sits among strangers.
     far = int(np.argmax(np.linalg.norm(positions - positions[0], axis=1)))
     embedding[[0, far]] = embedding[[far, 0]]
-    fraction = pipeline._neighbours_true_fraction(embedding, positions)
+    fraction = evaluation._neighbours_true_fraction(embedding, positions)
     # the two swapped POVs, and POVs that now find a stranger among their nearest
     assert fraction <= 1.0 - 3 / len(positions)
-    assert pipeline._neighbours_true_fraction(positions, positions) == 1.0
+    assert evaluation._neighbours_true_fraction(positions, positions) == 1.0
 
 
 def test_unit_step_cv_by_hand():
     distance = np.array([[0.0, 1.0, 3.0], [1.0, 0.0, 2.0], [3.0, 2.0, 0.0]])
     # lengths 1 and 3: std 1, mean 2
-    assert pipeline._unit_step_cv(distance, np.array([[0, 1], [0, 2]])) == pytest.approx(0.5)
-    assert pipeline._unit_step_cv(distance, np.array([[0, 1], [1, 0]])) == 0.0
+    assert evaluation._unit_step_cv(distance, np.array([[0, 1], [0, 2]])) == pytest.approx(0.5)
+    assert evaluation._unit_step_cv(distance, np.array([[0, 1], [1, 0]])) == 0.0
 
 
 # ---------------------------------------------------------------------------
@@ -303,7 +305,7 @@ def test_unit_step_cv_by_hand():
 
 def test_write_metrics_rounds_sorts_and_nulls_non_finite(tmp_path):
     path = tmp_path / "m.json"
-    pipeline.write_metrics({"b": {"y": 0.1 + 0.2, "x": float("nan")}, "a": np.int64(3),
+    run_files.write_metrics({"b": {"y": 0.1 + 0.2, "x": float("nan")}, "a": np.int64(3),
                             "c": [np.float64(1.0) / 3.0, float("inf")]}, path)
     text = path.read_text()
     assert text.index('"a"') < text.index('"b"') and text.index('"x"') < text.index('"y"')
@@ -313,11 +315,11 @@ def test_write_metrics_rounds_sorts_and_nulls_non_finite(tmp_path):
 
 def test_nest_and_flatten_are_inverse_and_collisions_raise():
     flat_metrics = {"a.b": 1, "a.c.d": 2.5, "e": "x"}
-    assert pipeline.flatten_metrics(pipeline.nest(flat_metrics)) == flat_metrics
+    assert run_files.flatten_metrics(run_files.nest(flat_metrics)) == flat_metrics
     with pytest.raises(ValueError):
-        pipeline.nest({"a": 1, "a.b": 2})
+        run_files.nest({"a": 1, "a.b": 2})
 
 
 def test_unknown_strategy_is_rejected(tmp_path):
     with pytest.raises(ValueError, match="strategy must be one of paper, naive"):
-        pipeline.reproduce(load_config(SMOKE), "clever", out_dir=tmp_path)
+        reproduce.reproduce(load_config(SMOKE), "clever", out_dir=tmp_path)

@@ -39,7 +39,7 @@ def _seed(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from sensorispace_ros import config as config_mod
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline.reproduce import reproduce
     from sensorispace_ros.progress import Progress
 
     overrides = {}
@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = config_mod.load_config(args.config, overrides)
     out = Path(args.out) if args.out else Path("results") / f"{args.strategy}-seed{cfg['seed']}"
     progress = Progress(enabled=not args.quiet)
-    metrics = pipeline.reproduce(cfg, args.strategy, out_dir=out, progress=progress)
+    metrics = reproduce(cfg, args.strategy, out_dir=out, progress=progress,
+                        figures=not args.no_figures)
     print(summary_table(metrics, out))
     return 0

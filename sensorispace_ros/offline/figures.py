@@ -1,8 +1,7 @@
 """The paper's result figures, drawn from a run's arrays (``arrays.npz``).
 
-Every function takes the mapping of arrays that ``pipeline.reproduce``
-writes, so a figure can be redrawn from ``arrays.npz`` without re-running
-anything. File names follow the paper's figure numbers (LaTeX source order):
+Every function takes the mapping of arrays a run writes (``run_files``),
+so a figure can be redrawn from ``arrays.npz`` without re-running anything. File names follow the paper's figure numbers (LaTeX source order):
 6 point of view, 7 exploration, 8 projections, 9 metric differences,
 11 equality sets, 12 regularised projections, 14/15 reaching, 16 metric
 comparisons.
@@ -14,7 +13,7 @@ same POV has the same colour in every panel, so topology can be read by eye.
 """
 from __future__ import annotations
 
-import json
+import os
 from pathlib import Path
 from typing import Callable, Mapping
 
@@ -23,183 +22,19 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-from matplotlib.colors import hsv_to_rgb, to_rgb  # noqa: E402
+from matplotlib.colors import to_rgb  # noqa: E402
 from matplotlib.patches import Circle, Wedge  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
 
 from sensorispace_ros.core import arm  # noqa: E402
 from sensorispace_ros.core.seeding import rng_for  # noqa: E402
-
-TWO_PI = 2.0 * np.pi
-DPI = 110
-PAIR_COLOURS = ("#1f77b4", "#d62728", "#2ca02c")       # three examples: blue, red, green
-ARM_REACH = 3.0
-ARM_HOLE = 1.0                                          # |tip| < 1: POV splits in two loops
-
-
-# ---------------------------------------------------------------------------
-# Shared pieces
-
-
-def position_colours(positions: np.ndarray) -> np.ndarray:
-    """RGB ``(P, 3)``: hue = angle of the sensor around the base, saturation = radius."""
-    positions = np.asarray(positions, dtype=float)
-    angle = np.arctan2(positions[:, 1], positions[:, 0])
-    radius = np.hypot(positions[:, 0], positions[:, 1])
-    hue = (angle + np.pi) / TWO_PI
-    saturation = 0.25 + 0.75 * np.clip((radius - ARM_HOLE) / (ARM_REACH - ARM_HOLE), 0.0, 1.0)
-    value = np.full_like(hue, 0.9)
-    return hsv_to_rgb(np.stack([hue, saturation, value], axis=-1))
-
-
-def arm_points(motor: np.ndarray) -> np.ndarray:
-    """Base, elbow joints and tip of the arm, ``(..., 4, 2)``."""
-    theta = np.cumsum(np.asarray(motor, dtype=float)[..., :3], axis=-1)
-    steps = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
-    zero = np.zeros(steps.shape[:-2] + (1, 2))
-    return np.concatenate([zero, np.cumsum(steps, axis=-2)], axis=-2)
-
-
-def draw_arms(ax, motors: np.ndarray, colours, linewidth: float = 0.8, alpha: float = 1.0,
-              eye_length: float = 0.25) -> None:
-    """Arms as polylines with the eye's optical axis as a short tick at the tip."""
-    motors = np.atleast_2d(motors)
-    points = arm_points(motors)
-    colours = np.broadcast_to(np.asarray(to_rgb(colours) if isinstance(colours, str)
-                                         else colours, dtype=float), (len(motors), 3))
-    ax.add_collection(LineCollection(points, colors=colours, linewidths=linewidth, alpha=alpha))
-    pose = arm.forward(motors)
-    axis = np.stack([pose[:, :2], pose[:, :2] + eye_length * np.stack(
-        [np.cos(pose[:, 2]), np.sin(pose[:, 2])], axis=-1)], axis=1)
-    ax.add_collection(LineCollection(axis, colors=colours, linewidths=linewidth * 2.5,
-                                     alpha=alpha))
-    ax.plot([0], [0], marker="s", color="k", markersize=5)
-
-
-def centred_loop(samples: np.ndarray) -> np.ndarray:
-    """Shift each joint of a POV by a multiple of 2 pi so its mean lies in [-pi, pi).
-
-    A whole POV is a closed loop in unwrapped coordinates; shifting (not
-    wrapping) keeps it one unbroken curve while putting all POVs in one box.
-    """
-    samples = np.asarray(samples, dtype=float)
-    shift = TWO_PI * np.round(samples.mean(axis=-2, keepdims=True) / TWO_PI)
-    return samples - shift
-
-
-def closed(samples: np.ndarray) -> np.ndarray:
-    return np.concatenate([samples, samples[..., :1, :]], axis=-2)
-
-
-def wrapped_path(motor: np.ndarray) -> np.ndarray:
-    """Motor path wrapped to [-pi, pi) with NaN rows where a joint jumps by
-    2 pi, so a plot shows the jump as a gap instead of a line across the box."""
-    motor = np.asarray(motor, dtype=float)
-    wrapped = arm.wrap_angle(motor)
-    jump = np.any(np.abs(np.diff(wrapped, axis=0)) > np.pi, axis=1)
-    rows = []
-    for k, row in enumerate(wrapped):
-        if k and jump[k - 1]:
-            rows.append(np.full(motor.shape[1], np.nan))
-        rows.append(row)
-    return np.asarray(rows)
-
-
-def _scatter(ax, points: np.ndarray, colours, size: float = 8.0, **kwargs) -> None:
-    points = np.asarray(points)
-    if points.shape[1] == 3:
-        ax.scatter(points[:, 0], points[:, 1], points[:, 2], c=colours, s=size,
-                   depthshade=False, linewidths=0, **kwargs)
-    else:
-        ax.scatter(points[:, 0], points[:, 1], c=colours, s=size, linewidths=0, **kwargs)
-
-
-def _axes(fig, position, dim: int, title: str):
-    ax = fig.add_subplot(position, projection="3d" if dim == 3 else None)
-    ax.set_title(title, fontsize=10)
-    if dim == 2:
-        ax.set_aspect("equal", adjustable="datalim")
-    else:
-        ax.tick_params(labelsize=7)
-    return ax
-
-
-def _equal_3d(ax, points: np.ndarray) -> None:
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    centre, half = (lo + hi) / 2.0, (hi - lo).max() / 2.0 or 1.0
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
-    ax.set_box_aspect((1, 1, 1))
-
-
-def _face_on(ax, points: np.ndarray) -> None:
-    """Look at a (nearly planar) 3-D curve along its least-spread direction,
-    so a loop is seen as a loop rather than edge-on."""
-    centred = points - points.mean(axis=0)
-    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
-    if normal[2] < 0:
-        normal = -normal
-    # Tilted a little off the normal so the 3-D axes stay readable.
-    ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(normal[2], -1, 1)))) * 0.8 + 8.0,
-                 azim=float(np.degrees(np.arctan2(normal[1], normal[0]))))
-
-
-def _motor_axes(ax) -> None:
-    ax.set_xlabel("m1 (rad)", fontsize=8)
-    ax.set_ylabel("m2 (rad)", fontsize=8)
-    ax.set_zlabel("m3 (rad)", fontsize=8)
-    ax.tick_params(labelsize=7)
-
-
-def _segments(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    return np.stack([points[pairs[:, 0]], points[pairs[:, 1]]], axis=1)
-
-
-def _add_segments(ax, segments: np.ndarray, colour, linewidth: float = 0.8,
-                  alpha: float = 1.0) -> None:
-    if segments.shape[-1] == 3:
-        ax.add_collection3d(Line3DCollection(segments, colors=colour, linewidths=linewidth,
-                                             alpha=alpha))
-    else:
-        ax.add_collection(LineCollection(segments, colors=colour, linewidths=linewidth,
-                                         alpha=alpha))
-
-
-def _plot_path(ax, points: np.ndarray, colour, linewidth: float = 1.5, **kwargs) -> None:
-    if points.shape[1] == 3:
-        ax.plot(points[:, 0], points[:, 1], points[:, 2], color=colour, linewidth=linewidth,
-                **kwargs)
-    else:
-        ax.plot(points[:, 0], points[:, 1], color=colour, linewidth=linewidth, **kwargs)
-
-
-def _lighter(colour, amount: float = 0.6):
-    rgb = np.asarray(to_rgb(colour))
-    return tuple(rgb + (1.0 - rgb) * amount)
-
-
-def _config(arrays: Mapping) -> dict:
-    return json.loads(str(arrays["config_json"]))
-
-
-def grid_transitions(positions: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """POV index pairs one grid step apart: (horizontal ``(H, 2)``, vertical ``(V, 2)``).
-
-    By distance, not by rounding to a lattice: the initial POV sits half a
-    cell off the others' lattice and must get no transition.
-    """
-    from scipy.spatial import cKDTree
-
-    positions = np.asarray(positions, dtype=float)
-    pairs = cKDTree(positions).query_pairs(1.01 * spacing, output_type="ndarray")
-    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
-    step = positions[pairs[:, 1]] - positions[pairs[:, 0]]
-    exact = np.abs(np.hypot(*step.T) - spacing) < 0.01 * spacing
-    horizontal = exact & (np.abs(step[:, 1]) < 0.01 * spacing)
-    vertical = exact & (np.abs(step[:, 0]) < 0.01 * spacing)
-    return pairs[horizontal], pairs[vertical]
+from sensorispace_ros.offline.figure_style import (ARM_HOLE, ARM_REACH, DPI,  # noqa: E402
+                                                   PAIR_COLOURS, add_segments, centred_loop,
+                                                   closed, draw_arms, equal_3d, face_on,
+                                                   grid_transitions, lighter, motor_axes,
+                                                   panel_axes, plot_path, position_colours,
+                                                   run_config, scatter_points, segments_of,
+                                                   wrapped_path)
 
 
 # ---------------------------------------------------------------------------
@@ -231,9 +66,9 @@ def fig06_point_of_view(arrays: Mapping) -> plt.Figure:
     segments = np.stack([loop[:-1, :3], loop[1:, :3]], axis=1)
     ax.add_collection3d(Line3DCollection(segments, colors=order_colours, linewidths=2.0))
     ax.scatter(*example[shown, :3].T, c=order_colours[shown], s=25, depthshade=False)
-    _equal_3d(ax, loop[:, :3])
-    _face_on(ax, loop[:, :3])
-    _motor_axes(ax)
+    equal_3d(ax, loop[:, :3])
+    face_on(ax, loop[:, :3])
+    motor_axes(ax)
     ax.set_title("(a) the same POV in motor space: a closed 1-D loop\n"
                  "(joints 1-3; colour = position along the loop)", fontsize=10)
 
@@ -266,8 +101,8 @@ def fig06_point_of_view(arrays: Mapping) -> plt.Figure:
             label = f"|tip| = {np.hypot(*tips[k, :2]):.2f}: one of two loops"
         ax.plot(*loop[:, :3].T, color=colours[k], linewidth=1.5, label=label)
     if valid.any():
-        _face_on(ax, np.concatenate([closed(centred_loop(p))[:, :3] for p in povs[valid]]))
-    _motor_axes(ax)
+        face_on(ax, np.concatenate([closed(centred_loop(p))[:, :3] for p in povs[valid]]))
+    motor_axes(ax)
     ax.legend(fontsize=7, loc="upper left")
     ax.set_title("(b) their points of view in motor space", fontsize=10)
     fig.tight_layout()
@@ -278,17 +113,35 @@ def fig07_exploration(arrays: Mapping) -> plt.Figure:
     """Paper Fig. 7: (a) object grid, working space, compensated positions;
     (b) compensating arm configurations; (c) compensating motor states;
     (d) their points of view."""
-    grid = np.asarray(arrays["grid"])
-    grid_index = np.asarray(arrays["grid_index"], dtype=int)
     m0 = np.asarray(arrays["initial_motor_state"], dtype=float)
     motor = np.asarray(arrays["motor_states"])
-    positions = np.asarray(arrays["true_positions"])
     povs = np.asarray(arrays["povs"])
-    colours = position_colours(positions)
-    tip0 = arm.forward(m0)[:2]
+    colours = position_colours(np.asarray(arrays["true_positions"]))
 
     fig = plt.figure(figsize=(13, 11.5))
-    ax = fig.add_subplot(2, 2, 1)
+    _object_positions_panel(fig.add_subplot(2, 2, 1), arrays)
+
+    ax = fig.add_subplot(2, 2, 2)
+    draw_arms(ax, motor, colours, linewidth=0.4, alpha=0.7, eye_length=0.12)
+    draw_arms(ax, m0, "k", linewidth=2.0)
+    ax.set_aspect("equal")
+    ax.set_xlim(-3.3, 3.3)
+    ax.set_ylim(-3.3, 3.3)
+    ax.set_title("(b) compensating arm configurations\n(colour = angle of the tip around "
+                 "the base; pale = near the base)", fontsize=10)
+
+    _motor_states_panel(fig.add_subplot(2, 2, 3, projection="3d"), motor, m0, colours)
+    _pov_loops_panel(fig.add_subplot(2, 2, 4, projection="3d"), povs, colours)
+    fig.tight_layout()
+    return fig
+
+
+def _object_positions_panel(ax, arrays: Mapping) -> None:
+    """Fig. 7 (a): the object grid, the arm's working space, the compensated
+    displacements and the grid positions in reach that none compensated."""
+    grid = np.asarray(arrays["grid"])
+    m0 = np.asarray(arrays["initial_motor_state"], dtype=float)
+    tip0 = arm.forward(m0)[:2]
     ax.add_patch(Wedge((0, 0), ARM_REACH, 0, 360, width=ARM_REACH - ARM_HOLE,
                        color="#a6dba0", alpha=0.6, linewidth=0, label="arm working space"))
     ax.scatter(*grid.T, s=2, color="0.75", linewidths=0, label="object positions (grid)")
@@ -297,27 +150,15 @@ def fig07_exploration(arrays: Mapping) -> plt.Figure:
     # displacement, so the paper strategy's POVs land on their grid positions
     # and a naive run's (anchored with the object on the grid, hence half a
     # cell off the paper's lattice) are shown where they really are.
-    equivalent = positions - tip0
+    equivalent = np.asarray(arrays["true_positions"]) - tip0
     ax.scatter(*equivalent.T, s=7, color="#2166ac", linewidths=0,
                label=f"compensated displacements ({len(equivalent)} POVs)")
-    # Object displacement e needs the tip at tip0 + e: compensable positions
-    # form the working space shifted by -tip0.
-    reachable = np.hypot(*(grid + tip0).T)
-    expected = (reachable >= ARM_HOLE) & (reachable <= ARM_REACH)
-    spacing = float(arrays.get("grid_spacing", np.inf))
-    missed = []
-    if len(equivalent):
-        from scipy.spatial import cKDTree
-
-        distance, _ = cKDTree(equivalent).query(grid, k=1)
-        on_lattice = np.mean(cKDTree(grid).query(equivalent, k=1)[0] < 0.25 * spacing) > 0.5
-        # "Missed" only means something on the paper's own lattice.
-        if on_lattice:
-            missed = np.flatnonzero(expected & (distance > 0.25 * spacing))
     for radius in (ARM_HOLE, ARM_REACH):
         ax.add_patch(Circle(-tip0, radius, fill=False, linestyle="--", color="#2166ac",
                             linewidth=0.8, label=None if radius == ARM_HOLE else
                             "object positions the tip can follow"))
+    missed = _missed_grid_positions(grid, equivalent, tip0,
+                                    float(arrays.get("grid_spacing", np.inf)))
     if len(missed):
         ax.scatter(*grid[missed].T, s=30, facecolors="none", edgecolors="#d7191c",
                    linewidths=1.0, label=f"in reach, not compensated ({len(missed)})")
@@ -329,47 +170,58 @@ def fig07_exploration(arrays: Mapping) -> plt.Figure:
     ax.legend(fontsize=7, loc="upper right", framealpha=0.9)
     ax.set_title("(a) object positions and the arm's initial configuration", fontsize=10)
 
-    ax = fig.add_subplot(2, 2, 2)
-    draw_arms(ax, motor, colours, linewidth=0.4, alpha=0.7, eye_length=0.12)
-    draw_arms(ax, m0, "k", linewidth=2.0)
-    ax.set_aspect("equal")
-    ax.set_xlim(-3.3, 3.3)
-    ax.set_ylim(-3.3, 3.3)
-    ax.set_title("(b) compensating arm configurations\n(colour = angle of the tip around "
-                 "the base; pale = near the base)", fontsize=10)
 
-    ax = fig.add_subplot(2, 2, 3, projection="3d")
+def _missed_grid_positions(grid: np.ndarray, equivalent: np.ndarray, tip0: np.ndarray,
+                           spacing: float) -> np.ndarray:
+    """Grid positions the tip can follow that no compensated displacement
+    reaches; only meaningful when the displacements lie on the grid's lattice."""
+    from scipy.spatial import cKDTree
+
+    if not len(equivalent):
+        return np.zeros(0, dtype=int)
+    # Object displacement e needs the tip at tip0 + e: compensable positions
+    # form the working space shifted by -tip0.
+    reachable = np.hypot(*(grid + tip0).T)
+    expected = (reachable >= ARM_HOLE) & (reachable <= ARM_REACH)
+    distance, _ = cKDTree(equivalent).query(grid, k=1)
+    on_lattice = np.mean(cKDTree(grid).query(equivalent, k=1)[0] < 0.25 * spacing) > 0.5
+    if not on_lattice:
+        return np.zeros(0, dtype=int)
+    return np.flatnonzero(expected & (distance > 0.25 * spacing))
+
+
+def _motor_states_panel(ax, motor: np.ndarray, m0: np.ndarray, colours) -> None:
+    """Fig. 7 (c): the compensating motor states, joints 1-3."""
     shown = centred_loop(motor[:, None, :])[:, 0]
     ax.scatter(*shown[:, :3].T, c=colours, s=8, depthshade=False, linewidths=0)
     m0_shown = centred_loop(m0[None, None, :])[0, 0]
     ax.scatter(*m0_shown[:3], color="k", s=80, marker="o", depthshade=False,
                label="initial motor state")
-    _motor_axes(ax)
+    motor_axes(ax)
     ax.legend(fontsize=7)
     ax.set_title("(c) compensating motor states (joints 1-3)", fontsize=10)
 
-    ax = fig.add_subplot(2, 2, 4, projection="3d")
+
+def _pov_loops_panel(ax, povs: np.ndarray, colours) -> None:
+    """Fig. 7 (d): every POV as a loop in motor space, joints 1-3."""
     loops = closed(centred_loop(povs))[:, :, :3]
-    # One polyline per loop: as 2-point segments (65k for the paper's POVs)
-    # Agg took 7.7 s to save this figure, 40% of all figures (issue #6).
+    # One polyline per loop (not 2-point segments): far quicker to save.
     ax.add_collection3d(Line3DCollection(loops, colors=colours,
                                          linewidths=0.3 if len(povs) > 200 else 0.8,
                                          alpha=0.6))
-    _equal_3d(ax, loops.reshape(-1, 3))
-    _motor_axes(ax)
+    equal_3d(ax, loops.reshape(-1, 3))
+    motor_axes(ax)
     ax.set_title(f"(d) their {len(povs)} points of view (loops in motor space)", fontsize=10)
-    fig.tight_layout()
-    return fig
 
 
 def _projection_panels(fig, arrays: Mapping, panels, suptitle: str) -> plt.Figure:
     colours = position_colours(arrays["true_positions"])
     for position, points, title in panels:
         points = np.asarray(points)
-        ax = _axes(fig, position, points.shape[1], title)
-        _scatter(ax, points, colours, size=10)
+        ax = panel_axes(fig, position, points.shape[1], title)
+        scatter_points(ax, points, colours, size=10)
         if points.shape[1] == 3:
-            _equal_3d(ax, points)
+            equal_3d(ax, points)
     fig.suptitle(suptitle, fontsize=11)
     fig.tight_layout()
     return fig
@@ -394,11 +246,11 @@ def fig09_metric_differences(arrays: Mapping) -> plt.Figure:
               (np.asarray(arrays["embedding_2d_before"]), "(b) the same steps in 2-D"),
               (np.asarray(arrays["embedding_3d_before"]), "(c) the same steps in 3-D")]
     for k, (points, title) in enumerate(spaces):
-        ax = _axes(fig, 131 + k, points.shape[1], title)
-        _add_segments(ax, _segments(points, horizontal), "#2166ac", linewidth=0.7)
-        _add_segments(ax, _segments(points, vertical), "#d6604d", linewidth=0.7)
+        ax = panel_axes(fig, 131 + k, points.shape[1], title)
+        add_segments(ax, segments_of(points, horizontal), "#2166ac", linewidth=0.7)
+        add_segments(ax, segments_of(points, vertical), "#d6604d", linewidth=0.7)
         if points.shape[1] == 3:
-            _equal_3d(ax, points)
+            equal_3d(ax, points)
         else:
             ax.autoscale()
     fig.tight_layout()
@@ -452,14 +304,14 @@ def fig11_equality_sets(arrays: Mapping, seed: int = 0) -> plt.Figure:
               (np.asarray(arrays["embedding_2d_before"]), "(b) 2-D representation"),
               (np.asarray(arrays["embedding_3d_before"]), "(c) 3-D representation")]
     for k, (points, title) in enumerate(spaces):
-        ax = _axes(fig, 131 + k, points.shape[1], title)
-        _scatter(ax, points, "0.82", size=5)
+        ax = panel_axes(fig, 131 + k, points.shape[1], title)
+        scatter_points(ax, points, "0.82", size=5)
         for colour, rows in zip(PAIR_COLOURS, members):
-            segments = _segments(points, rows)
-            _add_segments(ax, segments, colour, linewidth=1.3)
-            _scatter(ax, segments[:, 1], colour, size=14)     # heads mark the direction
+            segments = segments_of(points, rows)
+            add_segments(ax, segments, colour, linewidth=1.3)
+            scatter_points(ax, segments[:, 1], colour, size=14)     # heads mark the direction
         if points.shape[1] == 3:
-            _equal_3d(ax, points)
+            equal_3d(ax, points)
     fig.suptitle("Three equality sets (up to 15 members each; dots mark where each change ends)",
                  fontsize=11)
     fig.tight_layout()
@@ -537,7 +389,7 @@ def reaching_examples(arrays: Mapping, dim: str, seed: int = 0, count: int = 3) 
     the pruned graph of the ``dim`` representation (the figure's data)."""
     from sensorispace_ros.core import reach
 
-    cfg = _config(arrays)["representation"]["reaching"]
+    cfg = run_config(arrays)["representation"]["reaching"]
     positions = np.asarray(arrays["true_positions"])
     povs = np.asarray(arrays["povs"])
     rng = rng_for(seed, "figures.reaching")
@@ -583,13 +435,13 @@ def _reaching_figure(arrays: Mapping, dim: str, number: int, seed: int) -> plt.F
     fig = plt.figure(figsize=(18, 5.2))
     for k, stage in enumerate(("before", "after")):
         points = examples["embeddings"][stage]
-        ax = _axes(fig, 141 + k, n_dim, f"(a) internal paths, {dim[0]}-D {stage} regularisation")
-        _scatter(ax, points, "0.82", size=4)
+        ax = panel_axes(fig, 141 + k, n_dim, f"(a) internal paths, {dim[0]}-D {stage} regularisation")
+        scatter_points(ax, points, "0.82", size=4)
         for colour, path in zip(PAIR_COLOURS, examples["paths"][stage]):
-            _plot_path(ax, points[path], colour, marker=".", markersize=4)
-            _scatter(ax, points[path[[0, -1]]], colour, size=40)
+            plot_path(ax, points[path], colour, marker=".", markersize=4)
+            scatter_points(ax, points[path[[0, -1]]], colour, size=40)
         if n_dim == 3:
-            _equal_3d(ax, points)
+            equal_3d(ax, points)
 
     ax = fig.add_subplot(143, projection="3d")
     rng = rng_for(seed, "figures.reaching_background")
@@ -598,9 +450,9 @@ def _reaching_figure(arrays: Mapping, dim: str, number: int, seed: int) -> plt.F
     for stage, light in (("before", 0.5), ("after", 0.0)):
         for colour, motor in zip(PAIR_COLOURS, examples["motor"][stage]):
             shown = wrapped_path(motor)
-            ax.plot(*shown[:, :3].T, color=_lighter(colour, light), linewidth=1.4,
+            ax.plot(*shown[:, :3].T, color=lighter(colour, light), linewidth=1.4,
                     marker=".", markersize=3)
-    _motor_axes(ax)
+    motor_axes(ax)
     ax.set_xlim(-np.pi, np.pi)
     ax.set_ylim(-np.pi, np.pi)
     ax.set_zlim(-np.pi, np.pi)
@@ -611,7 +463,7 @@ def _reaching_figure(arrays: Mapping, dim: str, number: int, seed: int) -> plt.F
     ax.scatter(*positions.T, s=4, color="0.82", linewidths=0)
     for stage, light in (("before", 0.6), ("after", 0.0)):
         for colour, path in zip(PAIR_COLOURS, examples["paths"][stage]):
-            ax.plot(*positions[path].T, color=_lighter(colour, light), linewidth=2.0,
+            ax.plot(*positions[path].T, color=lighter(colour, light), linewidth=2.0,
                     marker=".", markersize=4,
                     label=None if colour != PAIR_COLOURS[0] else f"{stage} regularisation")
     for colour, s, t in zip(PAIR_COLOURS, examples["starts"], examples["targets"]):
@@ -670,3 +522,58 @@ def draw_all(arrays: Mapping, out_dir: str | Path, seed: int = 0,
         if progress is not None:
             progress(k + 1, len(chosen))
     return written
+
+
+EXAMPLES_FIGURE = "fig06_point_of_view"
+
+
+def draw_run_figures(arrays: Mapping, cfg: dict, figures_dir: Path, progress=None) -> dict:
+    """Every figure of a run; returns the arrays of Fig. 6's example POVs.
+
+    Fig. 6 samples POVs of its own (``figure_examples``), so when
+    ``chain_pool.can_fork`` a forked process does it while this one draws the others.
+    """
+    from sensorispace_ros.offline.chain_pool import can_fork
+
+    others = [name for name in FIGURES if name != EXAMPLES_FIGURE]
+    if not (can_fork() and (os.cpu_count() or 1) > 1):
+        examples = _examples_figure(cfg, figures_dir)
+        draw_all(arrays, figures_dir, seed=cfg["seed"], progress=progress, only=others)
+        return examples
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=1,
+                             mp_context=multiprocessing.get_context("fork")) as pool:
+        future = pool.submit(_examples_figure, cfg, figures_dir)
+        draw_all(arrays, figures_dir, seed=cfg["seed"], progress=progress, only=others)
+        return future.result()
+
+
+def _examples_figure(cfg: dict, figures_dir: Path) -> dict:
+    """Fig. 6 from its own POVs (``figure_examples``); returns those arrays."""
+    examples = figure_examples(cfg)
+    draw_all(examples, figures_dir, seed=cfg["seed"], only=[EXAMPLES_FIGURE])
+    return examples
+
+
+def figure_examples(cfg: dict) -> dict:
+    """POVs drawn only for Fig. 6: the initial motor state's POV, and POVs
+    of sensor poses along the x axis (one of them inside |tip| < 1)."""
+    from sensorispace_ros.core.paper.points_of_view import project_onto_pose, sample_points_of_view
+    from sensorispace_ros.offline.strategies import pov_params
+
+    m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
+    reach = np.array([0.6, 1.3, 1.8, 2.3, 2.8])
+    # Start each from a folded arm pointing along x, projected onto its pose.
+    guess = np.array([[-1.2, 1.6, -0.4 - 0.2 * k, 0.0] for k in range(len(reach))])
+    guess[:, 3] = -np.sum(guess[:, :3], axis=1) + np.pi / 2     # eye looking up
+    targets = np.stack([reach, np.zeros_like(reach), np.full_like(reach, np.pi / 2)], axis=1)
+    starts, error = project_onto_pose(guess[:, None, :], targets)
+    starts = starts[:, 0][error[:, 0] < 1e-9]
+    sampled = sample_points_of_view(np.vstack([m0[None, :], starts]), **pov_params(cfg))
+    tips = np.hypot(*arm.forward(sampled.samples[1:, 0])[:, :2].T)
+    return {"pov_example": sampled.samples[0],
+            "pov_examples_x": sampled.samples[1:],
+            "pov_examples_x_valid": np.asarray(sampled.valid[1:], dtype=bool),
+            "pov_examples_x_reach": tips}

@@ -21,7 +21,7 @@ What the bag gives (see recording.bag_format, nodes/recorder.py):
   layout version = redistributions so far) and the world rebuilt from the
   bag's configuration (initial centre, the paper strategy's compensated
   positions for the coverage denominator) by the offline evaluator itself,
-  ``core.naive_evaluation.evaluate_naive_records``.
+  ``offline.evaluation.evaluate_naive_records``.
 
 Duplicates (issue #7): a restarted node re-sends (the environment its current
 change, the agent a reaction, the body passive sensations of re-delivered
@@ -31,8 +31,9 @@ whose volatile ``/environment/event`` was sent while the recorder was down is
 taken from the world rebuilt from the bag's configuration (the environment
 plays the same seeded schedule); ``analysis.events`` says how many.
 
-Then ``pipeline.build_representation`` + ``pipeline.evaluate`` and the same
-``metrics.json`` / figures as ``pipeline.reproduce``.
+Then ``offline.representation.build_representation`` and the offline
+evaluator (``offline.evaluation.evaluate_graph_run``): the same
+``metrics.json`` / figures as ``reproduce``.
 """
 from __future__ import annotations
 
@@ -176,11 +177,10 @@ def _concatenated(bag_dir, topic: str) -> np.ndarray:
 
 
 def naive_records(bag_dir, data: dict, totals: dict | None):
-    """The agent's records of the run (``core.naive_evaluation.NaiveAgentRecords``),
+    """The agent's records of the run (``core.naive.records.NaiveAgentRecords``),
     or None when the bag lacks them (recorded before they were published, or the
     run did not end)."""
-    from sensorispace_ros.core.naive.agent import STAGES
-    from sensorispace_ros.core.naive.run import NaiveAgentRecords
+    from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords
 
     info = bag_info(bag_dir)
     if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
@@ -213,57 +213,31 @@ def naive_records(bag_dir, data: dict, totals: dict | None):
         calls_by_stage={stage: int(counters[f"calls_{stage}"][0]) for stage in STAGES})
 
 
-def naive_ground_truth(cfg: dict, change_events: dict, n_changes: int, poses: np.ndarray):
-    """``core.naive_evaluation.NaiveGroundTruth`` of the run: the recorded changes
-    (``/environment/event``; agent event t = change t), the world rebuilt from the
-    configuration for the initial centre and the coverage denominator."""
-    from sensorispace_ros.offline import pipeline
-    from sensorispace_ros.core import world as world_mod
-    from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.core.naive.run import NaiveGroundTruth, paper_compensated_positions
+def recorded_changes(change_events: dict) -> dict[int, tuple]:
+    """change number -> (centre, kind, grid index) of each recorded ``/environment/event``
+    (``ground_truth.naive_truth_of_changes``)."""
+    from sensorispace_ros.graph.framework import parse_frame
     from sensorispace_ros.graph.nodes.environment import KIND_CODES
 
-    world = build_world(int(cfg["seed"]), pipeline.world_params(cfg))
     kind_of_code = {code: kind for kind, code in KIND_CODES.items()}
-    centers, kinds, grid_index = [np.asarray(world.initial_center, float)], ["initial"], [-1]
-    if n_changes > len(world.events):
-        raise BagError(f"the run ended after {n_changes} changes; its configuration "
-                       f"schedules {len(world.events)}")
-    for k in range(1, n_changes + 1):
-        event = change_events.get(f"change/{k}")
-        if event is None:       # sent while the recorder was down: the seeded schedule
-            scheduled = world.events[k - 1]
-            centers.append(np.asarray(scheduled.center, dtype=float))
-            kinds.append(scheduled.kind)
-            grid_index.append(int(scheduled.grid_index))
-            continue
-        centers.append(np.array([event["center_x"], event["center_y"]], dtype=float))
-        kinds.append(kind_of_code[int(event["kind"])])
-        grid_index.append(int(event["grid_index"]))
-    return NaiveGroundTruth(
-        centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
-        grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
-        initial_motor_state=np.asarray(world.m0, dtype=float),
-        paper_positions=paper_compensated_positions(world))
-
-
-def naive_metrics(records, cfg: dict, change_events: dict, changes: int, poses: np.ndarray):
-    """``naive.*`` of a run and the grid index of each POV's change, from the
-    agent's records and ``/agent/done``'s ``changes`` (``end/<k>`` closes a run of
-    k - 1 changes, nodes/environment.py), ground truth from ``naive_ground_truth``."""
-    from sensorispace_ros.core.naive.run import evaluate_naive_records
-
-    truth = naive_ground_truth(cfg, change_events, int(changes) - 1, poses)
-    evaluated, _, grid_index = evaluate_naive_records(records, truth)
-    return evaluated, np.asarray(grid_index, dtype=int)
+    changes = {}
+    for frame_id, event in change_events.items():
+        changes[int(parse_frame(frame_id)[1])] = (
+            np.array([event["center_x"], event["center_y"]], dtype=float),
+            kind_of_code[int(event["kind"])], int(event["grid_index"]))
+    return changes
 
 
 def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dict:
     """Rebuild and evaluate the run recorded in ``bag_dir``; write ``out_dir/metrics.json``,
-    ``arrays.npz`` and figures (``pipeline.evaluate_graph_run``, as for a live graph run).
+    ``arrays.npz`` and figures (``evaluation.evaluate_graph_run``, as for a live graph run).
     ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics."""
     from sensorispace_ros import config, contracts
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline.evaluation import evaluate_graph_run, naive_metrics
+    from sensorispace_ros.offline.ground_truth import ground_truth_from_motor
+    from sensorispace_ros.offline.representation import build_representation
+    from sensorispace_ros.offline.run_files import run_arrays
+    from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
 
     started = time.perf_counter()
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)
@@ -277,21 +251,21 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     change_events = events(bag_dir)
     totals = agent_totals(bag_dir)
 
-    representation = pipeline.build_representation(povs, pairs, set_ids, cfg, seed, progress)
-    produced = pipeline.StrategyOutput(povs=povs, pairs=pairs, set_ids=set_ids,
-                                       true_positions=poses[:, :2].copy(), metrics={}, arrays={},
-                                       timings_s={})
-    arrays = pipeline.run_arrays(produced, representation, cfg, seed)
+    representation = build_representation(povs, pairs, set_ids, cfg, seed, progress)
+    produced = StrategyOutput(povs=povs, pairs=pairs, set_ids=set_ids,
+                              true_positions=poses[:, :2].copy(), metrics={}, arrays={},
+                              timings_s={})
+    arrays = run_arrays(produced, representation, cfg, seed)
     arrays.update({"true_poses": poses, "motor_states": povs[:, 0], "pov_ids": data["ids"]})
     # grid position of the object for the change each POV answered: recorded
     # (/environment/event) where there is one, else inferred from the tip
     # displacement (the initial POV answers no event)
-    inferred = pipeline.ground_truth_from_motor(povs, cfg)["grid_index"]
+    inferred = ground_truth_from_motor(povs, cfg)["grid_index"]
     arrays["grid_index"] = np.array(
         [int(change_events[f]["grid_index"]) if f in change_events else int(g)
          for f, g in zip(data["pov_frames"], inferred)], dtype=int)
     counters = {
-        "pov.max_pose_drift": pipeline._pose_drift(povs, poses),
+        "pov.max_pose_drift": pose_drift(povs, poses),
         "analysis.bag": str(bag_dir),
         "analysis.true_positions": f"{recorded} of {len(povs)} from recorded /body/sensor_pose, "
                                    f"{len(povs) - recorded} from core.arm.forward",
@@ -303,15 +277,19 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         counters[f"agent.{name}"] = value       # the agent's own counters (/agent/done)
     records = naive_records(bag_dir, data, totals)
     if records is not None:
-        evaluated, arrays["grid_index"] = naive_metrics(records, cfg, change_events,
-                                                        totals["changes"], poses)
-        counters.update(evaluated)
+        try:
+            evaluated = naive_metrics(records, cfg, totals["changes"], poses,
+                                      recorded_changes(change_events))
+        except ValueError as exc:
+            raise BagError(f"bag {bag_dir}: {exc}") from None
+        arrays["grid_index"] = evaluated.grid_index
+        counters.update(evaluated.metrics)
         n_changes = int(totals["changes"]) - 1
         recorded_events = sum(f"change/{k}" in change_events for k in range(1, n_changes + 1))
         counters["analysis.events"] = (f"{recorded_events} of {n_changes} from recorded "
                                        f"{EVENT}, {n_changes - recorded_events} from the "
                                        f"seeded schedule")
-        counters["analysis.naive_records"] = "evaluated by core.naive_evaluation"
+        counters["analysis.naive_records"] = "evaluated by offline.evaluation"
     else:
         if totals is not None:
             counters["exploration.compensated"] = totals["compensated"]
@@ -321,5 +299,5 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         counters["analysis.naive_records"] = (f"absent (no {STAGE_COUNTERS} / {POV_RECORDS}): "
                                               f"naive.* not evaluated")
     counters["timings_s.total"] = time.perf_counter() - started
-    return pipeline.evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
-                                       progress=progress)
+    return evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
+                              progress=progress)

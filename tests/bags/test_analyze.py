@@ -150,7 +150,8 @@ _missing = [m for m in _CORE if importlib.util.find_spec(f"sensorispace_ros.core
 @pytest.mark.skipif(bool(_missing), reason=f"core modules not written yet: {_missing}")
 def test_analyze_bag_equals_the_pipeline_on_the_same_data(tmp_path):
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import evaluation, run_files
+    from sensorispace_ros.offline.representation import build_representation
 
     povs, rows = write_run(tmp_path / "bag")
     metrics = analyze.analyze_bag(tmp_path / "bag", tmp_path / "out")
@@ -159,9 +160,9 @@ def test_analyze_bag_equals_the_pipeline_on_the_same_data(tmp_path):
     cfg = config.load_config(overrides=yaml.safe_load(CONFIG)["/**"]["ros__parameters"])
     poses = np.asarray(arm.forward(povs[:, 0]))
     poses[:RECORDED] += 0.5
-    representation = pipeline.build_representation(povs, rows[:, 1:], rows[:, 0], cfg, 4)
-    expected = pipeline.evaluate(representation, poses[:, :2], povs, cfg, 4)
-    got = pipeline.flatten_metrics(metrics)
+    representation = build_representation(povs, rows[:, 1:], rows[:, 0], cfg, 4)
+    expected = evaluation.evaluate(representation, poses[:, :2], povs, cfg, 4)
+    got = run_files.flatten_metrics(metrics)
     for key, value in expected.items():
         if key.startswith("timings_s"):
             continue

@@ -161,7 +161,7 @@ def test_the_bag_holds_the_run_configuration(tiny_run):
 
 def test_analyze_of_the_bag_reproduces_the_live_metrics(tiny_run, tmp_path):
     from sensorispace_ros.cli import main as cli
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import run_files
 
     live_file = tiny_run["results"] / "metrics.json"
     if not live_file.is_file():
@@ -169,7 +169,7 @@ def test_analyze_of_the_bag_reproduces_the_live_metrics(tiny_run, tmp_path):
     assert cli.main(["analyze", str(tiny_run["bag"]), "--out", str(tmp_path)]) == 0
 
     def comparable(path):
-        flat = pipeline.flatten_metrics(pipeline.read_metrics(path))
+        flat = run_files.flatten_metrics(run_files.read_metrics(path))
         return {k: v for k, v in flat.items()
                 if not k.startswith("timings_s.") and k != "analysis.bag"}
 

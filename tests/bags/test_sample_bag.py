@@ -39,14 +39,14 @@ def test_sample_opens_with_both_readers_and_counts_agree():
 
 
 def test_sample_rebuilds_the_recorded_embeddings():
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline.representation import build_representation
 
     cfg = analyze.config_from_bag(SAMPLE)
     data = analyze.agent_data(SAMPLE)
     totals = analyze.agent_totals(SAMPLE)
     assert (len(data["ids"]), len(data["pairs"])) == (
         totals["points_of_view"], totals["compensation_rows"])
-    representation = pipeline.build_representation(
+    representation = build_representation(
         data["povs"], data["pairs"], data["set_ids"], cfg, cfg["seed"])
 
     columns = contracts.contract("/representation/embedding").columns

@@ -15,6 +15,7 @@ from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
 from sensorispace_ros.core.world import REDISTRIBUTION
+from sensorispace_ros.offline.evaluation import evaluate_naive_run
 
 from naive_flag_runs import assert_same_results, runs_on_and_off
 
@@ -89,14 +90,14 @@ class ClosureBody:
 def small_run():
     world = build_world(0, {"grid_count": 12})
     wrapper = ClosureBody()
-    result = run_naive(world, NaiveParams(), seed=0, body_wrapper=wrapper,
-                       paper_positions=np.zeros((0, 2)))
-    return world, result, wrapper
+    result = run_naive(world, NaiveParams(), seed=0, body_wrapper=wrapper)
+    evaluated = evaluate_naive_run(result, world, paper_positions=np.zeros((0, 2)))
+    return world, result, evaluated, wrapper
 
 
 def test_compensations_are_true_and_never_on_state_changes(small_run):
-    world, result, _ = small_run
-    m = result.metrics
+    _, result, evaluated, _ = small_run
+    m = evaluated.metrics
     assert m["naive.compensations_accepted"] > 10
     assert m["naive.wrong_poses"] == 0 and m["naive.worst_pose_error"] < 1e-6
     assert m["naive.state_changes_accepted"] == 0
@@ -107,21 +108,21 @@ def test_compensations_are_true_and_never_on_state_changes(small_run):
     assert m["pov.max_pose_drift"] < 1e-6
     assert m["naive.duplicate_povs"] == 0
     # The object's grid position when each POV was found; the start's is none.
-    assert result.grid_index[0] == -1 and np.all(result.grid_index[1:] >= 0)
-    assert len(result.grid_index) == len(result.povs) == len(result.true_poses)
+    assert evaluated.grid_index[0] == -1 and np.all(evaluated.grid_index[1:] >= 0)
+    assert len(evaluated.grid_index) == len(result.povs) == len(evaluated.true_poses)
 
 
 def test_equality_sets_are_true_equal_displacements(small_run):
-    _, result, _ = small_run
-    assert result.metrics["naive.equality_sets"] > 5
-    assert result.metrics["naive.equality_set_max_deviation"] < 1e-6
+    _, result, evaluated, _ = small_run
+    assert evaluated.metrics["naive.equality_sets"] > 5
+    assert evaluated.metrics["naive.equality_set_max_deviation"] < 1e-6
     pairs, set_ids = result.pairs, result.set_ids
     assert pairs.shape == (len(set_ids), 2) and np.all(pairs[:, 0] != pairs[:, 1])
     assert pairs.max() < len(result.povs)
 
 
 def test_agent_ends_every_reaction_resting_where_it_says(small_run):
-    world, _, _ = small_run
+    world, _, _, _ = small_run
     wrapper = ClosureBody()
     simulator = SimulatedBody(world.receptors, world.initial_lights)
     agent = NaiveAgent(wrapper(simulator), NaiveParams(), seed=0)
@@ -138,17 +139,17 @@ def test_agent_ends_every_reaction_resting_where_it_says(small_run):
 
 def test_same_seed_same_run():
     world = build_world(1, {"grid_count": 8, "order": "tracking"})
-    first = run_naive(world, NaiveParams(), seed=1, paper_positions=np.zeros((0, 2)))
-    second = run_naive(world, NaiveParams(), seed=1, paper_positions=np.zeros((0, 2)))
+    first = run_naive(world, NaiveParams(), seed=1)
+    second = run_naive(world, NaiveParams(), seed=1)
     np.testing.assert_array_equal(first.povs, second.povs)
     np.testing.assert_array_equal(first.pairs, second.pairs)
-    assert first.metrics["naive.queries_total"] == second.metrics["naive.queries_total"]
+    assert first.agent.queries_total == second.agent.queries_total
 
 
 def test_tracking_schedule_compensates_correctly():
     world = build_world(2, {"grid_count": 10, "order": "tracking"})
-    result = run_naive(world, NaiveParams(), seed=2, paper_positions=np.zeros((0, 2)))
-    m = result.metrics
+    result = run_naive(world, NaiveParams(), seed=2)
+    m = evaluate_naive_run(result, world, paper_positions=np.zeros((0, 2))).metrics
     assert m["exploration.compensated"] > 10
     assert m["naive.wrong_poses"] == 0 and m["naive.state_changes_accepted"] == 0
 

@@ -10,7 +10,8 @@ from concurrent.futures import Executor
 import numpy as np
 import pytest
 
-from sensorispace_ros.offline import pipeline
+from sensorispace_ros.offline import chain_pool
+from sensorispace_ros.offline.representation import DIMENSIONS, build_representation
 from sensorispace_ros.config import load_config
 
 
@@ -36,13 +37,13 @@ def gone(pid: int) -> bool:
     return False
 
 
-@pytest.mark.parametrize("start_method", pipeline.CHAIN_START_METHODS)
+@pytest.mark.parametrize("start_method", chain_pool.CHAIN_START_METHODS)
 def test_chains_in_a_chain_pool_equal_the_sequential_path_bitwise(start_method):
     povs, pairs, set_ids, cfg = small_input()
-    sequential = pipeline.build_representation(povs, pairs, set_ids, cfg, 7, processes=1)
-    pool = pipeline.start_chain_pool(start_method)
+    sequential = build_representation(povs, pairs, set_ids, cfg, 7, processes=1)
+    pool = chain_pool.start_chain_pool(start_method)
     try:
-        pids = pipeline.chain_pool_pids(pool)
+        pids = chain_pool.chain_pool_pids(pool)
         submitted = []
 
         class Recording(Executor):
@@ -50,31 +51,30 @@ def test_chains_in_a_chain_pool_equal_the_sequential_path_bitwise(start_method):
                 submitted.append(args[5])                    # the chain's name
                 return pool.submit(fn, *args, **kwargs)
 
-        pooled = pipeline.build_representation(povs, pairs, set_ids, cfg, 7,
-                                               executor=Recording())
-        assert sorted(submitted) == sorted(pipeline.DIMENSIONS)
-        assert pipeline.chain_pool_pids(pool) == pids      # the warmed workers ran them
+        pooled = build_representation(povs, pairs, set_ids, cfg, 7, executor=Recording())
+        assert sorted(submitted) == sorted(DIMENSIONS)
+        assert chain_pool.chain_pool_pids(pool) == pids      # the warmed workers ran them
     finally:
-        pipeline.stop_chain_pool(pool)
-    assert len(pids) == len(pipeline.DIMENSIONS) and os.getpid() not in pids
-    for dim in pipeline.DIMENSIONS:
+        chain_pool.stop_chain_pool(pool)
+    assert len(pids) == len(DIMENSIONS) and os.getpid() not in pids
+    for dim in DIMENSIONS:
         assert pooled.before[dim].tobytes() == sequential.before[dim].tobytes()
         assert pooled.iterations[dim].tobytes() == sequential.iterations[dim].tobytes()
         assert pooled.set_spread[dim].tobytes() == sequential.set_spread[dim].tobytes()
-        assert pooled.iterations[dim].shape == (2, len(povs), pipeline.DIMENSIONS[dim])
+        assert pooled.iterations[dim].shape == (2, len(povs), DIMENSIONS[dim])
     assert all(gone(pid) for pid in pids)
     # a different seed changes the numbers, so the equality above is not vacuous
-    other = pipeline.build_representation(povs, pairs, set_ids, cfg, 8, processes=1)
+    other = build_representation(povs, pairs, set_ids, cfg, 8, processes=1)
     assert not np.array_equal(other.before["2d"], sequential.before["2d"])
 
 
 def test_stop_chain_pool_ends_a_worker_in_the_middle_of_a_task():
-    pool = pipeline.start_chain_pool("forkserver")
-    pids = pipeline.chain_pool_pids(pool)
+    pool = chain_pool.start_chain_pool("forkserver")
+    pids = chain_pool.chain_pool_pids(pool)
     busy = pool.submit(time.sleep, 60)
     time.sleep(0.2)
     started = time.monotonic()
-    pipeline.stop_chain_pool(pool, grace_s=0.2)
+    chain_pool.stop_chain_pool(pool, grace_s=0.2)
     assert time.monotonic() - started < 5.0
     assert all(gone(pid) for pid in pids)
     with pytest.raises(Exception):
@@ -84,7 +84,6 @@ def test_stop_chain_pool_ends_a_worker_in_the_middle_of_a_task():
 def test_processes_and_executor_together_are_rejected():
     povs, pairs, set_ids, cfg = small_input()
     with pytest.raises(ValueError, match="executor"):
-        pipeline.build_representation(povs, pairs, set_ids, cfg, 0, processes=1,
-                                      executor=object())
+        build_representation(povs, pairs, set_ids, cfg, 0, processes=1, executor=object())
     with pytest.raises(ValueError, match="start_method"):
-        pipeline.start_chain_pool("fork")
+        chain_pool.start_chain_pool("fork")

@@ -53,21 +53,20 @@ PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_
 @pytest.fixture(scope="module")
 def offline_naive_metrics(tmp_path_factory) -> dict:
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import reproduce, run_files
 
     out = tmp_path_factory.mktemp("offline_naive")
-    pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
-                       out_dir=out)
-    return pipeline.flatten_metrics(json.loads((out / "metrics.json").read_text()))
+    reproduce.reproduce(config.load_config(SMOKE), "naive", out_dir=out, figures=False)
+    return run_files.flatten_metrics(json.loads((out / "metrics.json").read_text()))
 
 
 def analysed_metrics(bag, out) -> dict:
     from sensorispace_ros.recording import analyze
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import run_files
 
     cfg = analyze.config_from_bag(bag)
     cfg["output"]["figures"] = False
-    return pipeline.flatten_metrics(analyze.analyze_bag(bag, out, cfg=cfg))
+    return run_files.flatten_metrics(analyze.analyze_bag(bag, out, cfg=cfg))
 
 
 @pytest.mark.timeout(240)

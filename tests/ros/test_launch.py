@@ -165,23 +165,22 @@ def unrecorded_launch(tmp_path_factory):
 @pytest.fixture(scope="module")
 def offline_smoke(tmp_path_factory):
     from sensorispace_ros import config
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import reproduce, run_files
 
     out = tmp_path_factory.mktemp("offline")
-    pipeline.reproduce(config.load_config(SMOKE, overrides={"output.figures": False}), "naive",
-                       out_dir=out)
-    return pipeline.flatten_metrics(json.loads((out / "metrics.json").read_text()))
+    reproduce.reproduce(config.load_config(SMOKE), "naive", out_dir=out, figures=False)
+    return run_files.flatten_metrics(json.loads((out / "metrics.json").read_text()))
 
 
 @pytest.mark.parametrize("launched, evaluated_from", [("smoke_launch", "the bag"),
                                                       ("unrecorded_launch", "agent_records.npz")])
 def test_launched_metrics_have_the_offline_naive_keys_and_numbers(launched, evaluated_from,
                                                                    offline_smoke, request):
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import run_files
 
     run = request.getfixturevalue(launched)
     assert run["returncode"] == 0, run["output"]
-    graph = pipeline.flatten_metrics(json.loads((run["results"] / "metrics.json").read_text()))
+    graph = run_files.flatten_metrics(json.loads((run["results"] / "metrics.json").read_text()))
     assert graph["analysis.naive_records"].startswith("evaluated"), \
         f"not evaluated from {evaluated_from}: {graph['analysis.naive_records']}"
     offline = offline_smoke

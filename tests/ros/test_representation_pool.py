@@ -57,7 +57,7 @@ def test_destroying_the_node_ends_its_pool_workers(domain_id, tmp_path):
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from sensorispace_ros.offline import pipeline
+    from sensorispace_ros.offline import chain_pool
     from sensorispace_ros.graph.launcher import parameter_overrides
     from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
@@ -69,7 +69,7 @@ def test_destroying_the_node_ends_its_pool_workers(domain_id, tmp_path):
             SMOKE, {"graph.results_dir": str(tmp_path)}))
         node.chain_pool_starter.join(timeout=120)
         assert node.chain_pool is not None, "the pool did not start"
-        pids = pipeline.chain_pool_pids(node.chain_pool)
+        pids = chain_pool.chain_pool_pids(node.chain_pool)
         assert len(pids) == 2 and all(alive(pid) for pid in pids)
         node.destroy_node()
         assert node.chain_pool is None

@@ -5,14 +5,14 @@ equality rows; a re-sent message is not counted twice and the first copy
 wins: POV ids it already holds and a second ``/agent/compensations`` message
 for one change (frame id) are ignored (a restarted agent re-publishes the
 reaction of the change it died in, issue #7); once ``/agent/done`` has arrived and
-the totals match, runs ``pipeline.build_representation`` in a worker
+the totals match, runs ``offline.representation.build_representation`` in a worker
 thread, publishes ``/representation/embedding`` for every dimension and
 regularisation iteration, and writes its arrays to
 ``<graph.results_dir>/representation.npz``. Ground truth is joined later,
 by the evaluator, never here.
 
 The 2-D and 3-D chains run in two worker processes of a forkserver pool
-(``pipeline.start_chain_pool``; a process with DDS threads must not fork),
+(``offline.chain_pool.start_chain_pool``; a process with DDS threads must not fork),
 started with the node so that their start-up overlaps the exploration, and
 stopped with it (``destroy_node``), on SIGTERM too.
 
@@ -90,7 +90,7 @@ class RepresentationNode(GraphNode):
         self.hausdorff_failed = False
 
     def _start_chain_pool(self) -> None:
-        from sensorispace_ros.offline import pipeline
+        from sensorispace_ros.offline import chain_pool
         from sensorispace_ros.core.hausdorff import hausdorff_matrix
 
         # After the other nodes' start-up (or at once when the run is over, or
@@ -105,17 +105,17 @@ class RepresentationNode(GraphNode):
         # /agent/done (import and first call: ~0.5 s).
         hausdorff_matrix(np.linspace(0.0, 1.0, 6 * 10 * 4).reshape(6, 10, 4))
         try:
-            pool = pipeline.start_chain_pool()
+            pool = chain_pool.start_chain_pool()
         except Exception as exc:            # no pool: the chains run in turn here
             self.get_logger().warning(f"no worker pool for the 2-D/3-D chains, they will run "
                                       f"in turn: {type(exc).__name__}: {exc}")
             return
         if self.closing:                    # destroyed while the pool was starting
-            pipeline.stop_chain_pool(pool)
+            chain_pool.stop_chain_pool(pool)
             return
         self.chain_pool = pool
         self.get_logger().info(f"chain pool ready in {time.monotonic() - started:.1f} s, "
-                               f"worker pids {pipeline.chain_pool_pids(pool)}")
+                               f"worker pids {chain_pool.chain_pool_pids(pool)}")
 
     def _decode(self, topic: str, msg, kinds=("change",)):
         decoded = self.decode(topic, msg, kinds, as_table=True)
@@ -224,12 +224,11 @@ class RepresentationNode(GraphNode):
         self.worker.start()
 
     def build(self) -> None:
-        from sensorispace_ros.offline import pipeline
         try:
             ids, povs = assemble_points_of_view(list(self.pov_tables.values()))
             rows = (np.concatenate(list(self.row_tables.values())) if self.row_tables
                     else np.zeros(0, dtype=messages.record_dtype(self.columns["/agent/compensations"])))
-            # Equality rows name POVs by id; the pipeline indexes them by position.
+            # Equality rows name POVs by id; the representation indexes them by position.
             pairs = np.stack([np.searchsorted(ids, rows["pov_from"]),
                               np.searchsorted(ids, rows["pov_to"])], axis=-1).astype(np.int64)
             set_ids = rows["set"].astype(np.int64)
@@ -238,7 +237,7 @@ class RepresentationNode(GraphNode):
             distance = self.grown_hausdorff(ids)
             self.chain_pool_starter.join()
             representation = self._build_representation(povs, pairs, set_ids, distance)
-            # Same array names as pipeline.run_arrays, so evaluation code is shared.
+            # Same array names as offline.run_files.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
                       "hausdorff": representation.distance}
             for dim in sorted(representation.before):
@@ -267,30 +266,30 @@ class RepresentationNode(GraphNode):
                               set_ids: np.ndarray, distance: np.ndarray | None = None):
         from concurrent.futures.process import BrokenProcessPool
 
-        from sensorispace_ros.offline import pipeline
+        from sensorispace_ros.offline.representation import build_representation
         if self.chain_pool is not None:
             try:
-                return pipeline.build_representation(povs, pairs, set_ids, self.cfg,
-                                                     self.cfg["seed"], executor=self.chain_pool,
-                                                     distance=distance)
+                return build_representation(povs, pairs, set_ids, self.cfg,
+                                            self.cfg["seed"], executor=self.chain_pool,
+                                            distance=distance)
             except BrokenProcessPool as exc:
                 if self.closing:
                     raise
                 self.get_logger().warning(f"the chain pool broke ({exc}); "
                                           "building again with the chains in turn")
-        return pipeline.build_representation(povs, pairs, set_ids, self.cfg, self.cfg["seed"],
-                                             processes=1, distance=distance)
+        return build_representation(povs, pairs, set_ids, self.cfg, self.cfg["seed"],
+                                    processes=1, distance=distance)
 
     def destroy_node(self):
         """Stops the chain pool first: none of its workers outlives the node."""
-        from sensorispace_ros.offline import pipeline
+        from sensorispace_ros.offline import chain_pool
         self.closing = True
         self._start_pool_now.set()
         self.hausdorff_worker.shutdown(wait=True, cancel_futures=True)
         self.chain_pool_starter.join()
         pool, self.chain_pool = self.chain_pool, None
         if pool is not None:
-            pipeline.stop_chain_pool(pool)
+            chain_pool.stop_chain_pool(pool)
         return super().destroy_node()
 
     def publish_embedding(self, ids: np.ndarray, embedding: np.ndarray, frame_id: str) -> None:

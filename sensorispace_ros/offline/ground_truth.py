@@ -1,0 +1,123 @@
+"""Ground truth of a run, joined by the evaluator and never seen by the agent.
+
+The sensor pose of a POV comes from the arm's forward model (or a recorded
+``/body/sensor_pose``); the object's centre, the light layout and the kind of
+each change come from the seeded schedule, or from ``/environment/event``
+where a bag recorded it. ``evaluation`` compares the run with these.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from sensorispace_ros.core import arm
+from sensorispace_ros.core.world import REDISTRIBUTION
+
+
+@dataclass
+class NaiveGroundTruth:
+    """The evaluator's side of a naive run, indexed by the agent's event ``t``
+    (0 = the start): ``centers`` ``(T+1, 2)`` object centre, ``layout``
+    ``(T+1,)`` light-layout version (+1 at each redistribution), ``kinds``
+    event kinds (``"initial"`` first), ``grid_index`` ``(T+1,)`` the object's
+    grid position (-1 at the start); ``true_poses`` ``(P, 3)`` the sensor
+    pose of each POV's first sample; ``initial_motor_state``;
+    ``paper_positions`` ``(Q, 2)`` the coverage denominator
+    (``paper_compensated_positions``)."""
+
+    centers: np.ndarray
+    layout: np.ndarray
+    kinds: list
+    grid_index: np.ndarray
+    true_poses: np.ndarray
+    initial_motor_state: np.ndarray
+    paper_positions: np.ndarray
+
+    @staticmethod
+    def layout_of(kinds) -> np.ndarray:
+        """Light-layout version of each event: the number of redistributions so far."""
+        return np.cumsum([kind == REDISTRIBUTION for kind in kinds]).astype(np.int64)
+
+
+def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
+    """Ground truth of POVs recorded without it (a graph run): sensor poses
+    from the forward model, object grid position from the tip displacement
+    since the initial pose."""
+    from sensorispace_ros.core.world import grid_spacing, position_grid
+
+    povs = np.asarray(povs, dtype=float)
+    true_poses = arm.forward(povs[:, 0])
+    m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
+    world = cfg["world"]
+    grid = position_grid(world["grid_half_width"], world["grid_count"])
+    spacing = grid_spacing(world["grid_half_width"], world["grid_count"])
+    displacement = true_poses[:, :2] - arm.forward(m0)[:2]
+    nearest = np.argmin(np.linalg.norm(displacement[:, None, :] - grid[None], axis=-1), axis=1)
+    on_grid = np.linalg.norm(grid[nearest] - displacement, axis=1) < spacing / 4
+    return {"true_poses": true_poses, "true_positions": true_poses[:, :2].copy(),
+            "motor_states": povs[:, 0], "grid": grid, "grid_spacing": np.float64(spacing),
+            "grid_index": np.where(on_grid, nearest, -1), "initial_motor_state": m0}
+
+
+def paper_compensated_positions(world) -> np.ndarray:
+    """Sensor positions ``(Q, 2)`` the paper strategy compensates (with its
+    initial POV), for the coverage denominator."""
+    from sensorispace_ros.core.paper.exploration import explore_paper
+
+    explored = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
+                             initial_center=world.initial_center)
+    return explored.true_poses[:, :2].copy()
+
+
+def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
+                       ) -> NaiveGroundTruth:
+    """Ground truth of an offline naive run (``core.naive.run.run_naive``):
+    what the driver saw at each of the agent's events, the schedule's grid
+    positions, the forward model of each POV. ``paper_positions``: the
+    coverage denominator, ``paper_compensated_positions(world)`` when not given."""
+    if paper_positions is None:
+        paper_positions = paper_compensated_positions(world)
+    explored = run.exploration
+    povs = np.asarray(run.povs)
+    return NaiveGroundTruth(
+        centers=np.asarray(explored.centers, dtype=float), layout=np.asarray(explored.layout),
+        kinds=list(explored.kinds),
+        grid_index=np.asarray([-1] + [e.grid_index for e in world.events], dtype=np.int64),
+        true_poses=arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
+        initial_motor_state=np.asarray(world.m0, dtype=float),
+        paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2))
+
+
+def naive_truth_of_changes(cfg: dict, n_changes: int, poses: np.ndarray,
+                           recorded: Mapping[int, tuple] | None = None) -> NaiveGroundTruth:
+    """Ground truth of a naive graph run of ``n_changes`` changes (agent event
+    t = change t): ``recorded[k] = (centre (2,), kind, grid index)`` of the
+    changes the environment was seen announcing (a bag's
+    ``/environment/event``), the seeded schedule of the world rebuilt from
+    the configuration for the others, the initial centre and the coverage
+    denominator. ``poses`` ``(P, 3)``: the sensor pose of each POV."""
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.offline.strategies import world_params
+
+    recorded = recorded or {}
+    world = build_world(int(cfg["seed"]), world_params(cfg))
+    if n_changes > len(world.events):
+        raise ValueError(f"the run ended after {n_changes} changes; its configuration "
+                         f"schedules {len(world.events)}")
+    centers, kinds, grid_index = [np.asarray(world.initial_center, float)], ["initial"], [-1]
+    for k in range(1, n_changes + 1):
+        if k in recorded:
+            center, kind, grid = recorded[k]
+        else:
+            scheduled = world.events[k - 1]
+            center, kind, grid = scheduled.center, scheduled.kind, scheduled.grid_index
+        centers.append(np.asarray(center, dtype=float))
+        kinds.append(kind)
+        grid_index.append(int(grid))
+    return NaiveGroundTruth(
+        centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
+        grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
+        initial_motor_state=np.asarray(world.m0, dtype=float),
+        paper_positions=paper_compensated_positions(world))

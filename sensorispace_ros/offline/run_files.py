@@ -1,0 +1,155 @@
+"""A run directory: ``metrics.json``, ``arrays.npz`` and ``figures/*.png``.
+
+``run_arrays`` names what a run keeps to redraw its figures or be evaluated
+again (``representation_from_arrays`` reads the representation back);
+``write_run`` writes the three; ``write_metrics`` / ``read_metrics`` the
+metrics file, floats rounded to ``FLOAT_DIGITS`` significant digits.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from sensorispace_ros import config as config_mod
+from sensorispace_ros.offline.representation import DIMENSIONS, Representation
+from sensorispace_ros.offline.timing import timed_stage
+
+if TYPE_CHECKING:
+    from sensorispace_ros.offline.strategies import StrategyOutput
+
+METRICS_FILE = "metrics.json"
+ARRAYS_FILE = "arrays.npz"
+FIGURES_DIR = "figures"
+# Significant digits written to metrics.json: far below every acceptance bar,
+# and it keeps last-bit noise of BLAS reductions out of run-to-run diffs.
+FLOAT_DIGITS = 12
+
+
+def write_run(out_dir: str | Path, flat_metrics: dict, arrays: dict, cfg: dict, strategy: str,
+              timings: dict, progress=None) -> dict:
+    """Figures (when ``cfg["output"]["figures"]``), arrays.npz and metrics.json
+    of a finished run; returns the metrics.
+
+    ``flat_metrics`` has dotted keys; ``timings`` go under ``timings_s``
+    (figure drawing is timed as ``figures``, outside ``total``).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    timings = dict(timings)
+    arrays = dict(arrays)
+    if cfg["output"]["figures"]:
+        from sensorispace_ros.offline import figures
+
+        with timed_stage(progress, "figures", timings, total=len(figures.FIGURES)):
+            arrays.update(figures.draw_run_figures(arrays, cfg, out_dir / FIGURES_DIR, progress))
+    np.savez_compressed(out_dir / ARRAYS_FILE, **arrays)
+
+    flat = dict(flat_metrics)
+    pairs, set_ids = arrays["pairs"], arrays["set_ids"]
+    flat.setdefault("equality_sets.count", int(len(np.unique(set_ids))))
+    flat.setdefault("equality_sets.pairs", int(len(pairs)))
+    flat.update({f"timings_s.{key}": value for key, value in timings.items()})
+    flat["strategy"] = strategy
+    flat["seed"] = cfg["seed"]
+    metrics = nest(flat)
+    metrics["config"] = config_mod.flatten(cfg)
+    write_metrics(metrics, out_dir / METRICS_FILE)
+    return metrics
+
+
+def run_arrays(produced: StrategyOutput, representation: Representation, cfg: dict,
+               seed: int) -> dict:
+    """Everything needed to redraw the figures or re-evaluate, as arrays."""
+    arrays = {
+        "povs": np.asarray(produced.povs),
+        "true_positions": np.asarray(produced.true_positions),
+        "pairs": np.asarray(produced.pairs),
+        "set_ids": np.asarray(produced.set_ids),
+        "hausdorff": representation.distance,
+        "config_json": np.asarray(json.dumps(cfg, sort_keys=True)),
+        "seed": np.int64(seed),
+    }
+    for dim in DIMENSIONS:
+        arrays[f"embedding_{dim}_before"] = representation.before[dim]
+        arrays[f"embedding_{dim}_iterations"] = representation.iterations[dim]
+        arrays[f"set_spread_{dim}"] = representation.set_spread[dim]
+    return arrays
+
+
+def representation_from_arrays(arrays) -> Representation:
+    """The ``Representation`` stored in a run's arrays (``run_arrays`` names)."""
+    timings = {}
+    if "timings_s_json" in arrays:
+        timings = json.loads(str(np.asarray(arrays["timings_s_json"])))
+    return Representation(
+        distance=np.asarray(arrays["hausdorff"]),
+        before={dim: np.asarray(arrays[f"embedding_{dim}_before"]) for dim in DIMENSIONS},
+        iterations={dim: np.asarray(arrays[f"embedding_{dim}_iterations"]) for dim in DIMENSIONS},
+        set_spread={dim: np.asarray(arrays[f"set_spread_{dim}"]) for dim in DIMENSIONS},
+        timings_s=timings)
+
+
+def nest(flat: dict) -> dict:
+    """Dotted keys -> nested dicts (``"a.b": 1`` -> ``{"a": {"b": 1}}``)."""
+    out: dict = {}
+    for key, value in flat.items():
+        node = out
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ValueError(f"metric {key!r} collides with a value at {part!r}")
+        if isinstance(node.get(parts[-1]), dict):
+            raise ValueError(f"metric {key!r} collides with a group of metrics")
+        node[parts[-1]] = value
+    return out
+
+
+def flatten_metrics(metrics: dict, prefix: str = "") -> dict:
+    """Nested metrics -> dotted keys (the same rule as the config's parameter names)."""
+    return config_mod.flatten(metrics, prefix)
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_jsonable(v) for v in np.asarray(value, dtype=object).tolist()] \
+            if isinstance(value, np.ndarray) else [_jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        if not math.isfinite(value):
+            return None                   # JSON has no NaN / inf
+        return float(f"{value:.{FLOAT_DIGITS}g}")
+    return value
+
+
+def write_metrics(metrics: dict, path: str | Path) -> None:
+    """Sorted keys, floats rounded to ``FLOAT_DIGITS`` significant digits."""
+    path = Path(path)
+    text = json.dumps(_jsonable(metrics), sort_keys=True, indent=2) + "\n"
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def read_metrics(path: str | Path) -> dict:
+    """metrics.json of a run directory (or the file itself)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / METRICS_FILE
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such metrics file") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None

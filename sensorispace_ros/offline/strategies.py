@@ -1,0 +1,223 @@
+"""Simulations 1 and 2 by one of the two strategies, as a ``StrategyOutput``.
+
+``paper``: the paper's analytic shortcuts (``core.paper``). ``naive``: the
+naive agent driven through the seeded schedule (``core.naive.run``), its
+products then joined with ground truth by the evaluator. Either way the
+agent's own data (points of view, equality sets) are kept apart from the
+ground truth and figure material.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from sensorispace_ros.offline.chain_pool import can_fork
+from sensorispace_ros.offline.timing import timed_stage
+
+STRATEGIES = ("paper", "naive")
+
+
+@dataclass
+class StrategyOutput:
+    """What a strategy produced.
+
+    ``povs``, ``pairs`` and ``set_ids`` are the agent's own data;
+    ``true_positions`` (sensor position of each POV) and ``arrays`` are ground
+    truth and figure material, for evaluation only.
+    """
+
+    povs: np.ndarray                 # (P, N, 4) motor states of each point of view
+    pairs: np.ndarray                # (K, 2) POV index pairs (i -> j) of equality sets
+    set_ids: np.ndarray              # (K,) equality set of each pair
+    true_positions: np.ndarray       # (P, 2) ground truth sensor positions
+    metrics: dict                    # dotted keys: exploration.*, pov.*, naive.*, ...
+    arrays: dict                     # figure / re-evaluation material
+    timings_s: dict
+
+
+def world_params(cfg: dict) -> dict:
+    """``core.paper.exploration.build_world`` parameters from the configuration."""
+    world, lights, retina = cfg["world"], cfg["world"]["lights"], cfg["world"]["retina"]
+    return {
+        "m0": tuple(cfg["arm"]["initial_motor_state"]),
+        "grid_half_width": world["grid_half_width"],
+        "grid_count": world["grid_count"],
+        "n_lights": lights["count"],
+        "light_radius_min": lights["radius_min"],
+        "light_radius_max": lights["radius_max"],
+        "n_receptors": retina["receptors"],
+        "retina_half_width": retina["half_width"],
+        "min_lights_in_view": lights["min_in_view"],
+        "redistribution_probability": world["redistribution_probability"],
+        "order": world["schedule"],
+    }
+
+
+def pov_params(cfg: dict) -> dict:
+    pov = cfg["pov"]
+    return {"step": pov["step"], "n_samples": pov["n_samples"],
+            "min_steps": pov["min_steps"], "close_tol": pov["close_tol"]}
+
+
+def run_strategy(cfg: dict, strategy: str, seed: int, progress=None) -> StrategyOutput:
+    if strategy == "paper":
+        return run_paper(cfg, seed, progress)
+    if strategy == "naive":
+        return run_naive_strategy(cfg, seed, progress)
+    raise ValueError(f"strategy must be one of {', '.join(STRATEGIES)}, got {strategy!r}")
+
+
+def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
+    """Simulations 1 and 2 with the paper's analytic shortcuts."""
+    from sensorispace_ros.core.paper.equality_sets import equality_sets_from_poses
+    from sensorispace_ros.core.paper.exploration import build_world, explore_paper
+
+    timings: dict = {}
+    with timed_stage(progress, "exploration", timings):
+        world = build_world(seed, world_params(cfg))
+        explored = explore_paper(
+            m0=world.m0, grid=world.grid, events=world.events,
+            initial_center=world.initial_center, threshold=cfg["compensation"]["threshold"],
+            compensation_options={"initial_simplex_size": cfg["compensation"]["initial_simplex"]},
+            progress=progress)
+    with timed_stage(progress, "points_of_view", timings):
+        sampled = _sample_points_of_view(explored.motor_states, cfg, progress)
+    valid = np.asarray(sampled.valid, dtype=bool)
+    povs = sampled.samples[valid]
+    true_poses = explored.true_poses[valid]
+    # Simulation 2 (paper Sec. 5.1, "optimized simulation setting"): the
+    # compensating POV of a displacement is found analytically, from the
+    # sensor poses.
+    with timed_stage(progress, "equality_sets", timings):
+        pairs, set_ids = equality_sets_from_poses(true_poses[:, :2], world.spacing)
+    return StrategyOutput(povs=povs, pairs=np.asarray(pairs, dtype=int),
+                          set_ids=np.asarray(set_ids, dtype=int),
+                          true_positions=true_poses[:, :2].copy(),
+                          metrics=_paper_metrics(explored, sampled, valid, povs, true_poses),
+                          arrays=_paper_arrays(world, explored, valid, true_poses),
+                          timings_s=timings)
+
+
+def _paper_metrics(explored, sampled, valid: np.ndarray, povs: np.ndarray,
+                   true_poses: np.ndarray) -> dict:
+    metrics = {
+        "exploration.events": explored.events,
+        "exploration.state_changes": explored.state_changes,
+        "exploration.compensated": explored.compensated,
+        "exploration.state_changes_compensated": explored.state_changes_compensated,
+        "exploration.missed_in_ring": len(explored.missed_in_ring),
+        "pov.count": int(valid.sum()),
+        "pov.invalid": int((~valid).sum()),
+        "pov.max_pose_drift": pose_drift(povs, true_poses),
+        "pov.steps_median": float(np.median(sampled.steps[valid])) if valid.any() else 0.0,
+    }
+    for reason, count in sorted(explored.failures_by_reason.items()):
+        metrics[f"exploration.failures.{reason}"] = int(count)
+    return metrics
+
+
+def _paper_arrays(world, explored, valid: np.ndarray, true_poses: np.ndarray) -> dict:
+    return {
+        "motor_states": explored.motor_states[valid],
+        "true_poses": true_poses,
+        "grid_index": explored.grid_index[valid],
+        "grid": world.grid,
+        "grid_spacing": np.float64(world.spacing),
+        "initial_motor_state": world.m0,
+        "missed_in_ring": np.asarray(explored.missed_in_ring, dtype=int),
+        "receptors": world.receptors,
+        "initial_lights": world.initial_lights,
+    }
+
+
+def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
+                           processes: int | None = None):
+    """``sample_points_of_view`` of every motor state, in two forked
+    processes (halves of the batch) when ``can_fork``.
+
+    Every operation of the walk is per POV, so the halves give the same bits
+    as one batch (tests check it); each half walks until its longest loop
+    closes.
+    """
+    from sensorispace_ros.core.paper.points_of_view import (PointsOfViewResult,
+        sample_points_of_view)
+
+    if processes is None:
+        processes = min(2, os.cpu_count() or 1) if can_fork() else 1
+    motor_states = np.asarray(motor_states, dtype=float)
+    if processes < 2 or len(motor_states) < 64:
+        return sample_points_of_view(motor_states, progress=progress, **pov_params(cfg))
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    chunks = np.array_split(motor_states, processes)
+    with ProcessPoolExecutor(max_workers=processes,
+                             mp_context=multiprocessing.get_context("fork")) as pool:
+        futures = [pool.submit(sample_points_of_view, chunk, **pov_params(cfg))
+                   for chunk in chunks]
+        parts = []
+        for future in futures:
+            parts.append(future.result())
+            if progress is not None:
+                progress(sum(len(part.samples) for part in parts), len(motor_states))
+    return PointsOfViewResult(
+        samples=np.concatenate([part.samples for part in parts]),
+        valid=np.concatenate([np.asarray(part.valid) for part in parts]),
+        reason=[reason for part in parts for reason in part.reason],
+        steps=np.concatenate([part.steps for part in parts]),
+        max_pose_drift=max(part.max_pose_drift for part in parts),
+        winding=np.concatenate([part.winding for part in parts]))
+
+
+def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
+    """Simulations 1 and 2 from the sensorimotor flow alone, then the run
+    joined with ground truth (``evaluation.evaluate_naive_run``, timed as
+    ``naive_ground_truth``: not a stage of the agent)."""
+    from sensorispace_ros.core.naive.params import NaiveParams
+    from sensorispace_ros.core.naive.run import run_naive
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.offline.evaluation import evaluate_naive_run
+
+    world = build_world(seed, world_params(cfg))
+    params = NaiveParams(**cfg["naive"])
+    start = time.perf_counter()
+    result = run_naive(world, params, seed, progress)
+    elapsed = time.perf_counter() - start
+    timings = {key: float(value) for key, value in result.timings_s.items()
+               if key in ("exploration", "points_of_view", "equality_sets")}
+    timings.setdefault("exploration", elapsed - sum(timings.values()))
+    started = time.perf_counter()
+    evaluated = evaluate_naive_run(result, world)
+    timings["naive_ground_truth"] = time.perf_counter() - started
+    povs = np.asarray(result.povs)
+    true_poses = np.asarray(evaluated.true_poses)
+    metrics = {"pov.count": len(povs), "pov.max_pose_drift": pose_drift(povs, true_poses),
+               **evaluated.metrics, **result.metrics,
+               "naive.timings_s.evaluation": timings["naive_ground_truth"]}
+    arrays = {
+        "motor_states": povs[:, 0],
+        "true_poses": true_poses,
+        "grid_index": np.asarray(evaluated.grid_index, dtype=int),
+        "grid": world.grid,
+        "grid_spacing": np.float64(world.spacing),
+        "initial_motor_state": world.m0,
+        "receptors": world.receptors,
+        "initial_lights": world.initial_lights,
+    }
+    return StrategyOutput(povs=povs, pairs=np.asarray(result.pairs, dtype=int),
+                          set_ids=np.asarray(result.set_ids, dtype=int),
+                          true_positions=true_poses[:, :2].copy(), metrics=metrics,
+                          arrays=arrays, timings_s=timings)
+
+
+def pose_drift(povs: np.ndarray, true_poses: np.ndarray) -> float:
+    """Largest pose error of any POV sample w.r.t. its POV's sensor pose (ground truth)."""
+    from sensorispace_ros.core import arm
+
+    if len(povs) == 0:
+        return 0.0
+    poses = arm.forward(povs)
+    return float(np.max(arm.pose_error(poses, true_poses[:, None, :])))
