@@ -1,10 +1,11 @@
 """The paper's result figures, drawn from a run's arrays (``arrays.npz``).
 
 Every function takes the mapping of arrays a run writes (``run_files``),
-so a figure can be redrawn from ``arrays.npz`` without re-running anything. File names follow the paper's figure numbers (LaTeX source order):
-6 point of view, 7 exploration, 8 projections, 9 metric differences,
-11 equality sets, 12 regularised projections, 14/15 reaching, 16 metric
-comparisons.
+so a figure can be redrawn from ``arrays.npz`` without re-running anything.
+File names follow the paper's figure numbers (LaTeX source order): 6 point
+of view, 7 exploration, 8 projections, 9 metric differences, 11 equality
+sets, 12 regularised projections, 14/15 reaching, 16 metric comparisons.
+Drawing pieces shared by the figures are in ``figure_style``.
 
 Colour code (as in the paper): a POV is coloured by the position of its
 sensor, hue = angle of the tip around the arm's base, saturation = distance
@@ -350,7 +351,8 @@ def fig16_metric_comparisons(arrays: Mapping, seed: int = 0,
     hausdorff = np.asarray(arrays["hausdorff"])[rows, cols]
     internal = {f"{d} {stage}": pair_distance(arrays[f"embedding_{d}_{stage}"])
                 for d in ("2d", "3d") for stage in ("before",)}
-    internal.update({f"{d} after": pair_distance(np.asarray(arrays[f"embedding_{d}_iterations"])[-1])
+    internal.update({f"{d} after":
+                     pair_distance(np.asarray(arrays[f"embedding_{d}_iterations"])[-1])
                      for d in ("2d", "3d")})
     panels = [
         ("(a)", external, hausdorff, "external", "Hausdorff"),
@@ -435,7 +437,8 @@ def _reaching_figure(arrays: Mapping, dim: str, number: int, seed: int) -> plt.F
     fig = plt.figure(figsize=(18, 5.2))
     for k, stage in enumerate(("before", "after")):
         points = examples["embeddings"][stage]
-        ax = panel_axes(fig, 141 + k, n_dim, f"(a) internal paths, {dim[0]}-D {stage} regularisation")
+        ax = panel_axes(fig, 141 + k, n_dim,
+                        f"(a) internal paths, {dim[0]}-D {stage} regularisation")
         scatter_points(ax, points, "0.82", size=4)
         for colour, path in zip(PAIR_COLOURS, examples["paths"][stage]):
             plot_path(ax, points[path], colour, marker=".", markersize=4)
