@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import ast
 import importlib
-import inspect
 
 from packaging_support import CONFIG_DIR, LAUNCH_FILE, PACKAGE, console_scripts
 
-from sensorispace_ros.graph.launcher import GRAPH_NODES, RECORDER, launch_graph
+from sensorispace_ros.config import GRAPH_PREFIX, GRAPH_SCHEMA
+from sensorispace_ros.graph.launcher import GRAPH_NODES, RECORDER
 
 
 def tree() -> ast.Module:
@@ -82,16 +82,12 @@ def test_every_node_gets_the_config_argument_as_its_first_parameter_file():
     assert "config" in declared
 
 
-def graph_parameter_names(source: ast.AST) -> set[str]:
-    return {n.value for n in ast.walk(source) if isinstance(n, ast.Constant)
-            and isinstance(n.value, str) and n.value.startswith("graph.")}
-
-
-def test_graph_parameters_it_sets_are_those_sensorispace_launch_sets():
-    """Nodes refuse an unknown graph.* name; `sensorispace launch` is the reference."""
-    ours = graph_parameter_names(tree())
-    reference = graph_parameter_names(ast.parse(inspect.getsource(launch_graph)))
-    assert ours and not sorted(ours - reference)
+def test_graph_parameters_it_sets_are_in_the_graph_schema():
+    """Nodes refuse a graph.* name config.GRAPH_SCHEMA does not have."""
+    names = {n.value for n in ast.walk(tree()) if isinstance(n, ast.Constant)
+             and isinstance(n.value, str) and n.value.startswith(GRAPH_PREFIX)}
+    assert names
+    assert not sorted(names - {GRAPH_PREFIX + key for key in GRAPH_SCHEMA})
 
 
 def test_what_it_imports_from_the_package_exists():

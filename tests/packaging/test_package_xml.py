@@ -18,6 +18,7 @@ RUNTIME_KEYS = {
     "ros-jazzy-rmw-fastrtps-cpp": "rmw_fastrtps_cpp",
     "ros-jazzy-std-msgs": "std_msgs",
     "ros-jazzy-sensor-msgs": "sensor_msgs",
+    "ros-jazzy-visualization-msgs": "visualization_msgs",
     "numpy": "python3-numpy",
     "scipy": "python3-scipy",
     "scikit-learn": "python3-sklearn",
@@ -30,7 +31,8 @@ RUNTIME_KEYS = {
 }
 # runtime requirements rosdistro has no key for (installed with pip)
 WITHOUT_ROSDEP_KEY = {"ripser", "distributed", "foxglove-sdk", "zstandard"}
-TEST_KEYS = {"pytest": "python3-pytest", "pytest-timeout": "python3-pytest-timeout"}
+TEST_KEYS = {"pytest": "python3-pytest", "pytest-timeout": "python3-pytest-timeout",
+             "websockets": "python3-websockets"}
 # building and testing tools of the venv, not dependencies of the package
 TOOLS = {"colcon-core", "colcon-ros", "colcon-python-setup-py", "coverage", "setuptools",
          "wheel"}
