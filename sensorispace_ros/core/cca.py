@@ -318,22 +318,10 @@ or None, default=None
         return tags
 
     def fit(self, X, y=None, init=None):
-        """Compute the projection of the points of X.
+        """Compute the projection of the points of X (``embedding_``).
 
-        Parameters
-        ----------
-        X : array-like of shape (P, n_features) or (P, P)
-            Points, or their distance matrix when ``metric="precomputed"``.
-        y : Ignored
-            Not used, present for API consistency by convention.
-        init : {"mds", "random"}, array-like of shape (P, n_components) or \
-None, default=None
-            Initial projection; None: the estimator's ``init``.
-
-        Returns
-        -------
-        self : object
-            The fitted estimator.
+        Takes the parameters of ``fit_transform``; returns the fitted
+        estimator.
         """
         self.fit_transform(X, init=init)
         return self
