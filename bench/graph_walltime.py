@@ -52,7 +52,7 @@ def offline_child(config_path: str) -> int:
     imported = time.perf_counter()
     cfg = config.load_config(config_path)
     world = build_world(cfg["seed"], world_params(cfg))
-    explored = explore_naive(world, NaiveParams(**cfg["naive"]), cfg["seed"])
+    explored = explore_naive(world, NaiveParams(**cfg["naive"]))
     agent = explored.agent
     pairs, set_ids = agent.equality_sets()
     explored_at = time.perf_counter()

@@ -184,7 +184,7 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     world = build_world(seed, world_params(cfg))
     params = NaiveParams(**cfg["naive"])
     start = time.perf_counter()
-    result = run_naive(world, params, seed, progress)
+    result = run_naive(world, params, progress=progress)
     elapsed = time.perf_counter() - start
     timings = {key: float(value) for key, value in result.timings_s.items()
                if key in ("exploration", "points_of_view", "equality_sets")}

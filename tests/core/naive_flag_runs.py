@@ -11,7 +11,7 @@ from sensorispace_ros.core.naive.run import run_naive
 def runs_on_and_off(flag: str, grid_count: int) -> tuple:
     """``(run with flag true, run with flag false)`` on ``build_world(0, grid)``."""
     world = build_world(0, {"grid_count": grid_count})
-    return tuple(run_naive(world, NaiveParams(**{flag: value}), seed=0)
+    return tuple(run_naive(world, NaiveParams(**{flag: value}))
                  for value in (True, False))
 
 

@@ -90,7 +90,7 @@ class ClosureBody:
 def small_run():
     world = build_world(0, {"grid_count": 12})
     wrapper = ClosureBody()
-    result = run_naive(world, NaiveParams(), seed=0, body_wrapper=wrapper)
+    result = run_naive(world, NaiveParams(), body_wrapper=wrapper)
     evaluated = evaluate_naive_run(result, world, paper_positions=np.zeros((0, 2)))
     return world, result, evaluated, wrapper
 
@@ -125,7 +125,7 @@ def test_agent_ends_every_reaction_resting_where_it_says(small_run):
     world, _, _, _ = small_run
     wrapper = ClosureBody()
     simulator = SimulatedBody(world.receptors, world.initial_lights)
-    agent = NaiveAgent(wrapper(simulator), NaiveParams(), seed=0)
+    agent = NaiveAgent(wrapper(simulator), NaiveParams())
     reaction = agent.start(world.m0)
     np.testing.assert_array_equal(wrapper.last_row, world.m0)
     assert reaction.new_povs.shape == (1, 100, 4) and list(reaction.new_pov_ids) == [0]
@@ -137,10 +137,10 @@ def test_agent_ends_every_reaction_resting_where_it_says(small_run):
             assert not reaction.compensated
 
 
-def test_same_seed_same_run():
+def test_same_world_same_run():
     world = build_world(1, {"grid_count": 8, "order": "tracking"})
-    first = run_naive(world, NaiveParams(), seed=1)
-    second = run_naive(world, NaiveParams(), seed=1)
+    first = run_naive(world, NaiveParams())
+    second = run_naive(world, NaiveParams())
     np.testing.assert_array_equal(first.povs, second.povs)
     np.testing.assert_array_equal(first.pairs, second.pairs)
     assert first.agent.queries_total == second.agent.queries_total
@@ -148,7 +148,7 @@ def test_same_seed_same_run():
 
 def test_tracking_schedule_compensates_correctly():
     world = build_world(2, {"grid_count": 10, "order": "tracking"})
-    result = run_naive(world, NaiveParams(), seed=2)
+    result = run_naive(world, NaiveParams())
     m = evaluate_naive_run(result, world, paper_positions=np.zeros((0, 2))).metrics
     assert m["exploration.compensated"] > 10
     assert m["naive.wrong_poses"] == 0 and m["naive.state_changes_accepted"] == 0
@@ -165,7 +165,7 @@ def _drive(agent, simulator, world, events):
 def test_equality_pass_adds_sets_and_no_points_of_view():
     world = build_world(3, {"grid_count": 10})
     simulator = SimulatedBody(world.receptors, world.initial_lights)
-    agent = NaiveAgent(ClosureBody()(simulator), NaiveParams(), seed=3)
+    agent = NaiveAgent(ClosureBody()(simulator), NaiveParams())
     agent.start(world.m0)
     for _ in _drive(agent, simulator, world, world.events):
         pass

@@ -56,13 +56,13 @@ def world():
 def test_restored_agent_continues_like_the_uninterrupted_one(world):
     cut = len(world.events) // 2
     reference_sim = SimulatedBody(world.receptors, world.initial_lights)
-    reference = NaiveAgent(SensingOnly(reference_sim), NaiveParams(), seed=4)
+    reference = NaiveAgent(SensingOnly(reference_sim), NaiveParams())
     reference.start(world.m0)
     _drive(reference, reference_sim, world, world.events[:cut])
     reference_rest = _drive(reference, reference_sim, world, world.events[cut:])
 
     simulator = SimulatedBody(world.receptors, world.initial_lights)
-    agent = NaiveAgent(SensingOnly(simulator), NaiveParams(), seed=4)
+    agent = NaiveAgent(SensingOnly(simulator), NaiveParams())
     agent.start(world.m0)
     _drive(agent, simulator, world, world.events[:cut])
     assert agent.compensated > 0 and len(agent.equality_sets()[1]) > 0, "nothing to restore"
@@ -76,7 +76,7 @@ def test_restored_agent_continues_like_the_uninterrupted_one(world):
 def test_restored_agent_in_the_equality_pass_continues_identically(world):
     def explored():
         simulator = SimulatedBody(world.receptors, world.initial_lights)
-        agent = NaiveAgent(SensingOnly(simulator), NaiveParams(), seed=4)
+        agent = NaiveAgent(SensingOnly(simulator), NaiveParams())
         agent.start(world.m0)
         _drive(agent, simulator, world, world.events)
         simulator.set_lights(world.initial_lights)
@@ -104,7 +104,7 @@ def test_state_is_refused_inside_a_reaction(world):
                 agent.state()
             return super().sense(motor_states)
 
-    agent = NaiveAgent(Peeking(simulator), NaiveParams(), seed=4)
+    agent = NaiveAgent(Peeking(simulator), NaiveParams())
     agent.start(world.m0)
 
 

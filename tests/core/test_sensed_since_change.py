@@ -182,10 +182,10 @@ def test_lookahead_rows_ride_on_the_next_call_and_answer_a_later_one():
 
 def test_rank_call_carries_the_search_starts_same_results_fewer_calls(monkeypatch):
     world = build_world(0, {"grid_count": 12})
-    with_lookahead = run_naive(world, NaiveParams(), seed=0)
+    with_lookahead = run_naive(world, NaiveParams())
     # The same run with the lookahead rows dropped.
     monkeypatch.setattr(CountingBody, "lookahead", _no_lookahead)
-    without = run_naive(world, NaiveParams(), seed=0)
+    without = run_naive(world, NaiveParams())
     np.testing.assert_array_equal(with_lookahead.povs, without.povs)
     np.testing.assert_array_equal(with_lookahead.pairs, without.pairs)
     assert len(with_lookahead.povs) > 10

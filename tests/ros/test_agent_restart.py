@@ -310,7 +310,7 @@ def offline():
     from sensorispace_ros.core.naive.run import run_naive
     cfg = config.load_config(SMOKE)
     world = build_world(cfg["seed"], strategies.world_params(cfg))
-    return run_naive(world, NaiveParams(**cfg["naive"]), cfg["seed"])
+    return run_naive(world, NaiveParams(**cfg["naive"]))
 
 
 @pytest.mark.graph

@@ -36,7 +36,7 @@ def offline(smoke_cfg):
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
     world = build_world(smoke_cfg["seed"], strategies.world_params(smoke_cfg))
-    produced = run_naive(world, NaiveParams(**smoke_cfg["naive"]), smoke_cfg["seed"])
+    produced = run_naive(world, NaiveParams(**smoke_cfg["naive"]))
     representation = build_representation(
         produced.povs, produced.pairs, produced.set_ids, smoke_cfg, smoke_cfg["seed"])
     return produced, representation

@@ -69,11 +69,11 @@ class NaiveAgent:
     ``n_sensors``; ``sense`` is called from the thread that calls ``start``/
     ``react`` and may be a round trip to another process. Every ``start``/
     ``react`` ends with a one-row command: the arm rests at
-    ``rest_motor_state``. ``seed`` is kept for reproducible extensions; the
-    present policy draws no random numbers.
+    ``rest_motor_state``. The policy draws no random numbers: the same
+    sensations give the same run.
     """
 
-    def __init__(self, body, params: NaiveParams | None = None, seed: int = 0):
+    def __init__(self, body, params: NaiveParams | None = None):
         self.params = params if params is not None else NaiveParams()
         if not isinstance(self.params, NaiveParams):
             raise ValueError(f"params: must be a NaiveParams, got {type(params).__name__}")
@@ -83,9 +83,6 @@ class NaiveAgent:
                 raise ValueError(f"body: must expose a positive integer {name}, got {value!r}")
         if not callable(getattr(body, "sense", None)):
             raise ValueError("body: must expose sense(motor_states)")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
-        self.seed = int(seed)
         self._body = CountingBody(body, bool(self.params.remember_sensations))
         self.n_motors = self._body.n_motors
         self._store = PovStore(self.params.n_samples, self.n_motors)
@@ -184,7 +181,7 @@ class NaiveAgent:
         """The agent that ``state()`` described, sensing through ``body``;
         it continues exactly as the original would have."""
         attributes = dict(state["attributes"])
-        agent = cls(body, attributes["params"], attributes["seed"])
+        agent = cls(body, attributes["params"])
         sweep = attributes.pop("_sweep", None)
         vars(agent).update(attributes)
         for name, value in state["counters"].items():

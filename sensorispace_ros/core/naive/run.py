@@ -57,14 +57,14 @@ class NaiveRunResult:
     def agent(self) -> NaiveAgent:
         return self.exploration.agent
 
-def explore_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=None, *,
+def explore_naive(world, params: NaiveParams | None = None, *, progress=None,
                   equality_pass: bool = False, body_wrapper=SensingOnly) -> NaiveExploration:
     """Step the naive agent through ``world.events``: what the ROS graph
     computes. Arguments as ``run_naive``'s."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
     body = SimulatedBody(world.receptors, world.initial_lights)
-    agent = NaiveAgent(body_wrapper(body), params, seed)
+    agent = NaiveAgent(body_wrapper(body), params)
 
     centers = [np.asarray(world.initial_center, float)]
     layout = [0]                    # light layout version: +1 at each redistribution
@@ -93,7 +93,7 @@ def explore_naive(world, params: NaiveParams | None = None, seed: int = 0, progr
     return NaiveExploration(agent, centers, layout, kinds, exploration_s, equality_s)
 
 
-def run_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=None, *,
+def run_naive(world, params: NaiveParams | None = None, *, progress=None,
               equality_pass: bool = False, body_wrapper=SensingOnly) -> NaiveRunResult:
     """Run the naive agent through ``world.events``.
 
@@ -103,7 +103,7 @@ def run_naive(world, params: NaiveParams | None = None, seed: int = 0, progress=
     (default ``SensingOnly``: ``sense`` and the vector sizes).
     ``progress(done, total)`` is called every 100 events.
     """
-    explored = explore_naive(world, params, seed, progress, equality_pass=equality_pass,
+    explored = explore_naive(world, params, progress=progress, equality_pass=equality_pass,
                              body_wrapper=body_wrapper)
     agent = explored.agent
     pov_s = agent.seconds_by_stage.get("pov", 0.0)

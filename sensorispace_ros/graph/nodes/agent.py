@@ -303,8 +303,7 @@ class AgentNode(GraphNode):
                                    on_retransmit=self.log_retransmit)
         # The agent knows its own initial posture (proprioception), nothing of the world.
         self.initial_motor_state = np.asarray(self.cfg["arm"]["initial_motor_state"], float)
-        self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]),
-                                            self.cfg["seed"])
+        self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]))
         self.passive: collections.deque = collections.deque()
         self.last_passive = -1
         self.last_settled = -1
