@@ -299,6 +299,8 @@ GRAPH_SCHEMA: dict[str, Param] = {
     "executor": P("events", choice("events", "single_threaded"), "what spins a node: "
                   "rclpy's EventsExecutor, or SingleThreadedExecutor (its fallback, and "
                   "the reference it is measured against)"),
+    "view_port": P(0, integer(0), "the viewer node serves its topics to the Foxglove app "
+                   "on ws://127.0.0.1:<port> (Foxglove SDK); 0: no server"),
 }
 
 

@@ -32,6 +32,7 @@ class TopicContract:
     columns: dict                  # {column: type name}, empty for non-table types
     frame_id: str
     meaning: str
+    elements: tuple[str, ...] = ()  # names of a Float64MultiArray's data[i]
 
     @property
     def msg_type(self):
@@ -83,7 +84,8 @@ def load_contracts(path: str | None = None) -> dict[str, TopicContract]:
             publisher=spec["publisher"], subscribers=tuple(spec.get("subscribers", ())),
             ground_truth=bool(spec.get("ground_truth", False)),
             columns=dict(spec.get("columns") or {}), frame_id=str(spec.get("frame_id", "")),
-            meaning=str(spec.get("meaning", "")))
+            meaning=str(spec.get("meaning", "")),
+            elements=tuple(spec.get("elements") or ()))
     return contracts
 
 
