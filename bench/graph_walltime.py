@@ -106,7 +106,7 @@ def run_pair(args, legacy: bool = False) -> float:
         print(f"legacy offline number (run_naive_strategy in-process, ground truth included): "
               f"{legacy_offline(args.config):.2f} s")
 
-    from sensorispace_ros.graph import launcher
+    from sensorispace_ros.graph import dds_environment, in_process, launcher
     cpu_started = time.process_time()
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     children_before = children.ru_utime + children.ru_stime
@@ -121,8 +121,8 @@ def run_pair(args, legacy: bool = False) -> float:
                 if "run over" in line:
                     print("agent:", line.split("]: ", 1)[-1])
         else:
-            result = launcher.run_graph_in_process(args.config, launcher.free_domain_id(),
-                                                   Path(tmp) / "run")
+            result = in_process.run_graph_in_process(args.config, dds_environment.free_domain_id(),
+                                                      Path(tmp) / "run")
             graph_s = result["wall_s"]
             mode = "one process, one executor"
             body = result["nodes"]["agent"].body

@@ -73,7 +73,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     from bench import rclpy_echo
     from sensorispace_ros import config as config_mod
     from sensorispace_ros import contracts, messages
-    from sensorispace_ros.graph import launcher
+    from sensorispace_ros.graph import dds_environment
     from sensorispace_ros.graph.framework import build_world, frame, make_executor
     from sensorispace_ros.graph.nodes.agent import BodyOverTopics
 
@@ -82,7 +82,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     if not config.is_absolute():
         config = HERE.parent / config
     cfg = config_mod.load_config(config)
-    domain = launcher.free_domain_id()
+    domain = dds_environment.free_domain_id()
     env = child_environment({"ROS_DOMAIN_ID": str(domain),
                              "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
     log_dir = Path(log_dir) if log_dir else None

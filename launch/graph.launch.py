@@ -28,7 +28,8 @@ from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown as ShutdownEvent
 from launch_ros.actions import Node
 
-from sensorispace_ros.graph.launcher import RECORDING_WAIT_S, fastdds_profile_file, free_domain_id
+from sensorispace_ros.graph.dds_environment import fastdds_profile_file, free_domain_id
+from sensorispace_ros.graph.launcher import RECORDING_WAIT_S
 from sensorispace_ros.recording.completeness import marker_path
 
 PACKAGE = 'sensorispace_ros'

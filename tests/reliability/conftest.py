@@ -15,7 +15,7 @@ SMOKE = REPO / "config" / "smoke.yaml"
 
 @pytest.fixture
 def domain_id():
-    from sensorispace_ros.graph.launcher import free_domain_id
+    from sensorispace_ros.graph.dds_environment import free_domain_id
     return free_domain_id()
 
 
@@ -25,7 +25,8 @@ def single_host_result(tmp_path_factory):
 
     tests/ros/test_graph_in_process.py shows this equals the offline naive run.
     """
-    from sensorispace_ros.graph.launcher import free_domain_id, run_graph_in_process
+    from sensorispace_ros.graph.dds_environment import free_domain_id
+    from sensorispace_ros.graph.in_process import run_graph_in_process
 
     from .node_processes import load_result
     results = tmp_path_factory.mktemp("single_host")

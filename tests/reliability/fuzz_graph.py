@@ -46,7 +46,7 @@ else:
     from . import node_processes as np_mod
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.graph import launcher  # noqa: E402
+from sensorispace_ros.graph import dds_environment, in_process  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "config" / "smoke.yaml"
@@ -228,8 +228,8 @@ def run_fuzz(seconds: float, rate_hz: float, work_dir: Path, huge_rows: int = 20
     """Start the smoke graph, fuzz it for ``seconds`` (starting once every node is up),
     keep fuzzing the nodes still alive until ``seconds`` have passed even if the run
     finished earlier. Returns counts, RSS and the run's result arrays."""
-    domain_id = launcher.free_domain_id()
-    env = launcher.graph_environment(domain_id)
+    domain_id = dds_environment.free_domain_id()
+    env = dds_environment.graph_environment(domain_id)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_STATIC_PEERS", None)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -315,8 +315,8 @@ def main(argv=None) -> int:
     if args.reference is None:
         args.reference = args.work / "reference"
         t0 = time.monotonic()
-        launcher.run_graph_in_process(SMOKE, launcher.free_domain_id(), args.reference,
-                                      timeout_s=400)
+        in_process.run_graph_in_process(SMOKE, dds_environment.free_domain_id(), args.reference,
+                                        timeout_s=400)
         print(f"reference run: {time.monotonic() - t0:.1f} s", file=sys.stderr)
     reference = np_mod.load_result(args.reference)
     report = run_fuzz(args.seconds, args.rate, args.work / "fuzzed", args.huge_rows,

@@ -11,7 +11,7 @@ completed / stalled / died, equal to the reference or not, and what the bag
 ``bag_losses``).
 
 Every node gets ``graph.checkpoint_dir`` (node_processes.node_parameters) and
-the launcher's short-lease Fast DDS profile (launcher.graph_environment).
+the launcher's short-lease Fast DDS profile (dds_environment.graph_environment).
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ if __package__ in (None, ""):
 else:
     from . import node_processes as np_mod
 
-from sensorispace_ros.graph import launcher  # noqa: E402
+from sensorispace_ros.graph import dds_environment, launcher  # noqa: E402
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -95,8 +95,8 @@ def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]
 def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference: dict | None,
                 write_ahead: bool = True, restart_delay_s: float = 0.0,
                 command_timeout_s: float | None = None):
-    domain_id = launcher.free_domain_id()
-    env = launcher.graph_environment(domain_id)
+    domain_id = dds_environment.free_domain_id()
+    env = dds_environment.graph_environment(domain_id)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_STATIC_PEERS", None)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

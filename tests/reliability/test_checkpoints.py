@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from sensorispace_ros.graph.nodes.body import RestingStateFile
+from sensorispace_ros.state.resting_state import RestingStateFile
 from sensorispace_ros.state.environment_record import PROGRESS_BYTES
 
 
@@ -54,14 +54,14 @@ class EnvironmentProbe:
         from rclpy.signals import SignalHandlerOptions
 
         from sensorispace_ros import contracts
-        from sensorispace_ros.graph import launcher
+        from sensorispace_ros.graph import in_process
         from sensorispace_ros.graph.nodes.environment import EnvironmentNode
 
         from .conftest import SMOKE
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.env = EnvironmentNode(context=self.context, parameter_overrides=launcher.
+        self.env = EnvironmentNode(context=self.context, parameter_overrides=in_process.
                                    parameter_overrides(SMOKE, {
                                        "graph.checkpoint_dir": str(checkpoint_dir),
                                        "graph.wait_for_nodes": ["environment_probe"],
@@ -192,13 +192,13 @@ def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_ki
     from rclpy.signals import SignalHandlerOptions
 
     from sensorispace_ros import contracts, messages
-    from sensorispace_ros.graph import launcher
+    from sensorispace_ros.graph import in_process
     from sensorispace_ros.core.body import SimulatedBody
     from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, build_world, frame
     from sensorispace_ros.graph.nodes.body import BodyNode
 
     from .conftest import SMOKE
-    cfg_overrides = launcher.parameter_overrides(SMOKE, {"graph.checkpoint_dir": str(tmp_path)})
+    cfg_overrides = in_process.parameter_overrides(SMOKE, {"graph.checkpoint_dir": str(tmp_path)})
     resting = np.array([0.3, -1.2, 2.0, -2.5])
     RestingStateFile(tmp_path / "body.state", 5).save(np.append(resting, 3))  # lights 3 applied
 

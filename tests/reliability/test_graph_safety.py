@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph import dds_environment, launcher
 
 from .conftest import SMOKE
 from .node_processes import stop_by_pid
@@ -28,18 +28,18 @@ rclpy.spin(node)
 
 
 def test_graph_environment_names_a_default_participant_profile_with_a_short_lease(tmp_path):
-    env = launcher.graph_environment(5, base={"PATH": "/usr/bin"}, profile_dir=tmp_path)
+    env = dds_environment.graph_environment(5, base={"PATH": "/usr/bin"}, profile_dir=tmp_path)
     root = ET.parse(env["FASTRTPS_DEFAULT_PROFILES_FILE"]).getroot()
     ns = {"d": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
     participant = root.find("d:profiles/d:participant", ns)
     assert participant.get("is_default_profile") == "true"
     lease = participant.find("d:rtps/d:builtin/d:discovery_config/d:leaseDuration/d:sec", ns)
-    assert int(lease.text) == launcher.LEASE_DURATION_S < 20
+    assert int(lease.text) == dds_environment.LEASE_DURATION_S < 20
 
 
 def test_graph_environment_keeps_a_profile_the_user_set(tmp_path):
-    env = launcher.graph_environment(5, base={"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"},
-                                     profile_dir=tmp_path)
+    env = dds_environment.graph_environment(5, base={"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"},
+                                            profile_dir=tmp_path)
     assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == "/mine.xml"
 
 
@@ -52,7 +52,7 @@ def test_a_killed_reader_is_unmatched_within_the_short_lease(domain_id, tmp_path
     from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import UInt64
 
-    env = launcher.graph_environment(domain_id, profile_dir=tmp_path)
+    env = dds_environment.graph_environment(domain_id, profile_dir=tmp_path)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     subscriber = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], env=env,
                                   start_new_session=True)
@@ -72,7 +72,7 @@ def test_a_killed_reader_is_unmatched_within_the_short_lease(domain_id, tmp_path
         while publisher.get_subscription_count() > 0 and time.monotonic() - killed < 15:
             time.sleep(0.05)
         unmatched_after = time.monotonic() - killed
-        assert unmatched_after < launcher.LEASE_DURATION_S + 2.0, unmatched_after
+        assert unmatched_after < dds_environment.LEASE_DURATION_S + 2.0, unmatched_after
     finally:
         stop_by_pid(subscriber)
         context.try_shutdown()
@@ -150,7 +150,9 @@ def test_another_publish_error_is_logged_and_given_up_at_once(graph_node, monkey
 
 
 def test_launch_refuses_a_negative_respawn_count(capsys):
-    assert launcher.main(["launch", "--config", str(SMOKE), "--respawn", "-1"]) == 2
+    from sensorispace_ros.cli import main as cli
+
+    assert cli.main(["launch", "--config", str(SMOKE), "--respawn", "-1"]) == 2
     assert "--respawn must be >= 0, got -1" in capsys.readouterr().err
     with pytest.raises(ValueError, match="respawn must be >= 0"):
         launcher.launch_graph(SMOKE, respawn=-1)

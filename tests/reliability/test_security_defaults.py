@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from sensorispace_ros.graph.launcher import free_domain_id, graph_environment
+from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
 
 pytestmark = [pytest.mark.graph]
 

@@ -13,13 +13,13 @@ SMOKE = REPO / "config" / "smoke.yaml"
 
 @pytest.fixture
 def domain_id():
-    from sensorispace_ros.graph.launcher import free_domain_id
+    from sensorispace_ros.graph.dds_environment import free_domain_id
     return free_domain_id()
 
 
 @pytest.fixture
 def node_env(domain_id):
-    from sensorispace_ros.graph.launcher import graph_environment
+    from sensorispace_ros.graph.dds_environment import graph_environment
     return graph_environment(domain_id)
 
 

@@ -15,7 +15,7 @@ import pytest
 from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, messages
-from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph import in_process
 from sensorispace_ros.state.agent_journal import JOURNAL_FILE, SNAPSHOT_FILE, read_journal
 from sensorispace_ros.graph.framework import frame
 from sensorispace_ros.graph.nodes.agent import AgentNode, BodyOverTopics, RunAborted
@@ -95,7 +95,7 @@ def _passive(kind, number, value=0.5):
 
 
 def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
-    node = AgentNode(context=context, parameter_overrides=launcher.parameter_overrides(
+    node = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
         SMOKE, {"graph.results_dir": str(tmp_path)}))
     try:
         node.settled_pub = RecordingPublisher()
@@ -114,7 +114,7 @@ def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
 
 
 def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
-    node = AgentNode(context=context, parameter_overrides=launcher.parameter_overrides(
+    node = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
         SMOKE, {"graph.results_dir": str(tmp_path)}))
     columns = contracts.contract("/body/sensation").columns
 
@@ -135,7 +135,7 @@ def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
 def test_journal_records_older_than_the_snapshot_are_not_replayed(context, tmp_path):
     """A kill between the snapshot's os.replace and the journal's truncation
     leaves records the snapshot already holds: they must not be fed twice."""
-    overrides = launcher.parameter_overrides(SMOKE, {
+    overrides = in_process.parameter_overrides(SMOKE, {
         "graph.results_dir": str(tmp_path), "graph.checkpoint_dir": str(tmp_path / "cp")})
     first = AgentNode(context=context, parameter_overrides=overrides)
     first.last_passive = first.last_settled = 5
@@ -181,7 +181,7 @@ def test_a_bad_checkpoint_stops_the_agent_naming_the_file(context, tmp_path, dam
         write_snapshot(checkpoints / SNAPSHOT_FILE, {"config": {"seed": 12345}})
         expected = r"agent\.snapshot: written by a run with another configuration"
     with pytest.raises(config.ConfigError, match=expected):
-        AgentNode(context=context, parameter_overrides=launcher.parameter_overrides(
+        AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
             SMOKE, {"graph.results_dir": str(tmp_path),
                     "graph.checkpoint_dir": str(checkpoints)}))
 
@@ -192,7 +192,7 @@ def _table(topic, frame_id, **columns):
 
 
 def test_representation_ignores_re_published_povs_and_rows(context, tmp_path):
-    node = RepresentationNode(context=context, parameter_overrides=launcher.parameter_overrides(
+    node = RepresentationNode(context=context, parameter_overrides=in_process.parameter_overrides(
         SMOKE, {"graph.results_dir": str(tmp_path)}))
     started = []
     node.build = lambda: started.append(True)
@@ -295,7 +295,7 @@ def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
             corpse.journal.close()          # the fd only; a killed process writes nothing
             dead.append(corpse)
 
-    result = launcher.run_graph_in_process(
+    result = in_process.run_graph_in_process(
         SMOKE, domain_id, tmp_path, timeout_s=timeout_s, on_spin=bury_and_restart,
         parameters={"graph.checkpoint_dir": str(tmp_path / "checkpoints")},
         node_factories={"agent": new_agent})

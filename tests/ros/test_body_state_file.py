@@ -4,7 +4,7 @@ restarted body reads), visible at once to another reader of the file."""
 import numpy as np
 import pytest
 
-from sensorispace_ros.graph.nodes.body import RestingStateFile
+from sensorispace_ros.state.resting_state import RestingStateFile
 
 
 def test_save_writes_the_slot_format(tmp_path):

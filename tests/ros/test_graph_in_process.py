@@ -13,7 +13,7 @@ from rclpy.node import Node
 from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, messages
-from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph import in_process
 from sensorispace_ros.offline import strategies
 from sensorispace_ros.offline.representation import DIMENSIONS, build_representation
 
@@ -64,7 +64,7 @@ def _run(tmp_path, domain_id, extra_nodes=()):
         observers.append(GraphObserver(context))
         return observers[-1]
 
-    result = launcher.run_graph_in_process(
+    result = in_process.run_graph_in_process(
         SMOKE, domain_id, tmp_path, extra_nodes=(make_observer, *extra_nodes), timeout_s=600,
         on_spin=lambda nodes, replace: observers[0].look(nodes))
     return result, observers[0]

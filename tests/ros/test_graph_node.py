@@ -11,7 +11,7 @@ from rclpy.serialization import serialize_message
 from rclpy.time import Time
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph import in_process
 from sensorispace_ros.graph.framework import MAX_FRAME_NUMBER, GraphNode, parse_frame
 
 from .conftest import SMOKE
@@ -22,7 +22,7 @@ KINDS = ("cmd", "change", "end")
 
 def _node(context, **graph):
     node = GraphNode("reader", context=context,
-                     parameter_overrides=launcher.parameter_overrides(SMOKE, graph))
+                     parameter_overrides=in_process.parameter_overrides(SMOKE, graph))
     node.reasons = []
     node.drop = lambda topic, reason: node.reasons.append((topic, reason))
     return node
@@ -111,7 +111,7 @@ def test_now_ns_is_the_node_clocks_time(context):
 
 def test_now_ns_follows_simulated_time(context):
     node = GraphNode("sim_reader", context=context,
-                     parameter_overrides=[*launcher.parameter_overrides(SMOKE),
+                     parameter_overrides=[*in_process.parameter_overrides(SMOKE),
                                           Parameter("use_sim_time", value=True)])
     try:
         clock = node.get_clock()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.graph import launcher
+from sensorispace_ros.graph import in_process
 from sensorispace_ros.core import hausdorff
 from sensorispace_ros.graph.nodes.representation import RepresentationNode, assemble_points_of_view
 
@@ -39,7 +39,7 @@ def _pov_message(frame_id, ids, povs, samples=None):
 
 @pytest.fixture
 def node(context, tmp_path):
-    node = RepresentationNode(context=context, parameter_overrides=launcher.parameter_overrides(
+    node = RepresentationNode(context=context, parameter_overrides=in_process.parameter_overrides(
         SMOKE, {"graph.results_dir": str(tmp_path)}))
     node.build = lambda: None                       # the final build is not under test
     yield node

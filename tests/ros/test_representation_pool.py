@@ -58,7 +58,7 @@ def test_destroying_the_node_ends_its_pool_workers(domain_id, tmp_path):
     from rclpy.signals import SignalHandlerOptions
 
     from sensorispace_ros.offline import chain_pool
-    from sensorispace_ros.graph.launcher import parameter_overrides
+    from sensorispace_ros.graph.in_process import parameter_overrides
     from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
     context = Context()
@@ -87,7 +87,7 @@ def test_the_pool_starts_late_or_as_soon_as_the_run_is_over(domain_id, tmp_path,
     from rclpy.signals import SignalHandlerOptions
 
     from sensorispace_ros import contracts, messages
-    from sensorispace_ros.graph.launcher import parameter_overrides
+    from sensorispace_ros.graph.in_process import parameter_overrides
     from sensorispace_ros.graph.nodes import representation
 
     monkeypatch.setattr(representation, "CHAIN_POOL_DELAY_S", 3600.0)

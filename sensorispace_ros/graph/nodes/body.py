@@ -11,7 +11,7 @@ never subscribes to those.
 
 Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor state
 and the number of the last lights applied are written on every command and
-change into ``<dir>/body.state`` (``RestingStateFile``: one ``os.pwrite``, in
+change into ``<dir>/body.state`` (state.resting_state: one ``os.pwrite``, in
 the page cache before the answer is published, survives kill -9, no fsync) and
 read back at start, so a restarted body computes passive sensations at the
 right pose. The lights come back by themselves (``/environment/lights`` keeps
@@ -25,11 +25,7 @@ RESTART_EXIT_CODE, to be started again (``note_repeated_command``).
 """
 from __future__ import annotations
 
-import os
-import struct
-import weakref
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -37,56 +33,7 @@ from sensorispace_ros import contracts, messages
 from sensorispace_ros.graph import tracing
 from sensorispace_ros.core.body import SimulatedBody, simulate
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, GraphNode, build_world, run_node
-
-
-class RestingStateFile:
-    """A short float vector (the body's: resting motor state, then the number of
-    the last lights applied) in a small file of native float64s.
-
-    Two slots written alternately, each ``[seq, values..., seq]``: a kill -9 in the
-    middle of a write leaves the slot's two sequence numbers unequal, and
-    ``load`` takes the newest slot whose numbers agree (seqlock). No fsync, no
-    rename: the page cache keeps what a killed process wrote (a machine crash
-    is out of scope). ``slots`` maps the file (what ``load`` reads); ``save``
-    writes a slot with one ``os.pwrite`` of its packed bytes, in the page cache
-    when it returns as the mapping's stores were: writing through the memmap
-    (np.append, a memmap slot view, three assignments) cost 27 us a command in
-    the graph, 7 us in a hot loop.
-    """
-
-    def __init__(self, path: Path, size: int):
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        shape = (2, size + 2)
-        fresh = not self.path.is_file() or self.path.stat().st_size != 8 * shape[0] * shape[1]
-        self.slots = np.memmap(self.path, dtype=np.float64, mode="w+" if fresh else "r+",
-                               shape=shape)
-        self.size = size
-        self._slot = struct.Struct(f"={shape[1]}d")      # one row of ``slots``, same bytes
-        self._fd = os.open(self.path, os.O_RDWR)
-        weakref.finalize(self, os.close, self._fd)
-        self.seq = int(max((row[0] for row in self._valid_slots()), default=0))
-
-    def _valid_slots(self) -> list[np.ndarray]:
-        return [row for row in self.slots if row[0] > 0 and row[0] == row[-1]]
-
-    def load(self) -> np.ndarray | None:
-        """The last vector written, or None (no file, nothing valid)."""
-        valid = self._valid_slots()
-        if not valid:
-            return None
-        return np.array(max(valid, key=lambda row: row[0])[1:-1])
-
-    def save(self, values: Sequence[float]) -> None:
-        """Write ``values`` (``size`` numbers) over the older slot."""
-        seq = self.seq + 1
-        try:
-            data = self._slot.pack(seq, *values, seq)
-        except struct.error as exc:
-            raise ValueError(f"values: {self.size} numbers expected ({exc})") from None
-        if os.pwrite(self._fd, data, (seq % 2) * self._slot.size) != len(data):
-            raise OSError(f"{self.path}: short write")
-        self.seq = seq
+from sensorispace_ros.state.resting_state import RestingStateFile
 
 
 class BodyNode(GraphNode):
