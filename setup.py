@@ -41,6 +41,7 @@ setup(
             'representation = sensorispace_ros.graph.nodes.representation:main',
             'recorder = sensorispace_ros.graph.nodes.recorder:main',
             'replay = sensorispace_ros.graph.nodes.replay:main',
+            'viewer = sensorispace_ros.graph.nodes.viewer:main',
         ],
     },
 )
