@@ -258,3 +258,39 @@ def test_a_smoke_run_is_served_to_a_foxglove_client_and_the_agent_stays_naive(
                                arrays["embedding_2d_iterations"][-1], rtol=1e-6, atol=1e-5)
     assert np.all(rows["z"] == 0)
     assert len(set(rows["rgb"].view(np.uint32).tolist())) > 1     # coloured by position
+
+
+def _layout_panels(node) -> list[str]:
+    if isinstance(node, str):
+        return [node]
+    return _layout_panels(node["first"]) + _layout_panels(node["second"])
+
+
+def test_the_foxglove_layout_shows_the_viewer_topics_in_their_frames():
+    import json
+    import re
+
+    from .conftest import REPO
+
+    layout = json.loads((REPO / "docs" / "foxglove-layout.json").read_text())
+    panels = layout["configById"]
+    assert sorted(_layout_panels(layout["layout"])) == sorted(panels)
+    three_d = {k: v for k, v in panels.items() if k.startswith("3D!")}
+    plots = {k: v for k, v in panels.items() if k.startswith("Plot!")}
+    assert three_d and plots
+    shown = set()
+    for config in three_d.values():
+        for topic, settings in config["topics"].items():
+            spec = contracts.contract(topic)
+            shown.add(topic)
+            if settings.get("visible"):                       # drawn in the frame it follows
+                assert spec.frame_id == config["followTf"], topic
+            if spec.type_name == "sensor_msgs/msg/PointCloud2":
+                assert settings["colorField"] in spec.columns and settings["colorMode"] == "rgb"
+    assert {"/viewer/scene", "/viewer/representation_2d"} <= shown
+    for config in plots.values():
+        for path in config["paths"]:
+            topic, index = re.fullmatch(r"(/[\w/]+)\.data\[(\d+)\]", path["value"]).groups()
+            elements = contracts.contract(topic).elements
+            assert int(index) < len(elements)
+            assert path["label"].replace(" ", "_") == elements[int(index)], path
