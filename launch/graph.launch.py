@@ -28,12 +28,15 @@ from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown as ShutdownEvent
 from launch_ros.actions import Node
 
-from sensorispace_ros.graph.dds_environment import fastdds_profile_file, free_domain_id
+from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
 from sensorispace_ros.graph.launcher import RECORDING_WAIT_S
 from sensorispace_ros.recording.completeness import marker_path
 
 PACKAGE = 'sensorispace_ros'
 CONFIG_FILE = 'paper.yaml'
+# what graph_environment sets for the graph's processes (PYTHONPATH: the sourced workspace's)
+GRAPH_ENVIRONMENT = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE',
+                     'FASTRTPS_DEFAULT_PROFILES_FILE', 'PYTHONUNBUFFERED')
 
 
 def generate_launch_description():
@@ -65,7 +68,10 @@ def graph(context):
     checkpoints = results / 'checkpoints'
     # a fresh run: what an earlier run of the same name persisted must not be resumed
     shutil.rmtree(checkpoints, ignore_errors=True)
-    domain_id = arg['domain_id'] or str(free_domain_id())
+    try:
+        domain_id = int(arg['domain_id']) if arg['domain_id'] else free_domain_id()
+    except ValueError:
+        raise ValueError(f"domain_id: must be an integer, got {arg['domain_id']!r}") from None
     config = arg['config']
     own = {'graph.results_dir': str(results), 'graph.checkpoint_dir': str(checkpoints)}
     waited_for = ['body', 'agent', 'representation'] + (['recorder'] if record else [])
@@ -83,13 +89,9 @@ def graph(context):
     if record:
         nodes.append(Node(package=PACKAGE, executable='recorder', output='screen',
                           parameters=[config, {'bag_path': str(bag)}]))
-    profile = os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or str(fastdds_profile_file())
+    env = graph_environment(domain_id)
     return [
-        SetEnvironmentVariable('ROS_DOMAIN_ID', domain_id),
-        SetEnvironmentVariable('ROS_AUTOMATIC_DISCOVERY_RANGE',
-                               os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')),
-        SetEnvironmentVariable('FASTRTPS_DEFAULT_PROFILES_FILE', profile),
-        SetEnvironmentVariable('PYTHONUNBUFFERED', '1'),
+        *(SetEnvironmentVariable(key, env[key]) for key in GRAPH_ENVIRONMENT),
         LogInfo(msg=f'run {run}: ROS_DOMAIN_ID={domain_id}, config {config}, results {results}'
                     + (f', bag {bag}' if record else ', not recording')),
         *nodes,

@@ -97,3 +97,17 @@ def test_what_it_imports_from_the_package_exists():
             for alias in node.names:
                 assert hasattr(module, alias.name), f"{node.module}.{alias.name}"
 
+
+
+def test_the_environment_it_sets_is_what_graph_environment_gives():
+    from sensorispace_ros.graph.dds_environment import graph_environment
+
+    keys = module_constants_tuple("GRAPH_ENVIRONMENT")
+    assert set(keys) <= set(graph_environment(1, base={}))
+
+
+def module_constants_tuple(name: str) -> tuple:
+    [value] = [ast.literal_eval(node.value) for node in tree().body
+               if isinstance(node, ast.Assign)
+               and any(getattr(t, "id", None) == name for t in node.targets)]
+    return value
