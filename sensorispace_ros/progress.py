@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from typing import Callable, Iterator, TextIO
 
 
-def _format_seconds(seconds: float) -> str:
+def format_seconds(seconds: float) -> str:
     if seconds < 60:
         return f"{seconds:.1f}s"
     minutes, secs = divmod(int(round(seconds)), 60)
@@ -71,7 +71,7 @@ class Progress:
         finally:
             elapsed = self.clock() - self._stage_start
             self.durations[name] = self.durations.get(name, 0.0) + elapsed
-            self._finish_line(f"[{name}] done in {_format_seconds(elapsed)}")
+            self._finish_line(f"[{name}] done in {format_seconds(elapsed)}")
             self.stage_name, self.total, self.fraction, self._stage_start = outer
             self._last_line = self.clock()
 
@@ -99,10 +99,10 @@ class Progress:
     def status(self) -> str:
         elapsed = self.clock() - self._stage_start
         parts = [f"[{self.stage_name}]", f"{100.0 * self.fraction:5.1f}%",
-                 f"elapsed {_format_seconds(elapsed)}"]
+                 f"elapsed {format_seconds(elapsed)}"]
         if 0.0 < self.fraction < 1.0:
             remaining = elapsed * (1.0 - self.fraction) / self.fraction
-            parts.append(f"ETA {_format_seconds(remaining)}")
+            parts.append(f"ETA {format_seconds(remaining)}")
         return " ".join(parts)
 
     def _render(self, force: bool = False) -> None:

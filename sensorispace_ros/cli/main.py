@@ -16,10 +16,10 @@ import os
 import sys
 from typing import Sequence
 
-from sensorispace_ros.cli import analyze, bag, compare, launch, replay, reproduce
+from sensorispace_ros.cli import analyze, bag, compare, launch, replay, reproduce, sweep
 
 PROG = "sensorispace"
-VERBS = (reproduce, compare, launch, analyze, replay, bag)
+VERBS = (reproduce, compare, launch, analyze, replay, bag, sweep)
 EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
 

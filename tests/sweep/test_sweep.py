@@ -1,0 +1,165 @@
+"""Sweeps on real Dask clusters: same numbers as ``reproduce``, survives a killed
+worker, resumes after an interruption; and on a scheduler with separate workers."""
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from sensorispace_ros import config as config_mod
+from sensorispace_ros.offline.reproduce import reproduce
+from sensorispace_ros.offline.run_files import METRICS_FILE, flatten_metrics
+from sensorispace_ros.offline.sweep import (PARTIAL_PREFIX, connect, parse_seeds, plan_sweep,
+                                            run_sweep, sweep)
+from sensorispace_ros.offline.sweep_summary import SUMMARY_JSON, SUMMARY_MD
+
+REPO = Path(__file__).resolve().parents[2]
+SMOKE = REPO / "config" / "smoke.yaml"
+SEEDS = [0, 1, 2, 3]
+BIN = Path(sys.executable).parent
+
+
+def _results(path: Path) -> dict:
+    """A run's metrics without its wall times (the only thing allowed to differ)."""
+    flat = flatten_metrics(json.loads(Path(path).read_text()))
+    return {k: v for k, v in flat.items()
+            if not any(f"{part}." in f".{k}" for part in (".timings_s", ".seconds_by_stage"))}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """``reproduce`` of every smoke seed and strategy, in this process."""
+    root = tmp_path_factory.mktemp("reference")
+    out = {}
+    for strategy in ("paper", "naive"):
+        for seed in SEEDS:
+            cfg = config_mod.load_config(SMOKE, {"seed": seed, "output.figures": False})
+            run_dir = root / f"{strategy}-{seed}"
+            reproduce(cfg, strategy, out_dir=run_dir)
+            out[strategy, seed] = _results(run_dir / METRICS_FILE)
+    return out
+
+
+def test_seed_lists_parse_as_ranges_and_lists():
+    assert parse_seeds("0-3") == [0, 1, 2, 3]
+    assert parse_seeds("5") == [5]
+    assert parse_seeds("0-1,7,3-4") == [0, 1, 3, 4, 7]
+    with pytest.raises(ValueError, match="--seeds"):
+        parse_seeds("3-1")
+    with pytest.raises(ValueError, match="--seeds"):
+        parse_seeds("a")
+
+
+@pytest.mark.parametrize("strategy", ["paper", "naive"])
+def test_a_local_sweep_with_a_killed_worker_gives_reproduce_s_numbers(strategy, reference,
+                                                                      tmp_path):
+    tasks = plan_sweep([SMOKE], strategy, SEEDS, tmp_path)
+    killed = []
+
+    with connect(workers=2) as client:
+        def kill_a_busy_worker(line):
+            if killed:
+                return
+            busy = [addr for addr, keys in client.processing().items() if keys]
+            if busy:
+                pid = client.run(os.getpid, workers=busy[:1])[busy[0]]
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+
+        outcome = run_sweep(tasks, client, report=kill_a_busy_worker)
+    assert killed, "no worker was busy after the first task: the kill was not exercised"
+    assert not outcome.failed
+    assert sorted(t.seed for t in outcome.done) == SEEDS
+    for task in tasks:
+        assert _results(Path(task.run_dir) / METRICS_FILE) == reference[strategy, task.seed]
+    assert not list(tmp_path.rglob(f"{PARTIAL_PREFIX}*"))
+
+
+def test_a_second_invocation_finishes_only_the_missing_runs(reference, tmp_path):
+    tasks = plan_sweep([SMOKE], "paper", SEEDS, tmp_path)
+
+    class Interrupted(Exception):
+        pass
+
+    def interrupt_after_two(line):
+        if line.startswith("sweep: 2/"):
+            raise Interrupted
+
+    with pytest.raises(Interrupted):
+        with connect(workers=2) as client:
+            run_sweep(tasks, client, report=interrupt_after_two)
+    complete = [t for t in tasks if (Path(t.run_dir) / METRICS_FILE).is_file()]
+    assert 2 <= len(complete) < len(tasks)
+    # A run torn by a kill -9 leaves only its private partial directory.
+    torn = Path(tasks[-1].run_dir).parent / f"{PARTIAL_PREFIX}seed-{tasks[-1].seed}-deadbeef"
+    torn.mkdir(parents=True, exist_ok=True)
+    (torn / "arrays.npz").write_bytes(b"torn")
+    stamps = {t.seed: (Path(t.run_dir) / METRICS_FILE).stat().st_mtime_ns for t in complete}
+
+    outcome = sweep([SMOKE], "paper", SEEDS, tmp_path, workers=2)
+    assert sorted(t.seed for t in outcome.skipped) == sorted(stamps)
+    assert sorted(t.seed for t in outcome.done) == sorted(set(SEEDS) - set(stamps))
+    for task in tasks:
+        metrics = Path(task.run_dir) / METRICS_FILE
+        assert _results(metrics) == reference["paper", task.seed]
+        if task.seed in stamps:
+            assert metrics.stat().st_mtime_ns == stamps[task.seed]
+    assert not torn.exists()
+
+    summary = json.loads((tmp_path / SUMMARY_JSON).read_text())["configs"]["smoke"]
+    assert summary["seeds"] == SEEDS
+    compensated = [reference["paper", s]["exploration.compensated"] for s in SEEDS]
+    entry = summary["metrics"]["exploration.compensated"]
+    assert entry["min"] == min(compensated) and entry["max"] == max(compensated)
+    assert entry["mean"] == pytest.approx(sum(compensated) / len(compensated))
+    assert compensated[SEEDS.index(entry["seed_max"])] == max(compensated)
+    assert "`exploration.compensated`" in (tmp_path / SUMMARY_MD).read_text()
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _stop(processes):
+    for process in processes:
+        if process.poll() is None:
+            os.kill(process.pid, signal.SIGTERM)
+    for process in processes:
+        try:
+            process.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def test_a_sweep_on_a_scheduler_with_two_separate_workers(reference, tmp_path):
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    port = address.rsplit(":", 1)[1]
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
+    log = (tmp_path / "dask.log").open("w")
+    processes = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1",
+                                   "--port", port, "--no-dashboard"],
+                                  stdout=log, stderr=subprocess.STDOUT, env=env)]
+    try:
+        for _ in range(2):
+            processes.append(subprocess.Popen(
+                [str(BIN / "dask"), "worker", address, "--nthreads", "1", "--host",
+                 "127.0.0.1", "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env))
+        from distributed import Client
+        with Client(address, timeout="60s") as client:
+            client.wait_for_workers(2, timeout=60)
+        outcome = sweep([SMOKE], "naive", SEEDS, tmp_path / "out", scheduler=address)
+    finally:
+        _stop(processes)
+        log.close()
+    assert not outcome.failed and len(outcome.done) == len(SEEDS)
+    for task in outcome.done:
+        assert _results(Path(task.run_dir) / METRICS_FILE) == reference["naive", task.seed]
+    assert all(p.returncode is not None for p in processes)
