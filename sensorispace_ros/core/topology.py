@@ -14,7 +14,9 @@ The rule. A feature counts when its lifetime (death - birth) exceeds
 points the barcodes were computed on and ``k = K_SCALE = 4``; H0's infinite
 bar is the one component that never dies and always counts. The threshold
 is the space's own sampling step, so the rule is scale-free: it reads a
-metric in radians of motor space and one in units of the plane alike.
+metric in radians of motor space and one in units of the plane alike. Its
+resolution: a hole must stay open over four sampling steps to count, so a
+hole only a few steps across reads as noise (more landmarks resolve it).
 
 Landmarks. Above ``MAX_POINTS`` points the barcodes are those of a greedy
 (furthest-point) subsample, ripser's ``n_perm``; every point lies within

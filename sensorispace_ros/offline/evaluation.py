@@ -50,6 +50,13 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
     ``quality.<dim>.<stage>.*``: ``core.quality.quality_report`` plus
     ``neighbours_true_fraction``; ``metric.*.unit_step_cv``: spread of the
     internal lengths of equal external grid steps (Fig. 9 as a number);
+    ``metric.*.diagonal_ratio``: internal length of the (+1, +1) grid
+    diagonals over the (+1, -1) ones (Fig. 13 as a number, 1 = consistent);
+    ``exploration.missed_in_ring``: working-ring positions no POV covers
+    (Fig. 7a's red outlines, ``missed_ring_positions``);
+    ``topology.<space>.*``: Betti numbers of the true positions, the
+    Hausdorff metric and every embedding (``core.topology``), timed as
+    ``timings_s.topology``;
     ``regularization.<dim>.set_spread``: spread of the equality sets'
     distances, first of the Hausdorff metric then after each iteration;
     ``reaching.<graph>.*``: straightness of Dijkstra paths between the same
@@ -59,7 +66,11 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
     """
     true_positions = np.asarray(true_positions, dtype=float)
     metrics = _metric_numbers(representation, true_positions)
+    metrics["exploration.missed_in_ring"] = len(missed_ring_positions(true_positions))
     timings: dict = {}
+    with timed_stage(progress, "topology", timings):
+        metrics.update(_topology_numbers(representation, true_positions))
+    metrics["timings_s.topology"] = timings["topology"]
     with timed_stage(progress, "reaching", timings):
         metrics.update(_reaching_numbers(representation, true_positions, cfg, seed, progress))
     metrics["timings_s.reaching"] = timings["reaching"]
@@ -71,6 +82,7 @@ def _metric_numbers(representation: Representation, true_positions: np.ndarray) 
     from scipy.spatial.distance import pdist, squareform
 
     from sensorispace_ros.core.quality import quality_report
+    from sensorispace_ros.core.sensor_grid import diagonal_ratio
 
     metrics: dict[str, Any] = {}
     spacing = _grid_step(true_positions)
@@ -79,6 +91,8 @@ def _metric_numbers(representation: Representation, true_positions: np.ndarray) 
     hausdorff_condensed = squareform(representation.distance, checks=False)
     metrics["metric.hausdorff.spearman"] = _spearman(hausdorff_condensed, external)
     metrics["metric.hausdorff.unit_step_cv"] = _unit_step_cv(representation.distance, neighbours)
+    metrics["metric.hausdorff.diagonal_ratio"] = diagonal_ratio(representation.distance,
+                                                                true_positions, spacing)
     for dim in DIMENSIONS:
         for stage in STAGES:
             embedding = representation.embedding(dim, stage)
@@ -87,11 +101,47 @@ def _metric_numbers(representation: Representation, true_positions: np.ndarray) 
                 metrics[f"{prefix}.{key}"] = value
             metrics[f"{prefix}.neighbours_true_fraction"] = _neighbours_true_fraction(
                 embedding, true_positions)
-            metrics[f"metric.{dim}.{stage}.unit_step_cv"] = _unit_step_cv(
-                squareform(pdist(embedding)), neighbours)
+            internal = squareform(pdist(embedding))
+            metrics[f"metric.{dim}.{stage}.unit_step_cv"] = _unit_step_cv(internal, neighbours)
+            metrics[f"metric.{dim}.{stage}.diagonal_ratio"] = diagonal_ratio(
+                internal, true_positions, spacing)
         spread = representation.set_spread[dim]
         metrics[f"regularization.{dim}.set_spread"] = [float(v) for v in spread]
     return metrics
+
+
+def topology_spaces(representation: Representation, true_positions: np.ndarray) -> dict:
+    """The distance matrices ``topology.<space>`` measures: ``truth`` (the
+    true positions, evaluation only), ``hausdorff`` and ``<dim>.<stage>``."""
+    from sensorispace_ros.core.topology import euclidean_distances
+
+    spaces = {"truth": euclidean_distances(true_positions), "hausdorff": representation.distance}
+    for dim in DIMENSIONS:
+        for stage in STAGES:
+            spaces[f"{dim}.{stage}"] = euclidean_distances(representation.embedding(dim, stage))
+    return spaces
+
+
+def _topology_numbers(representation: Representation, true_positions: np.ndarray) -> dict:
+    """``topology.<space>.*`` of ``evaluate`` (``core.topology.topology_report``)."""
+    from sensorispace_ros.core.topology import topology_report
+
+    return {f"topology.{space}.{key}": value
+            for space, distance in topology_spaces(representation, true_positions).items()
+            for key, value in topology_report(distance).items()}
+
+
+def missed_ring_positions(true_positions: np.ndarray) -> np.ndarray:
+    """``(M, 2)`` sensor positions of the arm's working ring that no POV
+    covers, on the lattice most POVs lie on (``core.sensor_grid``): the
+    positions that should have been compensated but were not, for any
+    strategy. Fig. 7a outlines them."""
+    from sensorispace_ros.core.sensor_grid import missed_in_ring
+
+    positions = np.asarray(true_positions, dtype=float).reshape(-1, 2)
+    if len(positions) < 2:
+        return np.zeros((0, 2))
+    return missed_in_ring(positions, _grid_step(positions))
 
 
 def _reaching_numbers(representation: Representation, true_positions: np.ndarray, cfg: dict,
@@ -190,13 +240,14 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     ``produced.metrics`` (dotted counters of the run) and the numbers of
     ``evaluate`` become metrics.json; ``produced.arrays`` and ``run_arrays``
     arrays.npz and the figures. ``timings`` go under ``timings_s`` with
-    ``reaching``, and ``total`` since ``started`` (a ``time.perf_counter``
-    value) when given.
+    ``reaching`` and ``topology``, and ``total`` since ``started`` (a
+    ``time.perf_counter`` value) when given.
     """
     flat = dict(produced.metrics)
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
-    timings = {**timings, "reaching": evaluated.pop("timings_s.reaching")}
+    timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),
+               "topology": evaluated.pop("timings_s.topology")}
     flat.update(evaluated)
     if started is not None:
         timings["total"] = time.perf_counter() - started

@@ -4,7 +4,8 @@ Every function takes the mapping of arrays a run writes (``run_files``),
 so a figure can be redrawn from ``arrays.npz`` without re-running anything.
 File names follow the paper's figure numbers (LaTeX source order): 6 point
 of view, 7 exploration, 8 projections, 9 metric differences, 11 equality
-sets, 12 regularised projections, 14/15 reaching, 16 metric comparisons.
+sets, 12 regularised projections, 14/15 reaching, 16 metric comparisons;
+``persistence_diagrams`` is the topology the evaluation measures.
 Drawing pieces shared by the figures are in ``figure_style``.
 
 Colour code (as in the paper): a POV is coloured by the position of its
@@ -140,6 +141,8 @@ def fig07_exploration(arrays: Mapping) -> plt.Figure:
 def _object_positions_panel(ax, arrays: Mapping) -> None:
     """Fig. 7 (a): the object grid, the arm's working space, the compensated
     displacements and the grid positions in reach that none compensated."""
+    from sensorispace_ros.offline.evaluation import missed_ring_positions
+
     grid = np.asarray(arrays["grid"])
     m0 = np.asarray(arrays["initial_motor_state"], dtype=float)
     tip0 = arm.forward(m0)[:2]
@@ -158,10 +161,11 @@ def _object_positions_panel(ax, arrays: Mapping) -> None:
         ax.add_patch(Circle(-tip0, radius, fill=False, linestyle="--", color="#2166ac",
                             linewidth=0.8, label=None if radius == ARM_HOLE else
                             "object positions the tip can follow"))
-    missed = _missed_grid_positions(grid, equivalent, tip0,
-                                    float(arrays.get("grid_spacing", np.inf)))
+    # The evaluator's ring positions no POV covers (exploration.missed_in_ring),
+    # drawn at the object displacement that asks for them.
+    missed = missed_ring_positions(np.asarray(arrays["true_positions"])) - tip0
     if len(missed):
-        ax.scatter(*grid[missed].T, s=30, facecolors="none", edgecolors="#d7191c",
+        ax.scatter(*missed.T, s=30, facecolors="none", edgecolors="#d7191c",
                    linewidths=1.0, label=f"in reach, not compensated ({len(missed)})")
     draw_arms(ax, m0, "k", linewidth=2.0)
     ax.set_aspect("equal")
@@ -170,25 +174,6 @@ def _object_positions_panel(ax, arrays: Mapping) -> None:
     ax.set_ylim(-half, half)
     ax.legend(fontsize=7, loc="upper right", framealpha=0.9)
     ax.set_title("(a) object positions and the arm's initial configuration", fontsize=10)
-
-
-def _missed_grid_positions(grid: np.ndarray, equivalent: np.ndarray, tip0: np.ndarray,
-                           spacing: float) -> np.ndarray:
-    """Grid positions the tip can follow that no compensated displacement
-    reaches; only meaningful when the displacements lie on the grid's lattice."""
-    from scipy.spatial import cKDTree
-
-    if not len(equivalent):
-        return np.zeros(0, dtype=int)
-    # Object displacement e needs the tip at tip0 + e: compensable positions
-    # form the working space shifted by -tip0.
-    reachable = np.hypot(*(grid + tip0).T)
-    expected = (reachable >= ARM_HOLE) & (reachable <= ARM_REACH)
-    distance, _ = cKDTree(equivalent).query(grid, k=1)
-    on_lattice = np.mean(cKDTree(grid).query(equivalent, k=1)[0] < 0.25 * spacing) > 0.5
-    if not on_lattice:
-        return np.zeros(0, dtype=int)
-    return np.flatnonzero(expected & (distance > 0.25 * spacing))
 
 
 def _motor_states_panel(ax, motor: np.ndarray, m0: np.ndarray, colours) -> None:
@@ -489,6 +474,46 @@ def fig15_reaching_3d(arrays: Mapping, seed: int = 0) -> plt.Figure:
     return _reaching_figure(arrays, "3d", 15, seed)
 
 
+def persistence_diagrams(arrays: Mapping) -> plt.Figure:
+    """Rips persistence diagrams (H0, H1) of the true positions, the Hausdorff
+    metric and every embedding, in units of each space's own scale, with the
+    threshold of the Betti-number rule (``core.topology``)."""
+    from sensorispace_ros.core.topology import K_SCALE, betti_numbers, persistence
+    from sensorispace_ros.offline.evaluation import topology_spaces
+    from sensorispace_ros.offline.run_files import representation_from_arrays
+
+    spaces = topology_spaces(representation_from_arrays(arrays),
+                             np.asarray(arrays["true_positions"]))
+    order = ["truth", "2d.before", "3d.before", "hausdorff", "2d.after", "3d.after"]
+    fig, axes = plt.subplots(2, 3, figsize=(14, 9.2))
+    for ax, space in zip(axes.ravel(), order):
+        bars = persistence(spaces[space])
+        betti = betti_numbers(bars)
+        h0, h1 = bars.h0 / bars.scale, bars.h1 / bars.scale
+        finite = np.isfinite(h0[:, 1])
+        top = 1.1 * max(np.max(h0[finite, 1], initial=1.0), np.max(h1[:, 1], initial=1.0))
+        ax.plot([0, top], [0, top], color="0.6", linewidth=0.8)
+        ax.plot([0, top - K_SCALE], [K_SCALE, top], color="#d7191c", linestyle="--",
+                linewidth=0.8, label=f"lifetime = {K_SCALE:g} x scale")
+        ax.scatter(*h0[finite].T, s=9, color="#2166ac", label="H0")
+        ax.scatter(h0[~finite, 0], np.full(np.sum(~finite), top), s=30, marker="^",
+                   color="#2166ac", label="H0, never dies")
+        ax.scatter(*h1.T, s=9, color="#e66101", label="H1")
+        ax.set_xlim(0, top)
+        ax.set_ylim(0, top * 1.03)
+        ax.set_aspect("equal")
+        ax.set_xlabel("birth / scale")
+        ax.set_ylabel("death / scale")
+        ax.set_title(f"{space}: b0 = {betti.betti0}, b1 = {betti.betti1}, "
+                     f"margin {betti.margin:.2f}\n({len(bars.landmarks)} of "
+                     f"{len(spaces[space])} points)", fontsize=10)
+        ax.legend(fontsize=7, loc="lower right")
+    fig.suptitle("Persistent homology (Vietoris-Rips) of the truth and of the agent's "
+                 "representations")
+    fig.tight_layout()
+    return fig
+
+
 FIGURES: dict[str, Callable] = {
     "fig06_point_of_view": fig06_point_of_view,
     "fig07_exploration": fig07_exploration,
@@ -499,6 +524,7 @@ FIGURES: dict[str, Callable] = {
     "fig14_reaching_2d": fig14_reaching_2d,
     "fig15_reaching_3d": fig15_reaching_3d,
     "fig16_metric_comparisons": fig16_metric_comparisons,
+    "persistence_diagrams": persistence_diagrams,
 }
 SEEDED = {"fig11_equality_sets", "fig14_reaching_2d", "fig15_reaching_3d",
           "fig16_metric_comparisons"}
