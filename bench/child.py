@@ -1,5 +1,5 @@
 """Run a command as a child process and measure it: wall time and the child's
-own peak resident memory (``os.wait4`` rusage of that PID, so other helpers'
+own peak resident memory (``os.wait4`` rusage of that PID, so other users'
 processes and earlier children do not count).
 
 Also the machine load at the time (``os.getloadavg``): the machine has 2

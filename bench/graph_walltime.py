@@ -3,8 +3,8 @@
     PYTHONPATH=. python bench/graph_walltime.py [--config config/smoke.yaml] [--processes]
         [--repeat N]
 
-Both sides do the same work and are timed the same way (issue #4 target:
-graph <= 1.5x offline):
+Both sides do the same work and are timed the same way (target: graph <=
+1.5x offline):
 
 * offline: a fresh Python process (``--offline-child``) that imports the
   project, builds the world, steps the naive agent through the schedule
@@ -12,9 +12,9 @@ graph <= 1.5x offline):
   (``offline.representation.build_representation``), timed from its spawn to its exit. No
   ground-truth evaluation: ``offline.strategies.run_naive_strategy``
   also run the paper strategy for the coverage denominator (~3 s on
-  paper.yaml), which the graph does after its clock stops. Until session 8
-  this script timed ``run_naive_strategy`` in-process (imports excluded,
-  evaluation included); ``--legacy-offline`` prints that number as well.
+  paper.yaml), which the graph does after its clock stops.
+  ``--legacy-offline`` also prints ``run_naive_strategy`` timed in this
+  process (imports excluded, evaluation included).
 * graph: every node in one process on one executor (default) or ``sensorispace
   launch`` with one process per node (``--processes``: node start-up
   included, evaluation not).
@@ -82,7 +82,7 @@ def run_offline(config_path: str) -> dict:
 
 
 def legacy_offline(config_path: str) -> float:
-    """Session 1-7's offline number: ``run_naive_strategy`` (ground-truth
+    """The in-process offline number: ``run_naive_strategy`` (ground-truth
     evaluation included) + representation, in this process, imports excluded."""
     from sensorispace_ros import config
     from sensorispace_ros.offline.representation import build_representation
@@ -144,7 +144,8 @@ def main() -> int:
     parser.add_argument("--config", default="config/smoke.yaml")
     parser.add_argument("--processes", action="store_true")
     parser.add_argument("--legacy-offline", action="store_true",
-                        help="also time the offline run as sessions 1-7 did")
+                        help="also time run_naive_strategy in this process (imports excluded, "
+                             "evaluation included)")
     parser.add_argument("--repeat", type=int, default=1,
                         help="offline/graph pairs to run, alternated (the host's noise moves a "
                              "single ratio by ~0.15 on paper.yaml)")

@@ -1,4 +1,4 @@
-"""Every benchmark of issue #6 in one command; a JSON file and a short table.
+"""Every benchmark in one command; a JSON file and a short table.
 
     PYTHONPATH=. python bench/run_all.py [--quick] [--out bench/results/bench.json]
         [--povs-from RESULTS_DIR] [--skip end_to_end,probe,...] [--scale]

@@ -58,7 +58,7 @@ def test_fit_exponent_recovers_a_power_law():
 
 
 def test_graph_walltime_offline_side_does_the_graphs_work_without_evaluation():
-    """Issue #4's bench times, as its offline side, a fresh process that explores and
+    """The graph bench times, as its offline side, a fresh process that explores and
     builds the representation (what the graph does), not the ground-truth evaluation."""
     import os
     import subprocess

@@ -28,7 +28,7 @@ def write(tmp_path: Path, params: dict, wrapped: bool = True) -> Path:
 
 def test_defaults_are_the_papers_values():
     cfg = load_config()
-    # Values read from the paper (Sec. 3-5) and issue #2, not from the code.
+    # Values read from the paper (Sec. 3-5; its set-up's 62^2 grid), not from the code.
     assert cfg["world"]["grid_half_width"] == 6.0
     assert cfg["world"]["grid_count"] == 62
     assert cfg["world"]["redistribution_probability"] == 0.1

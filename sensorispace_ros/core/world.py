@@ -20,7 +20,7 @@ def position_grid(half_width: float = 6.0, count: int = 62) -> np.ndarray:
     """Object positions, ``(count**2, 2)``, row-major in y then x.
 
     The paper's text says 64^2 positions; its 648 compensations and its
-    Fig. 7a match ``linspace(-6, 6, 62)`` (issue #2).
+    Fig. 7a match ``linspace(-6, 6, 62)``, as its set-up says (62^2).
     """
     if count < 2:
         raise ValueError(f"grid count must be >= 2, got {count}")

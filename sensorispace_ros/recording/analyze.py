@@ -23,7 +23,7 @@ What the bag gives (see recording.bag_format, nodes/recorder.py):
   positions for the coverage denominator) by the offline evaluator itself,
   ``offline.evaluation.evaluate_naive_records``.
 
-Duplicates (issue #7): a restarted node re-sends (the environment its current
+Duplicates: a restarted node re-sends (the environment its current
 change, the agent a reaction, the body passive sensations of re-delivered
 lights, a restarted recorder receives every TRANSIENT_LOCAL history again), so
 every topic is read with "the first message of a frame id wins". A change

@@ -1,4 +1,4 @@
-"""What the agent node persists to survive ``kill -9`` (issue #7): a snapshot
+"""What the agent node persists to survive ``kill -9``: a snapshot
 plus a journal, pure Python + numpy (no rclpy; tested without ROS).
 
 ``<dir>/agent.snapshot`` is a pickled dict written atomically (tmp file +

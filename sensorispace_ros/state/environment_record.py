@@ -2,7 +2,7 @@
 
 One fixed-size JSON record ``{"current": k, "settled": s}`` overwritten in
 place at every change (one ``pwrite``). The environment reads it back after
-a restart (issue #7); the launcher polls it to show the run's progress. A
+a restart; the launcher polls it to show the run's progress. A
 file instead of a subscription to ``/agent/settled``: a subscriber in the
 launcher woke its process (a DDS thread and a Python executor) at every
 change, inside the hand-over the agent waits for.

@@ -200,7 +200,7 @@ def test_unknown_kernel_raises(monkeypatch):
         hausdorff_matrix(np.zeros((2, 3, 4)), kernel="numba")
 
 
-# ---------------------------------------------- the growing matrix (issue #4)
+# ---------------------------------------------- the growing matrix
 
 needs_numba = pytest.mark.skipif(not hausdorff_module.numba_available(),
                                  reason="numba is not installed")

@@ -1,4 +1,4 @@
-"""build_representation with a pool an rclpy process may create (issue #4):
+"""build_representation with a pool an rclpy process may create:
 the chains' numbers are those of the sequential path, and no worker outlives
 stop_chain_pool."""
 from __future__ import annotations

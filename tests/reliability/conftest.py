@@ -1,4 +1,4 @@
-"""Reliability tests (issue #7): every graph discovers on localhost only, in a
+"""Reliability tests: every graph discovers on localhost only, in a
 domain of its own, and every process a test starts is stopped by PID."""
 from __future__ import annotations
 

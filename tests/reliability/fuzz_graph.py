@@ -20,7 +20,7 @@ valid fresh frame id) are out of scope: nothing authenticates publishers
 Duplicates on /environment/lights and /body/motor_command are left out by
 default (``--duplicate-all`` adds them): measured 2026-11-22, adding them
 stalled the run mid-way, cause not yet identified; the body also re-applies an
-old change or command (issue #7 notes, patches/issue7-body-stale.*).
+old change or command.
 
 Reports messages sent per topic, node RSS (start, peak) and whether the result
 equals an undisturbed run (the in-process reference run, or ``--reference``).

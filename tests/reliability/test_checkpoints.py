@@ -1,4 +1,4 @@
-"""What the nodes persist for a restart (issue #7): the body's resting-state
+"""What the nodes persist for a restart: the body's resting-state
 file, and the environment's progress file (an in-process environment node
 with a probe node on a private context)."""
 from __future__ import annotations

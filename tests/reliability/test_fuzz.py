@@ -1,4 +1,4 @@
-"""Hostile input (issue #7): ~15 s of malformed messages on every subscribed
+"""Hostile input: ~15 s of malformed messages on every subscribed
 topic of a running smoke graph (5 per second per topic, huge batches every 2 s,
 exact duplicates of real messages). No node may die, RSS stays below
 2 x start + 200 MB, and the run's result equals the undisturbed run.

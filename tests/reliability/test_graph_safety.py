@@ -1,4 +1,4 @@
-"""A killed node must not take others with it (issue #7): the launcher's
+"""A killed node must not take others with it: the launcher's
 short-lease Fast DDS profile, and GraphNode publishers that retry instead of
 raising when a dead reader filled a KEEP_ALL history."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""kill -9 mid-run, then restart (issue #7): each of the five nodes once.
+"""kill -9 mid-run, then restart: each of the five nodes once.
 
 For each victim the smoke graph runs as five processes (localhost discovery,
 a free domain id, every node with ``graph.checkpoint_dir``); once the agent has
@@ -43,9 +43,8 @@ pytestmark = [pytest.mark.graph, pytest.mark.slow]
 PARITY_PREFIXES = ("exploration.", "quality.")
 # Past the start-up: the smoke run settles ~60 changes a second, and while five node
 # processes and the representation's workers start on two cores the test's watcher can
-# be starved for seconds, then take every settle at once. Killed at 60 (the value until
-# session 10), one CI run saw no settle arrive earlier than RECORDER_MARGIN_S before the
-# kill, another only 47.
+# be starved for seconds, then take every settle at once. Killed at settle 60, one CI run
+# saw no settle arrive earlier than RECORDER_MARGIN_S before the kill, another only 47.
 KILL_AT = 120
 PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
 

@@ -1,5 +1,5 @@
-"""The agent's journal and snapshot files (sensorispace_ros.state.agent_journal,
-issue #7): a kill mid-write loses only the record being written, damage
+"""The agent's journal and snapshot files (sensorispace_ros.state.agent_journal):
+a kill mid-write loses only the record being written, damage
 elsewhere is an error naming the file. Pure Python, no ROS."""
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The agent node survives its death (issue #7): snapshot + journal replay,
+"""The agent node survives its death: snapshot + journal replay,
 command retransmit, settled re-send; the representation ignores the
 duplicates a restarted agent re-publishes.
 

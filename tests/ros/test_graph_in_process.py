@@ -178,7 +178,7 @@ class HostilePublisher(Node):
         self.messages = {t: _broken_clouds(t, f) for t, f in HOSTILE_FRAMES.items()}
         self.sent = 0
         # A few per second: enough to cover every variant during a run without
-        # turning the test into a load test (flooding is issue #7's fuzz test).
+        # turning the test into a load test (flooding is tests/reliability/test_fuzz.py).
         self.create_timer(0.25, self.fire)
 
     def fire(self) -> None:

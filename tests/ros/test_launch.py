@@ -2,7 +2,7 @@
 
 Also (c) on the multi-process graph: the live graph, read from another
 participant, shows the agent subscribing only to /body/sensation and the
-representation only to /agent/*. And issue #4's parity: the launched smoke
+representation only to /agent/*. And parity with the offline run: the launched smoke
 run's metrics.json (evaluated from its bag by ``sensorispace analyze``) has
 every key of ``sensorispace reproduce --strategy naive`` and the same numbers.
 """
@@ -142,7 +142,7 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
             os.kill(int(pid), 0)        # every child was stopped
 
 
-# Issue #4: equal for the same seed and config (counts exactly, numbers within 1e-6).
+# Graph and offline: equal for the same seed and config (counts exactly, numbers within 1e-6).
 PARITY_PREFIXES = ("exploration.", "quality.")
 PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
 

@@ -1,5 +1,5 @@
-"""The representation node grows the Hausdorff matrix while the POVs arrive
-(issue #4): what it hands to the final build is the matrix computed at the
+"""The representation node grows the Hausdorff matrix while the POVs
+arrive: what it hands to the final build is the matrix computed at the
 end, to the bit, whatever the messages' order, sizes and duplicates."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The representation node's chain pool (issue #4): started with the node,
+"""The representation node's chain pool: started with the node,
 and none of its processes outlives the node, whether it is destroyed, stopped
 by SIGTERM or killed."""
 from __future__ import annotations

@@ -28,7 +28,7 @@ NaiveAgentRecords``, the data the offline run is evaluated from. At the end
 it also writes them to ``<graph.results_dir>/agent_records.npz``, for a run
 evaluated without a bag (``launch --no-record``).
 
-Restart (issue #7; only with ``graph.checkpoint_dir`` set, "" costs nothing).
+Restart (only with ``graph.checkpoint_dir`` set, "" costs nothing).
 The agent persists ``<dir>/agent.snapshot`` and ``<dir>/agent.journal``
 (format: ``sensorispace_ros.state.agent_journal``). The journal gets, unbuffered
 (one ``os.writev`` each, kept by the page cache through a kill -9), every
@@ -132,7 +132,7 @@ class BodyOverTopics:
         self.retransmits = 0
         self.aborted = False
         self.round_trip_s = 0.0          # total time spent waiting for the body
-        # Restart (issue #7): answers read back from the journal, by command
+        # Restart: answers read back from the journal, by command
         # number, served before going live; the journal new answers go to.
         self.replay: dict[int, tuple[int, np.ndarray]] = {}
         self.replayed = 0

@@ -9,7 +9,7 @@ answered right after that change's passive sensation. Ground truth for the
 evaluator goes to ``/body/sensor_pose`` and ``/body/joint_states``; the agent
 never subscribes to those.
 
-Restart (issue #7): with ``graph.checkpoint_dir`` set, the resting motor state
+Restart: with ``graph.checkpoint_dir`` set, the resting motor state
 and the number of the last lights applied are written on every command and
 change into ``<dir>/body.state`` (state.resting_state: one ``os.pwrite``, in
 the page cache before the answer is published, survives kill -9, no fsync) and

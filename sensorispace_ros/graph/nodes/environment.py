@@ -7,7 +7,7 @@ environment during compensation). The end of the run is one more lights
 message, ``end/<k>``, with unchanged lights: the body turns it into a passive
 sensation, so the agent learns of the end only through its body.
 
-Restart (issue #7): with ``graph.checkpoint_dir`` set, ``{current, settled}``
+Restart: with ``graph.checkpoint_dir`` set, ``{current, settled}``
 is written to ``<dir>/environment.json`` (``environment_progress``; the
 launcher polls it for its progress line) at every change, at the end and
 when the run is complete: a fixed-size JSON record overwritten in place by one
@@ -51,7 +51,7 @@ class EnvironmentNode(GraphNode):
         self.world = build_world(self.cfg)
         self.n_changes = len(self.world.events)
         self.lights_pub = contracts.create_publisher(self, "/environment/lights")
-        # Published as serialized bytes (the body takes them raw, issue #4): the
+        # Published as serialized bytes (the body takes them raw): the
         # hand-over of every change waits for them.
         self.lights_packer = messages.CloudCdrPacker(contracts.contract("/environment/lights")
                                                      .columns)

@@ -4,7 +4,7 @@ Subscribes only to ``/agent/*``. Collects the points of view and the
 equality rows; a re-sent message is not counted twice and the first copy
 wins: POV ids it already holds and a second ``/agent/compensations`` message
 for one change (frame id) are ignored (a restarted agent re-publishes the
-reaction of the change it died in, issue #7); once ``/agent/done`` has arrived and
+reaction of the change it died in); once ``/agent/done`` has arrived and
 the totals match, runs ``offline.representation.build_representation`` in a worker
 thread, publishes ``/representation/embedding`` for every dimension and
 regularisation iteration, and writes its arrays to
