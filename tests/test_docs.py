@@ -16,10 +16,10 @@ PACKAGE = "sensorispace_ros"
 JOURNAL = "bench/JOURNAL.md"      # the one place allowed to keep history wording
 README_MAX_LINES = 250
 
-# Development history: numbered work sessions ("session 12", "sessions 1-7",
-# "session-10") and issue numbers ("issue #4", "issue 7", "issue6-...",
-# "#4 bench", "#6's bar", "(#4)"). Colours ("#2166ac"), shell comments and
-# `start_new_session` do not match.
+# Development history: numbered work sessions ("session N", "sessions N-M",
+# "session-N") and issue numbers ("issue #N", "issue N", "issueN-...",
+# "#N bench", "#N's bar", "(#N)"), N a number. Colours ("#2166ac"), shell
+# comments and `start_new_session` do not match.
 HISTORY_PATTERNS = [
     re.compile(r"\bsessions?[ -]\d", re.IGNORECASE),
     re.compile(r"\bissues?[\s_-]*#?\s*\d", re.IGNORECASE),
@@ -146,10 +146,10 @@ def test_no_development_history_outside_the_journal():
     assert hits == [], "development-history wording:\n" + "\n".join(hits)
 
 
-# Built from pieces so that this file itself holds no such wording.
-PLANTED = ["measured in " + "session 12", "since " + "sessions 1-7", "the second " + "session-10 bench",
-           "see " + "issue #4", "(issue" + " 7)", "patches/" + "issue6-equality.patch",
-           "#4" + " bench: 1.9x", "the #6" + "'s bar", "a fix (" + "#4)", "Issue" + " #2: grid"]
+# Built from pieces (split inside each match) so that this file itself holds no such wording.
+PLANTED = ["measured in sess" + "ion 12", "since sess" + "ions 1-7", "the second sess" + "ion-10 bench",
+           "see iss" + "ue #4", "(iss" + "ue 7)", "patches/iss" + "ue6-equality.patch",
+           "#" + "4 bench: 1.9x", "the #" + "6's bar", "a fix (#" + "4)", "Iss" + "ue #2: grid"]
 LEGITIMATE = ['color="#2166ac"', "start_new_session=True", "/session/config topic",
               "# 3 lights in view", "SESSION_CONFIG_TOPIC", "an issue with the lease",
               "step #1 of the loop", "issues found by the fuzzer"]
