@@ -3,9 +3,8 @@
 Tables travel as ``sensor_msgs/PointCloud2`` used as a typed record batch
 (msg_schemas/topics.yaml): height 1, width = rows, little-endian, dense, one
 ``PointField`` per column (count 1, packed offsets). Packing is
-``array.array('B', table.tobytes())`` and unpacking ``np.frombuffer`` —
-measured at microseconds, where assigning an ndarray to a sequence field
-costs ~0.5 ms (ROS_NOTES.md).
+``array.array('B', table.tobytes())`` and unpacking ``np.frombuffer``, far
+cheaper than assigning an ndarray to a sequence field.
 
 Decoding is strict: anything that does not match the expected layout exactly
 (names, types, offsets, steps, data length, non-finite floats, unknown joint
@@ -16,9 +15,10 @@ The probe topics (/body/motor_command, /body/sensation, /body/sensor_pose,
 waits for) travel as serialized bytes both ways: ``CloudCdrPacker``
 writes a cloud's CDR bytes for ``Publisher.publish(bytes)`` and
 ``cloud_from_cdr`` reads those of a ``raw=True`` subscription. rclpy's own
-conversion of a PointCloud2 costs ~14 us per publication and ~30 us per
-message taken (measured); a graph run sends ~63,000 commands and as many
-answers. ``cloud_to_matrix`` / ``cloud_to_table`` check a ``SerializedCloud``
+conversion of a PointCloud2 to and from Python objects costs more than the
+rest of a round trip's work, and a graph run sends a command and an answer
+for every ``sense`` call (docs/benchmarks.md). ``cloud_to_matrix`` /
+``cloud_to_table`` check a ``SerializedCloud``
 exactly as a PointCloud2, and rclpy reads the bytes written as the messages
 ``matrix_to_cloud`` / ``motor_to_joint_state`` build (tests/ros/test_messages.py
 checks both ways with ``rclpy.serialization``; padding bytes are zero here,
@@ -371,8 +371,8 @@ class CloudCdrReader:
     Bytes laid out exactly as ``CloudCdrPacker`` writes them (what the probe
     topics carry) are checked by comparing the fields section, steps, lengths
     and flags with the contract's, and the data copied out with one numpy
-    call: 4-8 us a message in a hot loop (5-600 rows) where the general path
-    takes 13-19, 63,000 times each way in a paper run. Anything else
+    call, about half the general path's cost on every probe message. Anything
+    else
     (an rclpy-serialized message, whose padding bytes are unset, or a
     malformed one) goes the general path: the same result, or the same
     MessageError."""

@@ -15,13 +15,9 @@ which NumPy calls too where ``core.numpy_math.numpy_calls_c_math()`` (on a
 machine without AVX-512: float64 has no SIMD path there), so the bits are
 equal (tests/core/test_body_simulation.py checks it; on AVX-512 NumPy's own
 exp is within one ulp); those two NumPy functions stay the reference and
-the fallback.
-Measured: 1 row 54 -> 2 us, 649 rows 0.42 -> 0.22 ms, then 0.29 -> 0.19 ms at
-the initial pose once terms that underflow to 0 skipped exp (``_EXP_ZERO``).
-The simulator is in the agent's loop (~63,000 calls a paper run) and in the
-body node's. One thread: splitting long batches over two (numba prange)
-halved 649 rows but made the graph's mean round trip 0.5 -> 0.7-0.9 ms
-(thread wake-ups on two cores shared with the agent and the DDS threads).
+the fallback. The kernel is single-threaded: the simulator sits inside every
+round trip of the graph, where splitting a batch over threads costs more in
+wake-ups than it saves (docs/benchmarks.md, "kernels").
 """
 from __future__ import annotations
 
@@ -97,9 +93,8 @@ def _simulate_rows(motor, lights, receptors, sensations, poses):
                     exponent *= exponent
                     # Past _EXP_ZERO the term is exactly +0.0 (NumPy computes it, clipped
                     # at 800), and adding +0.0 to a sum of non-negative terms begun at
-                    # +0.0 changes no bit: no call. Measured at the paper's initial pose:
-                    # 17 % of the terms, each a trip through the C library's underflow
-                    # path; 649 rows 0.29 -> 0.19 ms. NaN still goes through exp.
+                    # +0.0 changes no bit: no call, and no trip through the C library's
+                    # slow underflow path. NaN still goes through exp.
                     if not exponent >= _EXP_ZERO:
                         sensations[b, r] += math.exp(-exponent) / distance
 

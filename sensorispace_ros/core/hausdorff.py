@@ -13,9 +13,7 @@ subtraction wraps around), and int16 differences and float32 squares move
 samples that can be the sup-inf (every one whose screened value is within
 the proven screening error of the pair's screened maximum); those samples
 are then recomputed exactly in float64. Min and max are exact operations, so
-the result equals the brute force to the last bit. Measured on 649 POVs x
-100 samples: 3x less CPU than the (in-place, float64) brute force; two
-threads by default.
+the result equals the brute force to the last bit. Two threads by default.
 
 Pruning by bounding balls of consecutive samples (dual-tree style) was tried
 and dropped: POV loops are long (~15 rad) next to the distances between
@@ -38,9 +36,8 @@ as fallback and reference (tests compare both, to the bit):
 
 Every skip needs a bound that exceeds the value it discards by a relative
 1e-9, far above float64 rounding, so the sup-inf is still the brute force's
-float64 number. Measured on 650 POVs: ~3 s of one thread against 20 s for the
-brute force and 10 s for the NumPy path (~600 instead of 20,000 sample pairs
-per POV pair).
+float64 number. Timings against the brute force: docs/benchmarks.md,
+"kernels".
 """
 from __future__ import annotations
 

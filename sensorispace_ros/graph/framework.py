@@ -188,8 +188,7 @@ class GraphNode(Node):
         ``topic`` (all-float64 columns) whose frame id is one of ``kinds``, or
         None once it has been dropped: ``read_serialized`` then ``decode``, the
         same checks and drop reasons, with ``messages.CloudCdrReader``'s fast
-        path for the bytes ``CloudCdrPacker`` writes (the probe topics: ~63,000
-        messages each way in a paper run)."""
+        path for the bytes ``CloudCdrPacker`` writes (the probe topics)."""
         reader = self._cloud_readers.get(topic)
         if reader is None:
             reader = self._cloud_readers[topic] = messages.CloudCdrReader(
@@ -233,11 +232,9 @@ def make_executor(kind: str = "events", context=None):
     rclpy 7.1.6 has it): it hands each message to its callback from the
     middleware's new-message events, where ``SingleThreadedExecutor`` rebuilds
     a wait set from every entity of its nodes at each ``spin_once`` and runs
-    each callback as a Task. A paper run spins ~130,000 times in the agent and
-    as often in the body. Measured (docs/benchmarks.md): mean round trip of a
-    smoke run 0.53 ms with it, ~0.67 ms with "single_threaded" (paper run
-    with it: 0.49-0.50 ms); the body's 1-row probe 0.31-0.32 vs 0.36-0.38 ms.
-    Without it (an older rclpy) "events" falls back to "single_threaded".
+    each callback as a Task, at every one of the agent's and the body's many
+    spins a run (round trips of each: docs/benchmarks.md). Without it (an
+    older rclpy) "events" falls back to "single_threaded".
     """
     if kind not in EXECUTORS:
         raise ValueError(f"executor: must be one of {', '.join(EXECUTORS)}, got {kind!r}")

@@ -283,8 +283,8 @@ class AgentNode(GraphNode):
             "/agent/compensation_records", "/agent/stage_counters")}
         self.command_pub = contracts.create_publisher(self, "/body/motor_command")
         # Commands go out and answers come in as serialized bytes (messages.CloudCdrPacker,
-        # GraphNode.read_float_cloud): rclpy's message conversions cost ~14 us a
-        # publication and ~30 us a message taken, ~63,000 times each way in a paper run.
+        # GraphNode.read_float_cloud): rclpy's message conversions would cost more
+        # than the rest of a round trip, once per sense call each way.
         self.command_packer = messages.CloudCdrPacker(self.columns["/body/motor_command"])
         self.pov_pub = contracts.create_publisher(self, "/agent/points_of_view")
         self.compensation_pub = contracts.create_publisher(self, "/agent/compensations")

@@ -71,8 +71,8 @@ class BodyNode(GraphNode):
             "/environment/lights", "/body/motor_command", "/body/sensation", "/body/sensor_pose")}
         # Replies go out, and commands and lights come in, as serialized bytes (messages.
         # CloudCdrPacker, GraphNode.read_float_cloud): rclpy's message conversions
-        # cost ~14 us a publication and ~30 us a message taken; the body answers
-        # ~63,000 commands in a paper run, with three publications each.
+        # would cost more than the rest of an answer, and every command gets
+        # three publications.
         self.sensation_packer = messages.CloudCdrPacker(self.columns["/body/sensation"])
         self.pose_packer = messages.CloudCdrPacker(self.columns["/body/sensor_pose"])
         self.joint_packer = messages.JointStateCdrPacker()
