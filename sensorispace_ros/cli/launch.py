@@ -6,13 +6,16 @@ import argparse
 import sys
 from pathlib import Path
 
+from sensorispace_ros.graph.live_view import DEFAULT_PORT as DEFAULT_VIEW_PORT
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "launch", help="run the naive agent as a ROS 2 node graph (one process per node)",
-        description="Start environment, body, agent, representation (and the recorder) as "
-                    "separate processes with localhost-only discovery and a private domain id, "
-                    "follow the run, then write results/<run>/metrics.json and figures.")
+        description="Start environment, body, agent, representation (and the recorder, and "
+                    "with --view the viewer) as separate processes with localhost-only "
+                    "discovery and a private domain id, follow the run, then write "
+                    "results/<run>/metrics.json and figures.")
     parser.add_argument("--config", type=Path, default=None,
                         help="ROS parameter file (default: config/paper.yaml)")
     parser.add_argument("--run", default=None, help="run name (default: graph-seed<S>-<time>)")
@@ -26,6 +29,11 @@ def register(subparsers) -> None:
                         help="start a node killed by a signal again, up to N times per node "
                              "(N = 3 if omitted; default 0: the run fails at once); it "
                              "resumes from results/<run>/checkpoints")
+    parser.add_argument("--view", action="store_true",
+                        help="also start the viewer and serve the run to the Foxglove app on "
+                             "ws://localhost:<--view-port> (docs/viewing.md)")
+    parser.add_argument("--view-port", type=int, default=None, metavar="PORT",
+                        help=f"port of the live view (implies --view; default {DEFAULT_VIEW_PORT})")
     parser.set_defaults(handler=run)
 
 
@@ -36,10 +44,17 @@ def run(args: argparse.Namespace) -> int:
     if args.respawn < 0:
         print(f"sensorispace launch: --respawn must be >= 0, got {args.respawn}", file=sys.stderr)
         return 2
+    view_port = 0
+    if args.view or args.view_port is not None:
+        view_port = DEFAULT_VIEW_PORT if args.view_port is None else args.view_port
+        if not 0 < view_port < 65536:
+            print(f"sensorispace launch: --view-port must be in 1..65535, got {view_port}",
+                  file=sys.stderr)
+            return 2
     try:
         result = launch_graph(args.config, args.run, args.domain_id, record=not args.no_record,
                               results_root=args.results, timeout_s=args.timeout,
-                              respawn=args.respawn)
+                              respawn=args.respawn, view_port=view_port)
     except ConfigError as exc:
         print(f"sensorispace launch: invalid configuration: {exc}", file=sys.stderr)
         return 2

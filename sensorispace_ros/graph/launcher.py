@@ -33,6 +33,8 @@ from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progre
 
 GRAPH_NODES = ("environment", "body", "agent", "representation")
 RECORDER = "recorder"
+# Started with a live view (``view_port``): draws the run for Foxglove and RViz.
+VIEWER = "viewer"
 # At the end of a run, how long to wait for the recorder to hold the agent's whole
 # run (recording_complete: at once unless the recorder was restarted late).
 RECORDING_WAIT_S = 10.0
@@ -95,9 +97,9 @@ class Graph:
     def exited(self) -> dict[str, int]:
         return {name: p.returncode for name, p in self.children.items() if p.poll() is not None}
 
-    def stop(self, grace_s: float = GRACE_S, last: tuple = (RECORDER,)) -> None:
-        """SIGTERM by PID, SIGKILL after ``grace_s``; ``last`` (the recorder) is stopped
-        after the others so it records everything they sent."""
+    def stop(self, grace_s: float = GRACE_S, last: tuple = (RECORDER, VIEWER)) -> None:
+        """SIGTERM by PID, SIGKILL after ``grace_s``; ``last`` (the recorder, the viewer)
+        is stopped after the others so it records (shows) everything they sent."""
         first = [n for n in self.children if n not in last]
         for group in (first, [n for n in self.children if n in last]):
             procs = [self.children[n] for n in group]
@@ -220,6 +222,7 @@ class RunPlan:
     env: dict
     record: bool
     total_changes: int
+    view_port: int = 0              # 0: no viewer
 
     @property
     def log_dir(self) -> Path:
@@ -231,7 +234,8 @@ class RunPlan:
 
     @property
     def nodes(self) -> list[str]:
-        return list(GRAPH_NODES) + ([RECORDER] if self.record else [])
+        return (list(GRAPH_NODES) + ([RECORDER] if self.record else [])
+                + ([VIEWER] if self.view_port else []))
 
     def node_parameters(self, name: str) -> dict:
         """The parameters the launcher gives node ``name`` beyond the parameter file."""
@@ -243,10 +247,13 @@ class RunPlan:
             parameters["graph.wait_for_nodes"] = [n for n in self.nodes if n != "environment"]
         if name == "representation":
             parameters["graph.exit_when_done"] = True
+        if name == VIEWER:
+            parameters["graph.view_port"] = self.view_port
         return parameters
 
 
-def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root) -> RunPlan:
+def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root,
+             view_port: int = 0) -> RunPlan:
     """Load the configuration, name the run, make its log directory and remove what
     an earlier run of the same name persisted (a fresh run must not resume it)."""
     from sensorispace_ros import config
@@ -258,7 +265,7 @@ def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root)
     domain_id = free_domain_id() if domain_id is None else int(domain_id)
     plan = RunPlan(cfg, config_path, run, Path(results_root) / run, Path(bags_root) / run,
                    domain_id, graph_environment(domain_id), record,
-                   total_changes=len(build_world(cfg).events) + 1)
+                   total_changes=len(build_world(cfg).events) + 1, view_port=int(view_port))
     plan.log_dir.mkdir(parents=True, exist_ok=True)
     shutil.rmtree(plan.checkpoint_dir, ignore_errors=True)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = plan.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
@@ -336,7 +343,7 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                  domain_id: int | None = None, record: bool = True,
                  results_root: str | Path = "results", bags_root: str | Path = "bags",
                  timeout_s: float | None = None, stream=None, on_started=None,
-                 respawn: int = 0) -> LaunchResult:
+                 respawn: int = 0, view_port: int = 0) -> LaunchResult:
     """Start every node as a process, follow the run, stop the children, evaluate.
 
     ``on_started(graph)`` is called once every child runs (tests use it to
@@ -346,16 +353,23 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     ``<results>/checkpoints``) before the run fails; a node that exits with an
     error code is never respawned, except one that asks for it
     (``framework.RESTART_EXIT_CODE``), up to ASKED_RESTARTS times a node.
+    ``view_port``: also start the viewer, serving the run to the Foxglove app on
+    ws://127.0.0.1:<view_port> (0: no viewer).
     """
     from sensorispace_ros.graph.framework import RESTART_EXIT_CODE
 
     policy = RespawnPolicy(respawn, RESTART_EXIT_CODE)
     stream = sys.stderr if stream is None else stream
-    plan = plan_run(config_path, run, domain_id, record, results_root, bags_root)
+    plan = plan_run(config_path, run, domain_id, record, results_root, bags_root, view_port)
     print(f"[launch] run {plan.run}: ROS_DOMAIN_ID={plan.domain_id}, discovery "
           f"{plan.env['ROS_AUTOMATIC_DISCOVERY_RANGE']}, config {plan.config_path}, "
           f"logs {plan.log_dir}" + (f", bag {plan.bag_dir}" if record else ", not recording"),
           file=stream, flush=True)
+    if plan.view_port:
+        from sensorispace_ros.graph.live_view import websocket_url
+        print(f"[launch] live view on {websocket_url(plan.view_port)}: in the Foxglove app, "
+              "Open connection > Foxglove WebSocket (layout: docs/foxglove-layout.json)",
+              file=stream, flush=True)
     graph = Graph(plan.env, plan.log_dir)
     monitor = Monitor(plan.checkpoint_dir / PROGRESS_FILE, plan.total_changes, stream)
     result = LaunchResult(1, plan.run, plan.results_dir, plan.domain_id)

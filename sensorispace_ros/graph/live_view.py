@@ -15,6 +15,7 @@ from typing import Mapping
 from sensorispace_ros.recording.bag_format import typestore
 
 LOCALHOST = "127.0.0.1"
+DEFAULT_PORT = 8765                       # Foxglove's usual WebSocket port
 SERVER_NAME = "sensorispace_ros"
 
 

@@ -294,3 +294,61 @@ def test_the_foxglove_layout_shows_the_viewer_topics_in_their_frames():
             elements = contracts.contract(topic).elements
             assert int(index) < len(elements)
             assert path["label"].replace(" ", "_") == elements[int(index)], path
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+def test_launch_with_view_serves_the_run_and_records_the_viewer_topics(tmp_path, domain_id):
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from .conftest import REPO
+
+    port = free_port()
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               PYTHONPATH=os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH"))
+                                          if p))
+    client = FoxgloveClient(f"ws://127.0.0.1:{port}", connect_timeout_s=120).start()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sensorispace_ros.cli", "launch", "--config", str(SMOKE),
+         "--run", "viewed", "--domain-id", str(domain_id), "--results", str(tmp_path / "results"),
+         "--timeout", "400", "--view-port", str(port)],
+        cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        output, _ = proc.communicate(timeout=450)
+    finally:
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+        client.stop()
+    assert proc.returncode == 0, output
+    assert f"live view on ws://127.0.0.1:{port}" in output
+    assert re.search(r"started viewer \(pid \d+\)", output), output
+    for pid in re.findall(r"started \w+ \(pid (\d+)\)", output):
+        with pytest.raises(ProcessLookupError):
+            os.kill(int(pid), 0)                   # the viewer was stopped with the rest
+    assert client.error is None, client.error
+    assert {c["topic"] for c in client.channels.values()} == set(VIEWER_TOPICS)
+    scenes = client.received("/viewer/scene")
+    assert scenes and deserialize_message(scenes[-1][1], MarkerArray).markers
+
+    # The bag holds the viewer's topics; an MCAP reader with ROS 2 decoding (as
+    # Foxglove's) decodes them from the bag's own schemas.
+    mcap = tmp_path / "bags" / "viewed" / "viewed.mcap"
+    counts, namespaces = {}, set()
+    with open(mcap, "rb") as stream:
+        for _, channel, _, decoded in make_reader(
+                stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                topics=list(VIEWER_TOPICS)):
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == "/viewer/scene":
+                namespaces.update(m.ns for m in decoded.markers)
+    assert counts.get("/viewer/scene", 0) > 3 and counts.get("/viewer/sensation", 0) > 3, counts
+    assert counts.get("/viewer/representation_2d", 0) >= 1, counts
+    assert {"arm", "joints", "field_of_view", "lights", "points_of_view"} <= namespaces
