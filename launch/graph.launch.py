@@ -1,8 +1,8 @@
 """``ros2 launch sensorispace_ros graph.launch.py``: the graph, one process per node.
 
 What ``sensorispace launch`` (graph/launcher.py) starts, for a ROS 2 install:
-environment, body, agent, representation and (``record:=true``) the recorder,
-each with the run's parameter file (default: the package's config/paper.yaml)
+environment, body, agent, representation, (``record:=true``) the recorder and
+(``view_port:=N``) the viewer, each with the run's parameter file (default: the package's config/paper.yaml)
 and the same ``graph.*`` parameters. Discovery is localhost-only unless
 ROS_AUTOMATIC_DISCOVERY_RANGE is set; the domain id is a free one unless
 ``domain_id:=N``; the graph's Fast DDS profile is used unless
@@ -13,6 +13,7 @@ whole run) or when a node fails. Metrics from the bag:
 
   ros2 launch sensorispace_ros graph.launch.py run:=seed0
   ros2 launch sensorispace_ros graph.launch.py config:=my.yaml record:=false domain_id:=42
+  ros2 launch sensorispace_ros graph.launch.py view_port:=8765   # + the viewer, live in Foxglove
 """
 import asyncio
 import os
@@ -54,6 +55,9 @@ def generate_launch_description():
                               description='start the recorder (true|false)'),
         DeclareLaunchArgument('domain_id', default_value='',
                               description='ROS_DOMAIN_ID (default: a free one in 1..100)'),
+        DeclareLaunchArgument('view_port', default_value='0',
+                              description='start the viewer, serving the run to the Foxglove '
+                                          'app on ws://127.0.0.1:<port> (0: no viewer)'),
         OpaqueFunction(function=graph),
     ])
 
@@ -74,7 +78,12 @@ def graph(context):
         raise ValueError(f"domain_id: must be an integer, got {arg['domain_id']!r}") from None
     config = arg['config']
     own = {'graph.results_dir': str(results), 'graph.checkpoint_dir': str(checkpoints)}
-    waited_for = ['body', 'agent', 'representation'] + (['recorder'] if record else [])
+    try:
+        view_port = int(arg['view_port'])
+    except ValueError:
+        raise ValueError(f"view_port: must be an integer, got {arg['view_port']!r}") from None
+    waited_for = (['body', 'agent', 'representation'] + (['recorder'] if record else [])
+                  + (['viewer'] if view_port else []))
 
     nodes = [
         Node(package=PACKAGE, executable='environment', output='screen',
@@ -89,6 +98,9 @@ def graph(context):
     if record:
         nodes.append(Node(package=PACKAGE, executable='recorder', output='screen',
                           parameters=[config, {'bag_path': str(bag)}]))
+    if view_port:
+        nodes.append(Node(package=PACKAGE, executable='viewer', output='screen',
+                          parameters=[config, {'graph.view_port': view_port}]))
     env = graph_environment(domain_id)
     return [
         *(SetEnvironmentVariable(key, env[key]) for key in GRAPH_ENVIRONMENT),

@@ -8,7 +8,7 @@ import importlib
 from packaging_support import CONFIG_DIR, LAUNCH_FILE, PACKAGE, console_scripts
 
 from sensorispace_ros.config import GRAPH_PREFIX, GRAPH_SCHEMA
-from sensorispace_ros.graph.launcher import GRAPH_NODES, RECORDER
+from sensorispace_ros.graph.launcher import GRAPH_NODES, RECORDER, VIEWER
 
 
 def tree() -> ast.Module:
@@ -56,7 +56,7 @@ def test_every_executable_is_a_console_script_of_setup_py():
 
 
 def test_it_starts_every_node_the_graph_runs():
-    assert set(launched()) == {*GRAPH_NODES, RECORDER}
+    assert set(launched()) == {*GRAPH_NODES, RECORDER, VIEWER}
 
 
 def test_every_parameter_file_it_names_is_in_config():
