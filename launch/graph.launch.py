@@ -2,8 +2,8 @@
 
 What ``sensorispace launch`` (graph/launcher.py) starts, for a ROS 2 install:
 environment, body, agent, representation, (``record:=true``) the recorder and
-(``view_port:=N``) the viewer, each with the run's parameter file (default: the package's config/paper.yaml)
-and the same ``graph.*`` parameters. Discovery is localhost-only unless
+(``view_port:=N``) the viewer, each with the run's parameter file (default: the
+package's config/paper.yaml) and the same ``graph.*`` parameters. Discovery is localhost-only unless
 ROS_AUTOMATIC_DISCOVERY_RANGE is set; the domain id is a free one unless
 ``domain_id:=N``; the graph's Fast DDS profile is used unless
 FASTRTPS_DEFAULT_PROFILES_FILE names another. The launch ends when the
