@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sensorispace_ros.cli.arguments import add_bag, add_out, out_dir
 from sensorispace_ros.cli.summary import summary_table
 from sensorispace_ros.recording.bag_format import BagError
 
@@ -18,9 +19,8 @@ def register(subparsers) -> None:
         description="Rebuild points of view, metric, embeddings and reaching from a bag "
                     "alone (configuration and seed are stored in it), join the recorded "
                     "ground truth and write DIR/metrics.json, arrays.npz and figures.")
-    parser.add_argument("bag", metavar="BAG", help="bag directory")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="output directory (default: results/<bag name>-analyzed)")
+    add_bag(parser)
+    add_out(parser, "output directory (default: results/<bag name>-analyzed)")
     parser.set_defaults(handler=run)
 
 
@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
     from sensorispace_ros.recording import analyze
 
     bag = Path(args.bag)
-    out = Path(args.out) if args.out else Path("results") / f"{bag.resolve().name}-analyzed"
+    out = out_dir(args, f"{bag.resolve().name}-analyzed")
     metrics = analyze.analyze_bag(bag, out)
     print(summary_table(metrics, out))
     return 0

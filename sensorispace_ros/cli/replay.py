@@ -3,10 +3,14 @@ from __future__ import annotations
 
 import argparse
 
+from sensorispace_ros.cli.arguments import add_bag, checked
 from sensorispace_ros.recording.bag_format import BagError
 
 # A bag that is missing, unreadable, truncated or of another schema: one line, exit 2.
 USER_ERRORS = (BagError,)
+
+
+_rate = checked(float, lambda value: value > 0, "a positive number")
 
 
 def register(subparsers) -> None:
@@ -16,7 +20,7 @@ def register(subparsers) -> None:
                     "recorded timing scaled by --rate, or as fast as possible without loss "
                     "(--fast). Discovery is localhost-only unless ROS_AUTOMATIC_DISCOVERY_RANGE "
                     "says otherwise; ROS_DOMAIN_ID selects the graph.")
-    parser.add_argument("bag", metavar="BAG", help="bag directory (metadata.yaml + .mcap)")
+    add_bag(parser, "bag directory (metadata.yaml + .mcap)")
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=_rate, default=1.0,
                        help="time scale: 2 replays twice as fast (default 1)")
@@ -25,16 +29,6 @@ def register(subparsers) -> None:
     parser.add_argument("--topics", nargs="+", metavar="TOPIC", default=None,
                         help="replay only these topics (default: every topic of the bag)")
     parser.set_defaults(handler=run)
-
-
-def _rate(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
-    return value
 
 
 def run(args: argparse.Namespace) -> int:

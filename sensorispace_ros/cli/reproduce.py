@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
-
+from sensorispace_ros.cli.arguments import add_out, checked, out_dir
 from sensorispace_ros.cli.summary import summary_table
+
+
+_seed = checked(int, lambda value: value >= 0, "a non-negative integer")
 
 
 def register(subparsers) -> None:
@@ -17,24 +19,13 @@ def register(subparsers) -> None:
                              "(default: paper)")
     parser.add_argument("--seed", type=_seed, default=None,
                         help="seed of every random choice (default: the config's seed)")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="output directory (default: results/<strategy>-seed<S>)")
+    add_out(parser, "output directory (default: results/<strategy>-seed<S>)")
     parser.add_argument("--config", metavar="FILE", default=None,
                         help="parameter file (default: the paper's values, "
                              "as in config/paper.yaml)")
     parser.add_argument("--no-figures", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
     parser.set_defaults(handler=run)
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
-    return value
 
 
 def run(args: argparse.Namespace) -> int:
@@ -48,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     if args.no_figures:
         overrides["output.figures"] = False
     cfg = config_mod.load_config(args.config, overrides)
-    out = Path(args.out) if args.out else Path("results") / f"{args.strategy}-seed{cfg['seed']}"
+    out = out_dir(args, f"{args.strategy}-seed{cfg['seed']}")
     progress = Progress(enabled=not args.quiet)
     metrics = reproduce(cfg, args.strategy, out_dir=out, progress=progress,
                         figures=not args.no_figures)

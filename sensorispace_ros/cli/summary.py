@@ -2,7 +2,10 @@
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
+
+from sensorispace_ros.offline.run_files import metric
 
 
 def fmt(value, digits: int = 4) -> str:
@@ -31,20 +34,9 @@ def fmt(value, digits: int = 4) -> str:
     return str(value)
 
 
-def _getter(metrics: dict):
-    def get(path, default=None):
-        node = metrics
-        for part in path.split("."):
-            if not isinstance(node, dict) or part not in node:
-                return default
-            node = node[part]
-        return node
-    return get
-
-
 def summary_table(metrics: dict, out: Path | None = None) -> str:
     """A short human summary of one run's metrics.json."""
-    get = _getter(metrics)
+    get = partial(metric, metrics)
     head = f"{metrics.get('strategy', '?')} strategy, seed {metrics.get('seed', '?')}"
     lines = [head + (f" -> {out}" if out is not None else "")]
     lines.append(f"  exploration: {fmt(get('exploration.events'))} events, "

@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
-
+from sensorispace_ros.cli.arguments import add_out, out_dir
 from sensorispace_ros.offline.sweep import SweepError, parse_seeds
 
 
@@ -20,8 +19,7 @@ def register(subparsers) -> None:
                         help="parameter files (each is a directory of the sweep)")
     parser.add_argument("--seeds", type=_seeds, required=True,
                         help="seeds, e.g. 0-31 or 0,3,5")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="sweep directory (default: results/sweep-<strategy>)")
+    add_out(parser, "sweep directory (default: results/sweep-<strategy>)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, default=None,
                        help="local worker processes (default: one per core)")
@@ -44,7 +42,7 @@ def _seeds(text: str) -> list[int]:
 def run(args: argparse.Namespace) -> int:
     from sensorispace_ros.offline.sweep import sweep
 
-    out = Path(args.out) if args.out else Path("results") / f"sweep-{args.strategy}"
+    out = out_dir(args, f"sweep-{args.strategy}")
     report = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
     outcome = sweep(args.config, args.strategy, args.seeds, out, workers=args.workers,
                     scheduler=args.scheduler, report=report)

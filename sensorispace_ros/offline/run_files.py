@@ -115,6 +115,16 @@ def flatten_metrics(metrics: dict, prefix: str = "") -> dict:
     return config_mod.flatten(metrics, prefix)
 
 
+def metric(metrics: dict, dotted: str, default=None):
+    """The value at a dotted key of nested metrics (``"pov.count"``), or ``default``."""
+    node = metrics
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return default
+        node = node[part]
+    return node
+
+
 def _jsonable(value):
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
