@@ -28,6 +28,7 @@ from pathlib import Path
 
 from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
 from sensorispace_ros.offline.evaluation import evaluate_run
+from sensorispace_ros.offline.run_files import metric
 from sensorispace_ros.recording.completeness import wait_for_complete_recording
 from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progress
 
@@ -395,18 +396,11 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
 
 
 def print_summary(metrics: dict, results_dir: Path, stream) -> None:
-    def get(path):
-        node = metrics
-        for part in path.split("."):
-            if not isinstance(node, dict) or part not in node:
-                return None
-            node = node[part]
-        return node
     print(f"[launch] results in {results_dir}", file=stream)
     for key in ("exploration.compensated", "pov.count", "naive.coverage", "naive.wrong_poses",
                 "quality.2d.after.affine_residual", "quality.2d.after.trustworthiness",
                 "reaching.2d.after.straightness_median", "timings_s.total"):
-        value = get(key)
+        value = metric(metrics, key)
         if value is not None:
             print(f"  {key:40s} {value}", file=stream)
     stream.flush()
