@@ -2,7 +2,9 @@
 
 A bag is a rosbag2 directory holding ``metadata.yaml`` (rosbag2 version 9, as
 Jazzy writes) and one ``<dir>.mcap`` file with profile ``ros2``, ``ros2msg``
-schemas, ``cdr`` messages and a summary with Statistics (recording.bag_writer).
+schemas, ``cdr`` messages in zstd-compressed chunks, every MCAP CRC (chunks,
+data section, summary) and a summary with Statistics (recording.bag_storage,
+recording.bag_writer; checked by recording.bag_verify; docs/bags.md).
 Messages are stored as the exact CDR bytes a ``raw=True`` subscription
 delivers (``rclpy.serialization.serialize_message`` appends 8-12 garbage
 bytes on Jazzy that rosbags rejects).

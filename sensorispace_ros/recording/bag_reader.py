@@ -1,7 +1,8 @@
 """Reading a bag: its topics and counts, its raw CDR or decoded messages in
 timestamp order, its session configuration, and the check that it follows the
-topic contract. Every problem is a one-line ``BagError``; no rclpy except in
-``read_bag_messages``."""
+topic contract. Opening a bag checks its MCAP summary CRC; rosbags checks each
+chunk's CRC as it decompresses it (every CRC: ``bag verify``). Every problem is
+a one-line ``BagError``; no rclpy except in ``read_bag_messages``."""
 from __future__ import annotations
 
 import importlib
@@ -16,6 +17,7 @@ from sensorispace_ros.recording.bag_format import (
     one_line,
     typestore,
 )
+from sensorispace_ros.recording.bag_integrity import summary_section
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,11 @@ def open_reader(bag_dir: str | os.PathLike):
             f"; run `sensorispace bag recover {path}`" if mcap_files(path) else ""
         )
         raise BagError(f"bag {path} has no metadata.yaml (not closed cleanly?){hint}")
+    try:
+        for mcap in mcap_files(path):
+            summary_section(mcap, require_crc=False)  # rosbags does not check the summary CRC
+    except BagError as exc:
+        raise BagError(f"bag {path} is unreadable: {exc}") from None
     reader = Reader(path)
     try:
         reader.open()

@@ -2,19 +2,21 @@
 
 A recorder killed with -9 leaves an MCAP without summary and no
 ``metadata.yaml``. ``recover_bag`` rebuilds a normal bag from every complete
-chunk plus the write-ahead log's complete records (recording.bag_writer; a
-record also found in the last chunk, killed between the chunk flush and the
-log truncation, is kept once).
+chunk whose CRC is right plus the write-ahead log's complete records
+(recording.bag_writer; a record also found in a kept chunk, killed between the
+chunk flush and the log truncation, is kept once). A chunk cut short by the
+kill, or one that fails its CRC, is dropped and named in the report.
 """
 from __future__ import annotations
 
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from sensorispace_ros.recording.bag_format import BagError, one_line, typestore
+from sensorispace_ros.recording.bag_format import BagError, typestore
+from sensorispace_ros.recording.bag_integrity import DamagedMcap, scan_data_section
 from sensorispace_ros.recording.bag_reader import bag_info, mcap_files, open_reader
 from sensorispace_ros.recording.bag_writer import WAL_NAME, BagWriter, read_write_ahead_log
 
@@ -25,11 +27,14 @@ class RecoveryReport:
     counts: dict[str, int]
     recovered_from: Path | None  # the truncated original kept beside the new file
     truncated: bool
+    dropped: list[str] = field(default_factory=list)  # what was left out, and why
 
     def summary(self) -> str:
         total = sum(self.counts.values())
         state = "recovered" if self.truncated else "already complete"
-        return f"{self.path}: {state}, {total} messages on {len(self.counts)} topics"
+        lines = [f"{self.path}: {state}, {total} messages on {len(self.counts)} topics"]
+        lines += [f"{self.path}: dropped {reason}" for reason in self.dropped]
+        return "\n".join(lines)
 
 
 def _bag_is_complete(bag_dir: Path) -> bool:
@@ -54,35 +59,30 @@ def _mcap_has_summary(path: Path) -> bool:
     return summary is not None and summary.statistics is not None
 
 
-def _scan_truncated_mcap(path: Path):
-    """Schemas, channels and messages of every complete record before the damage."""
-    from mcap.records import Channel, Message, Schema
-    from mcap.stream_reader import StreamReader
-
-    schemas, channels, messages = {}, {}, []
-    with path.open("rb") as stream:
-        try:
-            for record in StreamReader(stream, skip_magic=False).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Message):
-                    messages.append((record.log_time, record.channel_id, record.data))
-        except Exception as exc:  # EndOfFile, struct.error, ... at the truncation point
-            if not messages and not channels:
-                raise BagError(
-                    f"{path} cannot be recovered: no complete chunk before the damage "
-                    f"({one_line(exc)})"
-                ) from None
-    return schemas, channels, messages
+def _catalogue(scan, wal_catalogue: dict, original: Path) -> dict[int, tuple[str, str, str]]:
+    """channel id -> (topic, type, offered QoS) from the MCAP's channels, completed
+    by the write-ahead log's catalogue; BagError if a channel is not ros2 CDR."""
+    catalogue = {entry["channel_id"]: (topic, entry["type"], entry["offered_qos_profiles"])
+                 for topic, entry in wal_catalogue.items()}
+    for cid, channel in scan.channels.items():
+        schema = scan.schemas.get(channel.schema_id)
+        if schema is None or channel.message_encoding != "cdr":
+            raise BagError(f"{original} is of another schema: channel {channel.topic} is not ros2 cdr")
+        catalogue[cid] = (channel.topic, schema.name,
+                          channel.metadata.get("offered_qos_profiles", ""))
+    store = typestore()
+    for topic, msgtype, _ in catalogue.values():
+        if msgtype not in store.types:
+            raise BagError(f"{original} is of another schema: unknown type {msgtype}")
+    return catalogue
 
 
-def _add_logged_messages(messages: list, channels: dict, wal: Path, original: Path) -> None:
-    """Append the write-ahead log's records that no complete chunk holds."""
-    channel_of_topic = {channel.topic: cid for cid, channel in channels.items()}
+def _add_logged_messages(messages: list, catalogue: dict, records: list, wal: Path,
+                         original: Path) -> None:
+    """Append the write-ahead log's records that no kept chunk holds."""
+    channel_of_topic = {topic: cid for cid, (topic, _, _) in catalogue.items()}
     in_chunks = set(messages)
-    for topic, log_time, data in read_write_ahead_log(wal):
+    for topic, log_time, data in records:
         cid = channel_of_topic.get(topic)
         if cid is None:
             raise BagError(f"{wal} names topic {topic}, which {original} does not declare")
@@ -90,37 +90,16 @@ def _add_logged_messages(messages: list, channels: dict, wal: Path, original: Pa
             messages.append((log_time, cid, data))
 
 
-def _topics_and_qos(schemas: dict, channels: dict, original: Path) -> tuple[dict, dict]:
-    """Each channel's ROS type and offered QoS; BagError if it is not ros2 CDR."""
-    from rosbags.rosbag2.metadata import parse_qos
-
-    store = typestore()
-    topics, qos = {}, {}
-    for channel in channels.values():
-        schema = schemas.get(channel.schema_id)
-        if schema is None or channel.message_encoding != "cdr":
-            raise BagError(f"{original} is of another schema: channel {channel.topic} "
-                           "is not ros2 cdr")
-        if schema.name not in store.types:
-            raise BagError(f"{original} is of another schema: unknown type {schema.name}")
-        topics[channel.topic] = schema.name
-        offered = channel.metadata.get("offered_qos_profiles")
-        qos[channel.topic] = parse_qos(offered) if offered else []
-    return topics, qos
-
-
 def recover_bag(bag_dir: str | os.PathLike) -> RecoveryReport:
     """Rebuild a readable bag from the MCAP a killed recorder left behind.
 
-    Every message of every complete chunk is kept (re-written with its original
-    timestamp and bytes into a fresh MCAP with summary + Statistics and a
-    matching metadata.yaml), and every complete record of the write-ahead log
-    (``WAL_NAME``) not already in a chunk; the damaged original stays beside it
-    as ``<name>.mcap.truncated``. A bag that is already complete is left alone
-    (a stale log in it is removed).
+    Every message of every complete chunk with a correct CRC is kept (re-written
+    with its original timestamp and bytes into a fresh MCAP with summary +
+    Statistics and a matching metadata.yaml), and every complete record of the
+    write-ahead log (``WAL_NAME``) not already in a chunk; the damaged original
+    stays beside it as ``<name>.mcap.truncated``. A bag that is already complete
+    is left alone (a stale log in it is removed).
     """
-    from mcap.exceptions import McapError
-
     path = Path(bag_dir)
     if not path.is_dir():
         raise BagError(f"bag {path} does not exist or is not a directory")
@@ -132,28 +111,36 @@ def recover_bag(bag_dir: str | os.PathLike) -> RecoveryReport:
         wal.unlink(missing_ok=True)
         return RecoveryReport(path, bag_info(path).counts, None, truncated=False)
     try:
-        schemas, channels, messages = _scan_truncated_mcap(original)
-    except McapError as exc:
-        raise BagError(f"{original} cannot be recovered: {one_line(exc)}") from None
-    _add_logged_messages(messages, channels, wal, original)
-    topics, qos = _topics_and_qos(schemas, channels, original)
+        scan = scan_data_section(original, strict=False, keep_messages=True)
+    except DamagedMcap as exc:
+        raise BagError(f"{original} cannot be recovered: {exc.reason}") from None
+    wal_catalogue, records = read_write_ahead_log(wal)
+    if not scan.channels and not wal_catalogue:
+        reasons = "; ".join(scan.dropped) or "no chunk was completed"
+        raise BagError(f"{original} cannot be recovered: it declares no channel and there is "
+                       f"no write-ahead log ({reasons})")
+    catalogue = _catalogue(scan, wal_catalogue, original)
+    messages = scan.messages
+    _add_logged_messages(messages, catalogue, records, wal, original)
     kept = original.with_name(original.name + ".truncated")
-    counts = _rewrite(path, original, kept, topics, qos, channels, messages)
-    return RecoveryReport(path, counts, kept, truncated=True)
+    counts = _rewrite(path, original, kept, catalogue, messages)
+    return RecoveryReport(path, counts, kept, truncated=True, dropped=scan.dropped)
 
 
-def _rewrite(path: Path, original: Path, kept: Path, topics: dict, qos: dict,
-             channels: dict, messages: list) -> dict:
+def _rewrite(path: Path, original: Path, kept: Path, catalogue: dict, messages: list) -> dict:
     """Write ``messages`` into a fresh bag staged beside ``path``, then put it in the
     place of the damaged ``original`` (moved to ``kept``) and of the write-ahead
     log (kept as ``.recovered``). Returns the counts."""
+    from rosbags.rosbag2.metadata import parse_qos
+
     wal = path / WAL_NAME
+    topics = {topic: msgtype for topic, msgtype, _ in catalogue.values()}
+    qos = {topic: parse_qos(offered) if offered else [] for topic, _, offered in catalogue.values()}
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.recover-") as tmp:
         staged = Path(tmp) / path.name
         writer = BagWriter(staged, topics, qos=qos)
-        id_to_topic = {cid: ch.topic for cid, ch in channels.items()}
         for log_time, channel_id, data in sorted(messages, key=lambda m: m[0]):
-            writer.write(id_to_topic[channel_id], log_time, data)
+            writer.write(catalogue[channel_id][0], log_time, data)
         counts = dict(writer.counts)
         writer.close()
         original.replace(kept)

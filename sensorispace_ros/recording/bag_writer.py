@@ -1,26 +1,31 @@
-"""Where a bag gets written: ``BagWriter`` (rosbag2 v9, MCAP, raw CDR) and its
-write-ahead log.
+"""Where a bag gets written: ``BagWriter`` (rosbag2 v9, MCAP with zstd chunks and
+CRCs, raw CDR) and its write-ahead log.
 
-``BagWriter`` writes through ``rosbags.rosbag2.Writer(version=9,
-storage_plugin=MCAP)`` (the format: recording.bag_format).
+``BagWriter`` writes through ``recording.bag_storage.Rosbag2Writer``
+(metadata.yaml by rosbags, the .mcap by the official mcap writer; the format:
+recording.bag_format).
 
-Crash safety (kill -9): MCAP messages live in chunks. rosbags closes a chunk
-when it exceeds 1 MiB; ``BagWriter`` also closes the open chunk once it is
+Crash safety (kill -9): MCAP messages live in chunks. ``BagWriter`` closes the
+open chunk once it holds ``chunk_bytes`` (1 MiB uncompressed) or is
 ``chunk_interval_s`` old (checked on every write and by ``flush_if_due``,
-which the recorder calls from a timer) and hands every closed chunk to the
-operating system (``flush``). Without more, a process killed with -9 loses
-the open chunk: at most ``chunk_interval_s`` or 1 MiB of messages.
+which the recorder calls from a timer) and hands every closed chunk, compressed
+and with its CRC, to the operating system. Without more, a process killed with
+-9 loses the open chunk: at most ``chunk_interval_s`` or 1 MiB of messages.
 
 Write-ahead log (``write_ahead=True``, the recorder's default): every message
 of the open chunk is also appended to ``<bag>/recording.wal`` by ``commit()``
 (one unbuffered ``os.write`` per batch; the recorder commits after each
-subscription callback), and the log is emptied whenever a chunk reaches the
-OS. A kill -9 then loses nothing the recorder has committed: the page cache
-keeps both files (no fsync: a power cut may lose more; a killed process does
-not). ``read_write_ahead_log`` reads it back for recording.bag_recovery.
+subscription callback), and the log starts again whenever a chunk reaches the
+OS. Each log starts with the bag's catalogue (topic -> channel id, type,
+offered QoS), so that its records can be read even before a chunk holding the
+MCAP schemas and channels exists. A kill -9 then loses nothing the recorder
+has committed: the page cache keeps both files (no fsync: a power cut may
+lose more; a killed process does not). ``read_write_ahead_log`` reads it back
+for recording.bag_recovery.
 """
 from __future__ import annotations
 
+import json
 import os
 import struct
 import time
@@ -31,9 +36,10 @@ from typing import Mapping
 from sensorispace_ros.recording.bag_format import BagError, one_line, typestore
 
 DEFAULT_CHUNK_INTERVAL_S = 1.0
+DEFAULT_CHUNK_BYTES = 1 << 20
 WAL_NAME = "recording.wal"
 # one log record: topic length (u16), log time (i64 ns), data length (u32), then
-# the topic name and the CDR bytes
+# the topic name and the CDR bytes; a record with an empty topic is the catalogue (JSON)
 WAL_HEADER = struct.Struct("<HqI")
 
 
@@ -84,41 +90,44 @@ class BagWriter:
         qos: Mapping[str, Mapping[str, object]] | None = None,
         chunk_interval_s: float = DEFAULT_CHUNK_INTERVAL_S,
         write_ahead: bool = False,
+        chunk_bytes: int = DEFAULT_CHUNK_BYTES,
     ) -> None:
         if not chunk_interval_s > 0:
             raise ValueError(f"chunk_interval_s must be > 0, got {chunk_interval_s!r}")
+        if not chunk_bytes > 0:
+            raise ValueError(f"chunk_bytes must be > 0, got {chunk_bytes!r}")
         if not topics:
             raise ValueError("topics must name at least one topic")
         self.path = Path(bag_dir)
         self.chunk_interval_s = float(chunk_interval_s)
+        self.chunk_bytes = int(chunk_bytes)
         self._writer = self._open_writer()
+        self._storage = self._writer.storage
         self._connections = self._add_connections(topics, qos or {})
         self.counts: Counter[str] = Counter({name: 0 for name in topics})
         self._chunk_opened = time.monotonic()
-        self._chunks_flushed = 0
         self._wal_fd: int | None = None
         self._wal_pending: list[bytes] = []
+        self._wal_catalogue = b""
         if write_ahead:
             self._wal_fd = os.open(self.path / WAL_NAME,
                                    os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
-        # The schema and channel records sit in the first chunk: close it now so
-        # that even a bag killed in its first second can be recovered.
-        self.flush_chunk()
+            catalogue = {topic: {"channel_id": self._connections[topic].id, **entry}
+                         for topic, entry in self._storage.catalogue.items()}
+            data = json.dumps(catalogue).encode()
+            self._wal_catalogue = WAL_HEADER.pack(0, 0, len(data)) + data
+            os.write(self._wal_fd, self._wal_catalogue)
 
     def _open_writer(self):
-        from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.rosbag2.errors import WriterError
 
+        from sensorispace_ros.recording.bag_storage import Rosbag2Writer
+
         try:
-            writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+            writer = Rosbag2Writer(self.path)
             writer.open()
         except (WriterError, OSError) as exc:
             raise BagError(f"cannot create bag {self.path}: {one_line(exc)}") from None
-        if not hasattr(writer.storage, "close_chunk"):
-            writer.abort()
-            raise BagError("this rosbags version has no McapWriter.close_chunk "
-                           "(BagWriter's crash-safe chunking needs rosbags 0.11, "
-                           "see requirements.lock)")
         return writer
 
     def _add_connections(self, topics: Mapping[str, str], qos: Mapping) -> dict:
@@ -143,6 +152,11 @@ class BagWriter:
     def closed(self) -> bool:
         return self._writer.storage is None
 
+    @property
+    def open_chunk_messages(self) -> int:
+        """Messages of the chunk being filled (0: every message is on disk)."""
+        return self._storage.open_chunk_messages
+
     def write(self, topic: str, timestamp_ns: int, cdr: bytes | memoryview) -> None:
         connection = self._connections.get(topic)
         if connection is None:
@@ -156,13 +170,8 @@ class BagWriter:
             name = topic.encode()
             self._wal_pending.append(WAL_HEADER.pack(len(name), int(timestamp_ns), len(data))
                                      + name + data)
-        storage = self._writer.storage
-        if len(storage.chunks) != self._chunks_flushed:
-            # rosbags closed a full (1 MiB) chunk inside write(): hand it to the OS.
-            storage.bio.flush()
-            self._chunks_flushed = len(storage.chunks)
-            self._chunk_opened = time.monotonic()
-            self._empty_wal()
+        if self._storage.open_chunk_bytes >= self.chunk_bytes:
+            self.flush_chunk()
         else:
             self.flush_if_due()
 
@@ -174,10 +183,12 @@ class BagWriter:
             self._wal_pending.clear()
 
     def _empty_wal(self) -> None:
-        """Every message written so far is in a chunk the OS holds: the log restarts."""
+        """Every message written so far is in a chunk the OS holds: the log restarts
+        (with the catalogue)."""
         if self._wal_fd is not None:
             self._wal_pending.clear()
             os.ftruncate(self._wal_fd, 0)
+            os.write(self._wal_fd, self._wal_catalogue)
 
     def flush_if_due(self) -> bool:
         """Close the open chunk if it is older than ``chunk_interval_s``."""
@@ -188,22 +199,15 @@ class BagWriter:
 
     def flush_chunk(self) -> None:
         """Close the open MCAP chunk (if it holds anything) and write it to the OS."""
-        storage = self._writer.storage
-        if storage is None:
-            return
-        # rosbags' McapWriter has no public "close chunk" call; close_chunk is
-        # what its own write() uses at 1 MiB (rosbags 0.11).
-        if storage.chunk.bio.tell():
-            storage.close_chunk()
-        storage.bio.flush()
-        self._chunks_flushed = len(storage.chunks)
         self._chunk_opened = time.monotonic()
-        self._empty_wal()
+        if not self.closed and self._storage.flush_chunk():
+            self._empty_wal()
 
     def close(self) -> None:
-        """Write the summary (with Statistics) and metadata.yaml; idempotent."""
+        """Write the last chunk, the summary (with Statistics) and metadata.yaml; idempotent."""
         if self.closed:
             return
+        self._storage.flush_chunk()
         self._writer.close()
         if self._wal_fd is not None:
             os.close(self._wal_fd)
@@ -217,19 +221,23 @@ class BagWriter:
         self.close()
 
 
-def read_write_ahead_log(path: Path) -> list[tuple[str, int, bytes]]:
-    """(topic, log time, data) of every complete record of a write-ahead log."""
+def read_write_ahead_log(path: Path) -> tuple[dict, list[tuple[str, int, bytes]]]:
+    """The catalogue (topic -> channel_id, type, offered_qos_profiles) and the
+    (topic, log time, data) of every complete record of a write-ahead log."""
     if not path.is_file():
-        return []
+        return {}, []
     raw = path.read_bytes()
-    records, offset = [], 0
+    catalogue, records, offset = {}, [], 0
     while offset + WAL_HEADER.size <= len(raw):
         name_len, log_time, data_len = WAL_HEADER.unpack_from(raw, offset)
         start = offset + WAL_HEADER.size
         end = start + name_len + data_len
         if end > len(raw):
             break                     # cut short by the kill
-        records.append((raw[start:start + name_len].decode(), log_time,
-                        raw[start + name_len:end]))
+        if name_len == 0:
+            catalogue = json.loads(raw[start:end])
+        else:
+            records.append((raw[start:start + name_len].decode(), log_time,
+                            raw[start + name_len:end]))
         offset = end
-    return records
+    return catalogue, records

@@ -1,4 +1,5 @@
-"""`sensorispace bag recover | analyze | replay`: results and one-line errors (exit 2)."""
+"""`sensorispace bag recover | bag verify | analyze | replay`: results and one-line
+errors (exit 2)."""
 from __future__ import annotations
 
 import pytest
@@ -41,7 +42,8 @@ def test_bag_recover_command(tmp_path, capsys):
     assert "already complete" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("command", [["analyze"], ["replay"], ["bag", "recover"]])
+@pytest.mark.parametrize("command", [["analyze"], ["replay"], ["bag", "recover"],
+                                     ["bag", "verify"]])
 def test_missing_bag_is_one_line_exit_2(tmp_path, capsys, command):
     assert cli.main([*command, str(tmp_path / "absent")]) == 2
     err = capsys.readouterr().err.strip()

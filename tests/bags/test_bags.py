@@ -74,11 +74,8 @@ def write_bag(path: Path, n: int, chunk_interval_s: float = 1.0, cut_at: int | N
             writer.write(SETTLED, 10 + 2 * i, settled_cdr(i))
             writer.write(SENSATION, 11 + 2 * i, sensation_cdr(i))
             if i == cut_at:
-                storage = writer._writer.storage
-                in_open_chunk = len(storage.chunk.msgs[1]) + len(storage.chunk.msgs[2]) \
-                    + len(storage.chunk.msgs[3])
                 cut = (path / f"{path.name}.mcap").stat().st_size, \
-                    1 + 2 * (i + 1) - in_open_chunk
+                    1 + 2 * (i + 1) - writer.open_chunk_messages
     return cut
 
 

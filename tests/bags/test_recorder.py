@@ -15,6 +15,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from sensorispace_ros.recording.bag_reader import bag_info, read_bag, read_session_config
 from sensorispace_ros.recording.bag_recovery import recover_bag
+from sensorispace_ros.recording.bag_verify import verify_bag
 
 from bag_test_support import PARAMS_FILE, wait_for
 
@@ -100,8 +101,11 @@ def test_recorder_records_every_message_and_closes_cleanly_on_sigterm(
         summary = reader.get_summary()
         decoded = sum(1 for _ in reader.iter_decoded_messages())
     assert decoded == sum(info.counts.values())
+    # MCAP's Statistics lists the channels that hold messages
     assert {summary.channels[c].topic: n
-            for c, n in summary.statistics.channel_message_counts.items()} == info.counts
+            for c, n in summary.statistics.channel_message_counts.items()} == {
+                topic: n for topic, n in info.counts.items() if n}
+    assert verify_bag(bag).messages == sum(info.counts.values())
     # the run's configuration travels in the bag
     config = yaml.safe_load(read_session_config(bag))["/**"]["ros__parameters"]
     assert config["seed"] == 7 and config["world"]["grid_count"] == 5
@@ -131,6 +135,7 @@ def test_recorder_killed_with_sigkill_is_recoverable_up_to_the_last_closed_chunk
 
     report = recover_bag(bag)
     assert report.truncated
+    assert verify_bag(bag).messages == sum(report.counts.values())
     for topic, count in on_disk.items():
         assert report.counts[topic] >= count, (topic, report.counts[topic], count)
     settled = [STORE.deserialize_cdr(cdr, t).data for _, t, _, cdr in read_bag(bag, [SETTLED])]

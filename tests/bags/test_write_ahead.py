@@ -1,4 +1,4 @@
-"""The bag's write-ahead log (issue #7): what a recorder committed survives kill -9.
+"""The bag's write-ahead log: what a recorder committed survives kill -9.
 
 Each case runs a writer in a child process that SIGKILLs itself (a real kill:
 no interpreter shutdown flushes Python's buffers), then recovers the bag."""
@@ -54,12 +54,13 @@ def test_every_committed_message_survives_a_kill_and_an_uncommitted_one_does_not
 
 def test_without_the_log_the_open_chunk_is_lost(tmp_path):
     killed_writer(tmp_path / "bag", """
-        w.flush_chunk()
-        for i in range(3000):
+        send(0)
+        w.flush_chunk()                  # a first chunk on disk
+        for i in range(1, 3000):
             send(i)
             w.commit()                   # a no-op without the log
     """, write_ahead=False)
-    assert recovered_values(tmp_path / "bag") == []
+    assert recovered_values(tmp_path / "bag") == [0]
 
 
 def test_a_kill_between_chunk_flush_and_log_truncation_keeps_each_message_once(tmp_path):
