@@ -1,5 +1,5 @@
 """The committed sample bag (bags/sample_smoke): a launched smoke run (config/smoke.yaml)
-copied without the bulky /body/* probing streams (copy_bag), ~350 KB."""
+copied without the bulky /body/* probing streams (copy_bag), ~170 KB, zstd chunks with CRCs."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,6 +12,7 @@ from rosbags.typesys import Stores, get_typestore
 from sensorispace_ros.recording import analyze
 from sensorispace_ros.recording.bag_copy import copy_bag
 from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
+from sensorispace_ros.recording.bag_verify import verify_bag
 from sensorispace_ros import contracts, messages
 
 from conftest import REPO
@@ -36,6 +37,8 @@ def test_sample_opens_with_both_readers_and_counts_agree():
     assert mcap_counts == meta_counts
     assert deserialised == decoded == meta["message_count"] == sum(meta_counts.values())
     assert meta_counts["/representation/embedding"] > 0 and meta_counts["/agent/done"] == 1
+    # in the bag format: zstd chunks, every CRC present and right
+    assert verify_bag(SAMPLE).compression == "zstd"
 
 
 def test_sample_rebuilds_the_recorded_embeddings():
