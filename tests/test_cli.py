@@ -176,7 +176,7 @@ def test_every_listed_verb_has_its_module_and_handler(capsys):
     subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     for verb in verbs:
         module = importlib.import_module(f"sensorispace_ros.cli.{verb}")
-        assert callable(module.register), verb
+        assert callable(module.add_arguments) and module.HELP and module.DESCRIPTION, verb
         handler = subparsers.choices[verb].get_default("handler")
         if handler is None:                     # a verb of actions: each has its handler
             actions = next(a for a in subparsers.choices[verb]._actions

@@ -13,15 +13,17 @@ from sensorispace_ros.recording.bag_format import BagError
 USER_ERRORS = (BagError,)
 
 
-def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "analyze", help="rebuild a run's representation and metrics from its bag",
-        description="Rebuild points of view, metric, embeddings and reaching from a bag "
-                    "alone (configuration and seed are stored in it), join the recorded "
-                    "ground truth and write DIR/metrics.json, arrays.npz and figures.")
+HELP = "rebuild a run's representation and metrics from its bag"
+DESCRIPTION = """
+Rebuild points of view, metric, embeddings and reaching from a bag alone (configuration
+and seed are stored in it), join the recorded ground truth and write DIR/metrics.json,
+arrays.npz and figures.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_bag(parser)
     add_out(parser, "output directory (default: results/<bag name>-analyzed)")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

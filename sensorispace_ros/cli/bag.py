@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from sensorispace_ros.cli.arguments import add_bag
 from sensorispace_ros.recording.bag_format import BagError
 
 # A bag that is missing, unreadable, damaged or beyond repair: one line, exit 2.
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                     "section's, the summary's), its message indexes, and its message counts "
                     "and times against metadata.yaml and the Statistics record. Exit 0 with a "
                     "one-line summary; exit 2 with one line naming the first problem.")
-    verify.add_argument("bag", metavar="BAG", help="bag directory")
+    add_bag(verify)
     verify.set_defaults(handler=run_verify)
     recover = actions.add_parser(
         "recover", help="make a bag readable after its recorder was killed",
@@ -33,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                     "is kept, and the write-ahead log's records; a chunk cut short or failing "
                     "its CRC is dropped and named. The damaged file is kept beside it as "
                     "<name>.mcap.truncated.")
-    recover.add_argument("bag", metavar="BAG", help="bag directory")
+    add_bag(recover)
     recover.set_defaults(handler=run_recover)
 
 

@@ -6,16 +6,18 @@ import argparse
 from sensorispace_ros.cli.summary import fmt
 
 
-def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "compare", help="show two runs' metrics side by side",
-        description="Print the metrics of two runs (run directories or metrics.json "
-                    "files) side by side with their differences.")
+HELP = "show two runs' metrics side by side"
+DESCRIPTION = """
+Print the metrics of two runs (run directories or metrics.json files) side by side with
+their differences.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("a", metavar="A", help="first run (directory or metrics.json)")
     parser.add_argument("b", metavar="B", help="second run (directory or metrics.json)")
     parser.add_argument("--only-different", action="store_true",
                         help="list only the values that differ")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -9,13 +9,15 @@ from pathlib import Path
 from sensorispace_ros.graph.live_view import DEFAULT_PORT as DEFAULT_VIEW_PORT
 
 
-def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "launch", help="run the naive agent as a ROS 2 node graph (one process per node)",
-        description="Start environment, body, agent, representation (and the recorder, and "
-                    "with --view the viewer) as separate processes with localhost-only "
-                    "discovery and a private domain id, follow the run, then write "
-                    "results/<run>/metrics.json and figures.")
+HELP = "run the naive agent as a ROS 2 node graph (one process per node)"
+DESCRIPTION = """
+Start environment, body, agent, representation (and the recorder, and with --view the
+viewer) as separate processes with localhost-only discovery and a private domain id,
+follow the run, then write results/<run>/metrics.json and figures.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", type=Path, default=None,
                         help="ROS parameter file (default: config/paper.yaml)")
     parser.add_argument("--run", default=None, help="run name (default: graph-seed<S>-<time>)")
@@ -34,7 +36,6 @@ def register(subparsers) -> None:
                              "ws://localhost:<--view-port> (docs/viewing.md)")
     parser.add_argument("--view-port", type=int, default=None, metavar="PORT",
                         help=f"port of the live view (implies --view; default {DEFAULT_VIEW_PORT})")
-    parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,9 +1,10 @@
 """The ``sensorispace`` command: the parser of every verb, and how it ends.
 
-Each verb is a module of this package (``VERBS``) with ``register(subparsers)``,
-which adds its parser with ``set_defaults(handler=fn)``, ``fn(args) -> int`` the
-exit status; a module may list, in ``USER_ERRORS``, exception types beyond
-ValueError and OSError that are the user's to fix.
+Each verb is a module of this package named after it (``VERBS``): ``HELP`` and
+``DESCRIPTION`` (its help line and its ``--help`` text), ``add_arguments(parser)``
+and ``run(args) -> int``, the exit status (a verb with actions, such as ``bag``,
+sets a handler per action instead). A module may list, in ``USER_ERRORS``,
+exception types beyond ValueError and OSError that are the user's to fix.
 
 A user error (bad configuration, missing file, unreadable bag) prints one line
 ``sensorispace: error: ...`` and exits 2; ``SENSORISPACE_DEBUG=1`` shows the
@@ -31,7 +32,11 @@ def build_parser() -> tuple[argparse.ArgumentParser, tuple[type[BaseException], 
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     user_errors: list[type[BaseException]] = [ValueError, OSError]
     for verb in VERBS:
-        verb.register(subparsers)
+        verb_parser = subparsers.add_parser(verb.__name__.rpartition(".")[2], help=verb.HELP,
+                                            description=verb.DESCRIPTION)
+        verb.add_arguments(verb_parser)
+        if hasattr(verb, "run"):
+            verb_parser.set_defaults(handler=verb.run)
         user_errors += [e for e in getattr(verb, "USER_ERRORS", ()) if e not in user_errors]
     return parser, tuple(user_errors)
 

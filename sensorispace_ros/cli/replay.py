@@ -10,16 +10,15 @@ from sensorispace_ros.recording.bag_format import BagError
 USER_ERRORS = (BagError,)
 
 
-_rate = checked(float, lambda value: value > 0, "a positive number")
+HELP = "republish a recorded bag on its topics"
+DESCRIPTION = """
+Republish every message of a bag (raw CDR, contract QoS) with its recorded timing scaled
+by --rate, or as fast as possible without loss (--fast). Discovery is localhost-only
+unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise; ROS_DOMAIN_ID selects the graph.
+"""
 
 
-def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "replay", help="republish a recorded bag on its topics",
-        description="Republish every message of a bag (raw CDR, contract QoS) with its "
-                    "recorded timing scaled by --rate, or as fast as possible without loss "
-                    "(--fast). Discovery is localhost-only unless ROS_AUTOMATIC_DISCOVERY_RANGE "
-                    "says otherwise; ROS_DOMAIN_ID selects the graph.")
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_bag(parser, "bag directory (metadata.yaml + .mcap)")
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=_rate, default=1.0,
@@ -28,7 +27,9 @@ def register(subparsers) -> None:
                        help="as fast as possible (reliable, every subscriber matched first)")
     parser.add_argument("--topics", nargs="+", metavar="TOPIC", default=None,
                         help="replay only these topics (default: every topic of the bag)")
-    parser.set_defaults(handler=run)
+
+
+_rate = checked(float, lambda value: value > 0, "a positive number")
 
 
 def run(args: argparse.Namespace) -> int:

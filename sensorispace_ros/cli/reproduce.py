@@ -2,18 +2,19 @@
 from __future__ import annotations
 
 import argparse
+
 from sensorispace_ros.cli.arguments import add_out, checked, out_dir
 from sensorispace_ros.cli.summary import summary_table
 
 
-_seed = checked(int, lambda value: value >= 0, "a non-negative integer")
+HELP = "run a strategy offline; write metrics.json, arrays.npz and figures"
+DESCRIPTION = """
+Run the paper's two simulations with one strategy and write DIR/metrics.json,
+DIR/arrays.npz and DIR/figures/*.png.
+"""
 
 
-def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "reproduce", help="run a strategy offline; write metrics.json, arrays.npz and figures",
-        description="Run the paper's two simulations with one strategy and write "
-                    "DIR/metrics.json, DIR/arrays.npz and DIR/figures/*.png.")
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--strategy", choices=("paper", "naive"), default="paper",
                         help="paper: analytic shortcuts; naive: sensorimotor flow only "
                              "(default: paper)")
@@ -25,7 +26,9 @@ def register(subparsers) -> None:
                              "as in config/paper.yaml)")
     parser.add_argument("--no-figures", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
-    parser.set_defaults(handler=run)
+
+
+_seed = checked(int, lambda value: value >= 0, "a non-negative integer")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,13 +7,15 @@ from sensorispace_ros.cli.arguments import add_out, out_dir
 from sensorispace_ros.offline.sweep import SweepError, parse_seeds
 
 
-def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "sweep", help="run every (config, seed) as a Dask task; summarise the spread",
-        description="Run a strategy for every configuration and seed through dask.distributed "
-                    "(a LocalCluster by default, or --scheduler), writing "
-                    "DIR/<config-name>/seed-<k>/ and DIR/summary.json, DIR/summary.md. "
-                    "A rerun skips the complete runs and redoes the torn ones.")
+HELP = "run every (config, seed) as a Dask task; summarise the spread"
+DESCRIPTION = """
+Run a strategy for every configuration and seed through dask.distributed (a LocalCluster
+by default, or --scheduler), writing DIR/<config-name>/seed-<k>/ and DIR/summary.json,
+DIR/summary.md. A rerun skips the complete runs and redoes the torn ones.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--strategy", choices=("paper", "naive"), required=True)
     parser.add_argument("--config", metavar="FILE", nargs="+", required=True,
                         help="parameter files (each is a directory of the sweep)")
@@ -26,7 +28,6 @@ def register(subparsers) -> None:
     where.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
                        help="an existing Dask scheduler instead of a local cluster")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
-    parser.set_defaults(handler=run)
 
 
 USER_ERRORS = (SweepError,)
