@@ -30,7 +30,8 @@ def representation_of(before_2d: np.ndarray, after_2d: np.ndarray | None = None
 
 @pytest.fixture(scope="module")
 def cfg():
-    return load_config(overrides={"representation.reaching.pairs": 10})
+    # Object grid step 12 / 48 = 0.25, the step of ring_grid.
+    return load_config(overrides={"representation.reaching.pairs": 10, "world.grid_count": 49})
 
 
 def test_an_exact_representation_has_the_ring_topology_and_consistent_diagonals(cfg):
@@ -69,17 +70,17 @@ def test_a_representation_cut_in_two_has_two_components_and_no_hole(cfg):
 
 
 def test_missed_positions_are_counted_and_outlined_in_fig07(cfg):
-    positions = ring_grid(step=12 / 61)
-    removed = [3, 150, 400]
+    positions = ring_grid()
+    removed = [3, 150, 300]
     kept = np.delete(positions, removed, axis=0)
     metrics = evaluation.evaluate(representation_of(kept), kept, None, cfg, seed=0)
     assert metrics["exploration.missed_in_ring"] == 3
-    missed = evaluation.missed_ring_positions(kept)
+    missed = evaluation.missed_ring_positions(kept, 0.25)
     assert np.allclose(np.sort(missed, axis=0), np.sort(positions[removed], axis=0))
 
     m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
     arrays = {"grid": positions, "initial_motor_state": m0, "true_positions": kept,
-              "motor_states": np.tile(m0, (len(kept), 1)),
+              "grid_spacing": np.float64(0.25), "motor_states": np.tile(m0, (len(kept), 1)),
               "povs": np.tile(m0, (len(kept), 2, 1))}
     fig = figures.fig07_exploration(arrays)
     red = [c for c in fig.axes[0].collections

@@ -66,7 +66,10 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
     """
     true_positions = np.asarray(true_positions, dtype=float)
     metrics = _metric_numbers(representation, true_positions)
-    metrics["exploration.missed_in_ring"] = len(missed_ring_positions(true_positions))
+    from sensorispace_ros.core.world import grid_spacing
+
+    step = grid_spacing(cfg["world"]["grid_half_width"], cfg["world"]["grid_count"])
+    metrics["exploration.missed_in_ring"] = len(missed_ring_positions(true_positions, step))
     timings: dict = {}
     with timed_stage(progress, "topology", timings):
         metrics.update(_topology_numbers(representation, true_positions))
@@ -131,17 +134,20 @@ def _topology_numbers(representation: Representation, true_positions: np.ndarray
             for key, value in topology_report(distance).items()}
 
 
-def missed_ring_positions(true_positions: np.ndarray) -> np.ndarray:
+def missed_ring_positions(true_positions: np.ndarray, spacing: float) -> np.ndarray:
     """``(M, 2)`` sensor positions of the arm's working ring that no POV
     covers, on the lattice most POVs lie on (``core.sensor_grid``): the
     positions that should have been compensated but were not, for any
-    strategy. Fig. 7a outlines them."""
+    strategy. Fig. 7a outlines them. ``spacing`` is the object grid's step
+    (the world's): on a fine grid the compensations' pose errors make the
+    positions' median neighbour distance a step that is off by enough to
+    slide the lattice's far positions off their POVs."""
     from sensorispace_ros.core.sensor_grid import missed_in_ring
 
     positions = np.asarray(true_positions, dtype=float).reshape(-1, 2)
     if len(positions) < 2:
         return np.zeros((0, 2))
-    return missed_in_ring(positions, _grid_step(positions))
+    return missed_in_ring(positions, spacing)
 
 
 def _reaching_numbers(representation: Representation, true_positions: np.ndarray, cfg: dict,

@@ -163,7 +163,8 @@ def _object_positions_panel(ax, arrays: Mapping) -> None:
                             "object positions the tip can follow"))
     # The evaluator's ring positions no POV covers (exploration.missed_in_ring),
     # drawn at the object displacement that asks for them.
-    missed = missed_ring_positions(np.asarray(arrays["true_positions"])) - tip0
+    missed = missed_ring_positions(np.asarray(arrays["true_positions"]),
+                                   float(arrays["grid_spacing"])) - tip0
     if len(missed):
         ax.scatter(*missed.T, s=30, facecolors="none", edgecolors="#d7191c",
                    linewidths=1.0, label=f"in reach, not compensated ({len(missed)})")
