@@ -8,14 +8,14 @@ Four server processes in one private domain (localhost discovery):
     PointCloud2 with a prebuilt ``rows x 6`` one (one publication, no work),
     spun by rclpy's stock SingleThreadedExecutor: the bare baseline;
   * ``bench/rclpy_echo.py --lean``: the same with serialized bytes, spun by
-    the graph's executor (``nodes.make_executor``, as the body node): the
-    floor;
+    the graph's executor (``graph.framework.make_executor``, as the body
+    node): the floor;
   * ``bench/rclpy_echo.py --simulate``: decode + simulate + pack, one
     publication (diagnostic: where the graph's excess goes), reporting its
     own simulation time per answer.
 The client (this process, one node) probes the body exactly as the agent
-node does - ``nodes.agent.BodyOverTopics`` with the contract's publisher,
-commands and answers as serialized bytes (``messages.CloudCdrPacker``,
+node does - ``graph.body_over_topics.BodyOverTopics`` with the contract's
+publisher, commands and answers as serialized bytes (``messages.CloudCdrPacker``,
 ``CloudCdrReader``), waiting in the graph's executor - and pings
 the echoes with prebuilt messages, waiting the same way: the client's side is
 the same for every kind. All are measured in the same run, interleaved in
@@ -75,7 +75,7 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     from sensorispace_ros import contracts, messages
     from sensorispace_ros.graph import dds_environment
     from sensorispace_ros.graph.framework import build_world, frame, make_executor
-    from sensorispace_ros.graph.nodes.agent import BodyOverTopics
+    from sensorispace_ros.graph.body_over_topics import BodyOverTopics
 
     per_round = per_round or {1: 100, batch_rows: 20}
     config = Path(config)

@@ -10,8 +10,8 @@ the request header. No decoding, no computation, one publication per request.
 The bare echo spins the stock ``SingleThreadedExecutor``: what a plain rclpy
 node costs (the baseline of the probe target). ``--lean``: the same echo on
 ``bench/lean_ping`` / ``bench/lean_pong``, spun by the graph's executor
-(``nodes.make_executor``, as the body and agent nodes), the request taken as
-serialized bytes: the floor of a Python ping-pong over rclpy, reported next to
+(``graph.framework.make_executor``, as the body and agent nodes), the request
+taken as serialized bytes: the floor of a Python ping-pong over rclpy, reported next to
 the baseline.
 
 ``--simulate``: a diagnostic middle ground, on ``bench/sim_ping`` /

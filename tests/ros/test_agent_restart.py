@@ -18,7 +18,8 @@ from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.graph import in_process
 from sensorispace_ros.state.agent_journal import JOURNAL_FILE, SNAPSHOT_FILE, read_journal
 from sensorispace_ros.graph.framework import frame
-from sensorispace_ros.graph.nodes.agent import AgentNode, BodyOverTopics, RunAborted
+from sensorispace_ros.graph.body_over_topics import BodyOverTopics, RunAborted
+from sensorispace_ros.graph.nodes.agent import AgentNode
 from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
 from .conftest import SMOKE

@@ -1,17 +1,11 @@
-"""Agent node: the naive agent (core.naive_agent.NaiveAgent, unchanged).
+"""Agent node: the naive agent (core.naive.agent.NaiveAgent, unchanged).
 
 It subscribes to ``/body/sensation`` and nothing else, and meets its body
-through ``BodyOverTopics``, whose ``sense(batch)`` publishes one
-``/body/motor_command`` (frame ``cmd/<n>``) and spins until the sensation
-with that frame id arrives (the node's executor, ``nodes.make_executor``, in
-this thread; MultiThreadedExecutor had 0.1-0.6 s outliers); its ``move``
-(the rest after a change, when the agent already sensed that state) does
-not wait: the answer is taken before the next command or the settle. Commands and
-answers travel as serialized bytes (``messages.CloudCdrPacker`` /
-``GraphNode.read_float_cloud``). With each settle it sends the first call of
-the next change (the sweep of the known POVs, ``NaiveAgent.next_sweep``) as
-``next/<k>`` (``presend``): the body answers it right after change k's passive
-sensation, so that call waits for no round trip.
+through ``graph.body_over_topics.BodyOverTopics`` (a ``sense`` is a round trip
+of ``/body/motor_command`` and ``/body/sensation``, spun in this thread; with
+each settle it sends the next change's first call ahead). Commands and answers
+travel as serialized bytes (``messages.CloudCdrPacker`` /
+``GraphNode.read_float_cloud``).
 
 Passive sensations (``change/<k>``) are queued by the subscription callback;
 ``step()``, called by the spinning loop between callbacks (never inside
@@ -23,7 +17,7 @@ For the evaluator (recorded, read by ``sensorispace analyze``) it also
 publishes its own bookkeeping, never anything of the world:
 ``/agent/pov_records`` (event and walk queries of each POV),
 ``/agent/compensation_records`` (each accepted compensation) and, at the
-end, ``/agent/stage_counters``: together ``core.naive_agent.
+end, ``/agent/stage_counters``: together ``core.naive.records.
 NaiveAgentRecords``, the data the offline run is evaluated from. At the end
 it also writes them to ``<graph.results_dir>/agent_records.npz``, for a run
 evaluated without a bag (``launch --no-record``).
@@ -59,7 +53,7 @@ an undisturbed run. The snapshot is a pickle: the checkpoint directory must
 be as trusted as the code.
 
 Retransmit: a command unanswered after ``graph.command_timeout_s`` is
-published again with the same frame id (a restarted body lost it); a late
+published again with the same frame id (``BodyOverTopics``); a late
 duplicate answer is dropped. A passive sensation of the change the agent
 last settled makes it publish that settle again (a restarted environment
 re-sends its current change when the settle may have been lost).
@@ -69,7 +63,6 @@ from __future__ import annotations
 import collections
 import time
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 from rclpy.duration import Duration
@@ -78,8 +71,9 @@ from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.graph import tracing
+from sensorispace_ros.graph.body_over_topics import BodyOverTopics, RunAborted
 from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal,
-    CheckpointError, command_check, read_journal, read_snapshot, write_snapshot)
+    CheckpointError, read_journal, read_snapshot, write_snapshot)
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
@@ -88,181 +82,6 @@ from sensorispace_ros.graph.framework import GraphNode, frame, run_node
 
 
 AGENT_RECORDS_FILE = "agent_records.npz"
-
-
-class RunAborted(RuntimeError):
-    """The node is shutting down while the agent waits for its body."""
-
-
-class _Sent(NamedTuple):
-    """A command published (or, after a restart, answered from the journal)."""
-    number: int
-    check: int
-    motor_states: np.ndarray
-    frame_id: str
-    started: float
-    replayed: np.ndarray | None
-
-
-class BodyOverTopics:
-    """A SensingBody whose ``sense`` is a round trip over the body's topics.
-
-    ``spin_once(timeout_s)`` services the executor while the reply is
-    awaited: the agent runs in the thread that spins, so the answer is
-    handled without a thread hand-off (measured: a worker thread waiting on
-    an Event cost 3-6 ms per round trip, GIL switching; see the report).
-    """
-
-    def __init__(self, publish_command, spin_once, n_motors: int, n_sensors: int,
-                 command_timeout_s: float = 2.0, on_retransmit=None):
-        if not command_timeout_s > 0:
-            raise ValueError(f"command_timeout_s: must be > 0, got {command_timeout_s!r}")
-        self._publish_command = publish_command
-        self._spin_once = spin_once
-        self.n_motors = n_motors
-        self.n_sensors = n_sensors
-        self.command_timeout_s = float(command_timeout_s)
-        self._on_retransmit = on_retransmit
-        self._pending: tuple[str, int] | None = None
-        self._reply: np.ndarray | None = None
-        self._moving: _Sent | None = None    # a move's command, its answer not taken yet
-        self._ahead: _Sent | None = None     # a presend's command, its answer not taken yet
-        self.ahead_used = 0                  # presends that answered the agent's next call
-        self.requests = 0
-        self.retransmits = 0
-        self.aborted = False
-        self.round_trip_s = 0.0          # total time spent waiting for the body
-        # Restart: answers read back from the journal, by command
-        # number, served before going live; the journal new answers go to.
-        self.replay: dict[int, tuple[int, np.ndarray]] = {}
-        self.replayed = 0
-        self.journal: AgentJournal | None = None
-
-    def sense(self, motor_states: np.ndarray) -> np.ndarray:
-        motor_states = self._checked(motor_states)
-        self.await_move()
-        ahead, self._ahead = self._ahead, None
-        if ahead is not None:
-            answer = self._receive(ahead, time.perf_counter())
-            if ahead.motor_states.shape == motor_states.shape and np.array_equal(
-                    ahead.motor_states.view(np.uint64), motor_states.view(np.uint64)):
-                self.ahead_used += 1
-                return answer
-            # Not what the agent asks for after all: that answer is journaled (a
-            # replay takes it the same way) and the call goes out as usual.
-        sent = self._send(motor_states)
-        return self._receive(sent, sent.started)
-
-    def presend(self, motor_states: np.ndarray, change: int) -> None:
-        """Send now the command the agent expects to send first after change
-        ``change`` (``core.naive_agent.NaiveAgent.next_sweep``), as
-        ``next/<change>``: the body answers it once that change's lights are
-        applied, right after the passive sensation. If the agent's first call
-        asks for the same rows (bit for bit) that answer is returned without a
-        round trip; otherwise it is taken and dropped first."""
-        motor_states = self._checked(motor_states)
-        self.await_move()
-        self.await_ahead()
-        self._ahead = self._send(motor_states, frame("next", change))
-
-    def move(self, motor_states: np.ndarray) -> None:
-        """The command ``sense`` sends, when the agent already has its
-        sensations (it rests at a state sensed since the last change,
-        ``core.naive_agent._SensedSinceChange``): sent now, its answer taken
-        before the next command or by ``await_move``, which the node calls
-        before it settles: the arm rests there before the environment moves,
-        and the answer is journaled as any other."""
-        motor_states = self._checked(motor_states)
-        self.await_move()
-        self.await_ahead()
-        self._moving = self._send(motor_states)
-
-    def await_move(self) -> None:
-        """Take the answer of the command ``move`` sent, if not taken yet."""
-        if self._moving is not None:
-            sent, self._moving = self._moving, None
-            self._receive(sent, time.perf_counter())
-
-    def await_ahead(self) -> None:
-        """Take (and drop) the answer of a presend nobody asked for."""
-        if self._ahead is not None:
-            sent, self._ahead = self._ahead, None
-            self._receive(sent, time.perf_counter())
-
-    def _checked(self, motor_states: np.ndarray) -> np.ndarray:
-        motor_states = np.asarray(motor_states, dtype=float)
-        if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
-            raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
-                             f"got {motor_states.shape}")
-        return motor_states
-
-    def _send(self, motor_states: np.ndarray, frame_id: str | None = None) -> "_Sent":
-        """Publish command ``requests + 1`` (frame ``cmd/<n>`` unless ``frame_id``),
-        or take its answer from the journal being replayed."""
-        self.requests += 1
-        number = self.requests
-        check = command_check(motor_states) if self.journal is not None else 0
-        if self.replay:
-            recorded = self.replay.pop(number, None)
-            if recorded is not None:
-                return _Sent(number, check, motor_states, "", 0.0,
-                             self._replayed(number, check, recorded, len(motor_states)))
-            self.replay.clear()     # answers are journaled in order: the rest is live
-        frame_id = frame_id or frame("cmd", number)
-        self._pending = (frame_id, len(motor_states))
-        self._reply = None
-        started = time.perf_counter()
-        self._publish_command(motor_states, frame_id)
-        return _Sent(number, check, motor_states, frame_id, started, None)
-
-    def _receive(self, sent: "_Sent", since: float) -> np.ndarray:
-        """Spin until ``sent`` is answered (re-sent every ``command_timeout_s``);
-        ``since``: when the agent began to wait (``round_trip_s``)."""
-        if sent.replayed is not None:
-            return sent.replayed
-        last_sent = sent.started
-        wait_s = min(0.5, self.command_timeout_s)
-        while self._reply is None:
-            if self.aborted:
-                raise RunAborted("shutting down while waiting for the body")
-            self._spin_once(wait_s)
-            now = time.perf_counter()
-            if self._reply is None and now - last_sent >= self.command_timeout_s:
-                self.retransmits += 1
-                if self._on_retransmit is not None:
-                    self._on_retransmit(sent.frame_id, now - sent.started)
-                self._publish_command(sent.motor_states, sent.frame_id)
-                last_sent = now
-        if since == sent.started:        # waited from the publication on (not a move's)
-            tracing.stamp("agent.resume")
-        self.round_trip_s += time.perf_counter() - since
-        reply, self._reply = self._reply, None
-        if self.journal is not None:
-            self.journal.answer(sent.number, sent.check, reply)
-        return reply
-
-    def _replayed(self, number: int, check: int, recorded, n_rows: int) -> np.ndarray:
-        recorded_check, rows = recorded
-        if recorded_check != check or len(rows) != n_rows or rows.shape[1] != self.n_sensors:
-            path = self.journal.path if self.journal is not None else JOURNAL_FILE
-            raise CheckpointError(f"{path}: command {number} differs from the journaled one "
-                                  "(journal of another run or configuration?)")
-        self.replayed += 1
-        return rows
-
-    @property
-    def pending_number(self) -> int | None:
-        return None if self._pending is None else self.requests
-
-    def deliver(self, frame_id: str, sensations: np.ndarray) -> bool:
-        """Hand a sensation to the waiting request; False if nobody waits for it."""
-        if self._pending is None or self._pending[0] != frame_id:
-            return False
-        if len(sensations) != self._pending[1] or sensations.shape[1] != self.n_sensors:
-            return False
-        self._reply = sensations
-        self._pending = None
-        return True
 
 
 class AgentNode(GraphNode):
