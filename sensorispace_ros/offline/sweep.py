@@ -209,10 +209,17 @@ def run_sweep(tasks: Sequence[SweepTask], client, report: Callable[[str], None] 
         except Exception as exc:                # the task's own error, named with its run
             outcome.failed.append((task, f"{type(exc).__name__}: {exc}"))
         if report is not None:
-            running = sum(len(keys) for keys in client.processing().values())
+            running = _running(client)
             report(progress_line(len(outcome.done), running, len(outcome.failed), len(todo),
                                  time.monotonic() - started, outcome.failed))
     return outcome
+
+
+def _running(client) -> int:
+    """Tasks executing now: a worker may hold more than it has threads."""
+    threads = client.nthreads()
+    return sum(min(len(keys), threads.get(worker, 1))
+               for worker, keys in client.processing().items())
 
 
 def progress_line(done: int, running: int, failed: int, total: int, elapsed_s: float,
