@@ -31,7 +31,7 @@ _ROS_OWN = {"use_sim_time", "start_type_description_service"}
 # How long publish() keeps retrying after "cannot publish data" (RCLError): a
 # RELIABLE + KEEP_ALL writer whose history is full of samples a kill -9'd reader
 # never acknowledges frees it when the reader's participant lease expires
-# (launcher.LEASE_DURATION_S = 3 s; Fast DDS's default is 20 s).
+# (dds_environment.LEASE_DURATION_S = 3 s; Fast DDS's default is 20 s).
 PUBLISH_RETRY_S = 25.0
 PUBLISH_RETRY_PAUSE_S = 0.05
 # Exit code of a node that asks whoever runs it (the launcher) to start it
@@ -98,7 +98,7 @@ class GraphNode(Node):
         # 0 in a healthy graph (the probe topics carry CloudCdrPacker's bytes).
         self.general_reads: dict[str, int] = {}
         # Set by whoever spins the node (run_node, tests): lets a node that
-        # waits for an answer keep the executor turning (see nodes.agent).
+        # waits for an answer keep the executor turning (see graph.body_over_topics).
         self.spin_once: Callable[[float], None] | None = None
         self.publish_failures = 0
 

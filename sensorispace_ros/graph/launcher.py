@@ -37,7 +37,7 @@ RECORDER = "recorder"
 # Started with a live view (``view_port``): draws the run for Foxglove and RViz.
 VIEWER = "viewer"
 # At the end of a run, how long to wait for the recorder to hold the agent's whole
-# run (recording_complete: at once unless the recorder was restarted late).
+# run (recording.completeness: at once unless the recorder was restarted late).
 RECORDING_WAIT_S = 10.0
 GRACE_S = 5.0
 POLL_S = 0.1
@@ -120,7 +120,7 @@ class Graph:
 
 class Monitor:
     """Shows the run's progress from the environment's progress record
-    (``environment_progress``), polled: no ROS participant in this process,
+    (``state.environment_record``), polled: no ROS participant in this process,
     so nothing here wakes at every change inside the hand-over the agent
     waits for (as a subscriber to ``/agent/settled`` would)."""
 
@@ -195,7 +195,7 @@ class RespawnPolicy:
 def wait_for_recording(graph: "Graph", bag_dir: Path, stream,
                        timeout_s: float = RECORDING_WAIT_S) -> float | None:
     """Before the nodes are stopped: until the recorder holds the agent's whole
-    run (``recording_complete``), at most ``timeout_s``; says so when it waited."""
+    run (``recording.completeness``), at most ``timeout_s``; says so when it waited."""
     recorder = graph.children.get(RECORDER)
     if recorder is None:
         return None

@@ -1,4 +1,4 @@
-"""recording_complete: a recording holds the agent's whole run when its POVs and
+"""recording.completeness: a recording holds the agent's whole run when its POVs and
 equality rows (first message of each frame id) add up to /agent/done's totals;
 the marker beside the bag, and the wait for it."""
 import threading

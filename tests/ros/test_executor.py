@@ -1,4 +1,4 @@
-"""nodes.make_executor: what spins every node's process (private Context, own domain).
+"""graph.framework.make_executor: what spins every node's process (private Context, own domain).
 
 The graph relies on these properties of the executor (rclpy's EventsExecutor
 by default): messages reach their callbacks in order, raw or not; timers -

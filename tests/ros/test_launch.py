@@ -128,7 +128,7 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
     # processes the payloads arrive padded; the general path read them all once).
     assert run_over[0].endswith(" 0 sensations not read by the fast path"), run_over
     # The recorder said it held the agent's whole run before the launcher stopped
-    # it (recording_complete), and took its marker away with the bag closed.
+    # it (recording.completeness), and took its marker away with the bag closed.
     recorder_log = (smoke_launch["results"] / "logs" / "recorder.log").read_text()
     assert "holds the agent's whole run (smoke.complete)" in recorder_log, recorder_log[-2000:]
     assert "does not hold the agent's whole run" not in output

@@ -48,9 +48,9 @@ Until the first new passive sensation arrives, whenever it is idle on a
 settled change it re-publishes that settle every ``graph.resend_period_s``
 (the settle, or the passive sensation that followed it, may have been lost
 while it was dead; the environment answers a repeated settle of the change
-before its current one with the current lights). ``/agent/done`` totals, POVs, equality rows and records equal those of
-an undisturbed run. The snapshot is a pickle: the checkpoint directory must
-be as trusted as the code.
+before its current one with the current lights). ``/agent/done`` totals, POVs,
+equality rows and records equal those of an undisturbed run. The snapshot is
+a pickle: the checkpoint directory must be as trusted as the code.
 
 Retransmit: a command unanswered after ``graph.command_timeout_s`` is
 published again with the same frame id (``BodyOverTopics``); a late
@@ -229,7 +229,7 @@ class AgentNode(GraphNode):
         started = time.perf_counter()
         # The journal about to be emptied is what re-publishes, after a kill,
         # reactions that never left the process: wait until they were received
-        # (readers acknowledge at the writer's heartbeat: launcher.HEARTBEAT_PERIOD_NS).
+        # (readers acknowledge at the writer's heartbeat: dds_environment.HEARTBEAT_PERIOD_NS).
         for publisher in (self.pov_pub, self.compensation_pub, self.pov_record_pub,
                           self.compensation_record_pub, self.settled_pub):
             if not publisher.wait_for_all_acked(Duration(seconds=1.0)):

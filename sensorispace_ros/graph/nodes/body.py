@@ -114,7 +114,7 @@ class BodyNode(GraphNode):
     def publish_passive(self, frame_id: str, stamp_ns: int) -> None:
         """What the resting eye sees after a change. Not a query of the agent's: computed
         for the single resting pose exactly as the offline driver does
-        (core.naive_evaluation._passive_sensation), so both runs see the same bits;
+        (core.naive.run._passive_sensation), so both runs see the same bits;
         by ``core.body.simulate`` (those bits, 2 instead of 54 us: the agent waits
         for this on every change)."""
         rest = self.body.motor_state

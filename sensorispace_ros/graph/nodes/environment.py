@@ -8,7 +8,7 @@ message, ``end/<k>``, with unchanged lights: the body turns it into a passive
 sensation, so the agent learns of the end only through its body.
 
 Restart: with ``graph.checkpoint_dir`` set, ``{current, settled}``
-is written to ``<dir>/environment.json`` (``environment_progress``; the
+is written to ``<dir>/environment.json`` (``state.environment_record``; the
 launcher polls it for its progress line) at every change, at the end and
 when the run is complete: a fixed-size JSON record overwritten in place by one
 ``os.pwrite`` (a kill cannot tear a one-page write; 4-7 us, where tmp file +
@@ -38,8 +38,8 @@ from sensorispace_ros.state.environment_record import (PROGRESS_FILE, ProgressWr
 from sensorispace_ros.graph.framework import GraphNode, build_world, frame, run_node
 
 KIND_CODES = {world_mod.TRANSLATION: 0, world_mod.REDISTRIBUTION: 1}
-# One participant announcement period of the launcher's Fast DDS profile
-# (launcher.LEASE_ANNOUNCEMENT_S = 1 s) plus a margin; see _peers_ready.
+# One participant announcement period of the graph's Fast DDS profile
+# (dds_environment.LEASE_ANNOUNCEMENT_S = 1 s) plus a margin; see _peers_ready.
 RECORDER_DISCOVERY_S = 1.5
 PEER_POLL_S = 0.02
 

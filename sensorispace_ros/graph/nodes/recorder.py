@@ -18,7 +18,7 @@ the middleware had received but the recorder not yet taken is lost.
 ``sensorispace bag recover`` (or the restarted recorder) rebuilds the bag.
 
 ``<bag>.complete``, beside the bag directory, says the recording holds the
-agent's whole run (``recording_complete``): the launcher waits for it before
+agent's whole run (``recording.completeness``): the launcher waits for it before
 it stops the nodes, so a recorder restarted late still gets the agent's
 TRANSIENT_LOCAL history.
 """
@@ -38,7 +38,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from sensorispace_ros.recording import completeness as recording_complete
+from sensorispace_ros.recording import completeness
 from sensorispace_ros.recording.bag_copy import merge_bags
 from sensorispace_ros.recording.bag_format import (
     SESSION_CONFIG_TOPIC,
@@ -161,9 +161,9 @@ class Recorder(Node):
                                 write_ahead=write_ahead)
         # Counted from this process's own messages: a restarted recorder gets the
         # agent's whole TRANSIENT_LOCAL history again.
-        self.completeness = recording_complete.RunCompleteness()
-        recording_complete.remove_marker(self.writer.path)
-        if not set(recording_complete.TOPICS) <= set(self.contracts):
+        self.completeness = completeness.RunCompleteness()
+        completeness.remove_marker(self.writer.path)
+        if not set(completeness.TOPICS) <= set(self.contracts):
             # not recording the agent's data (recorder.topics): nothing to wait for
             self._mark_complete()
         if run_config:
@@ -211,7 +211,7 @@ class Recorder(Node):
 
     def _store(self, topic: str, cdr: bytes, info: dict) -> None:
         self.writer.write(topic, info.get("received_timestamp") or time.time_ns(), cdr)
-        if topic in recording_complete.TOPICS and self.completeness.add(topic, cdr):
+        if topic in completeness.TOPICS and self.completeness.add(topic, cdr):
             self.writer.commit()         # on disk before the launcher may stop the run
             self._mark_complete()
         self.received += 1
@@ -222,7 +222,7 @@ class Recorder(Node):
             self.first_message_at = now
 
     def _mark_complete(self) -> None:
-        path = recording_complete.write_marker(self.writer.path, self.completeness.held)
+        path = completeness.write_marker(self.writer.path, self.completeness.held)
         self.get_logger().info(f"holds the agent's whole run ({path.name})")
 
     def _log_rate(self) -> None:
@@ -242,7 +242,7 @@ class Recorder(Node):
         if self.writer.closed:
             return
         self.writer.close()
-        recording_complete.remove_marker(self.writer.path)
+        completeness.remove_marker(self.writer.path)
         if self.earlier_parts:
             merge_parts(self.writer.path, self.earlier_parts)
         counts = ", ".join(f"{t} {n}" for t, n in sorted(self.writer.counts.items()))
