@@ -524,26 +524,29 @@ def coloured_cloud(xyz: np.ndarray, rgb: np.ndarray, ids: np.ndarray,
     return table_to_cloud(table, columns, header)
 
 
-def shapes_to_marker_array(shapes, header: Header):
-    """``core.scene.Shape`` s as a ``visualization_msgs/MarkerArray``: one marker
-    per shape, id 0 of its namespace, in the header's frame."""
+def shape_to_marker(shape, header: Header):
+    """A ``core.scene.Shape`` as a ``visualization_msgs/Marker``: id 0 of its
+    namespace, in the header's frame."""
     from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
     from std_msgs.msg import ColorRGBA
-    from visualization_msgs.msg import Marker, MarkerArray
+    from visualization_msgs.msg import Marker
 
     types = {"line_strip": Marker.LINE_STRIP, "line_list": Marker.LINE_LIST,
              "spheres": Marker.SPHERE_LIST, "points": Marker.POINTS}
-    markers = []
-    for shape in shapes:
-        r, g, b, a = (float(c) for c in shape.colour)
-        size = float(shape.size)
-        markers.append(Marker(
-            header=header, ns=shape.namespace, id=0, type=types[shape.kind],
-            action=Marker.ADD, pose=Pose(orientation=Quaternion(w=1.0)),
-            scale=Vector3(x=size, y=size, z=size), color=ColorRGBA(r=r, g=g, b=b, a=a),
-            points=[Point(x=float(x), y=float(y), z=float(z))
-                    for x, y, z in np.asarray(shape.points, dtype=float)]))
-    return MarkerArray(markers=markers)
+    r, g, b, a = (float(c) for c in shape.colour)
+    size = float(shape.size)
+    return Marker(
+        header=header, ns=shape.namespace, id=0, type=types[shape.kind],
+        action=Marker.ADD, pose=Pose(orientation=Quaternion(w=1.0)),
+        scale=Vector3(x=size, y=size, z=size), color=ColorRGBA(r=r, g=g, b=b, a=a),
+        points=[Point(x=x, y=y, z=z) for x, y, z in np.asarray(shape.points, dtype=float).tolist()])
+
+
+def shapes_to_marker_array(shapes, header: Header):
+    """``core.scene.Shape`` s as a ``visualization_msgs/MarkerArray`` (``shape_to_marker``)."""
+    from visualization_msgs.msg import MarkerArray
+
+    return MarkerArray(markers=[shape_to_marker(shape, header) for shape in shapes])
 
 
 def values_to_multiarray(values, labels: Sequence[str]):

@@ -157,6 +157,36 @@ def test_a_busy_port_stops_the_viewer_naming_the_parameter(context):
                 SMOKE, {"graph.view_port": port}))
 
 
+def test_the_viewer_drops_malformed_messages_and_draws_on(context):
+    from std_msgs.msg import Header
+
+    viewer = ViewerNode(context=context,
+                        parameter_overrides=in_process.parameter_overrides(SMOKE))
+    try:
+        lights = contracts.contract("/environment/lights").columns
+        good = messages.CloudCdrPacker(lights).pack(np.array([[4.0, 1.0], [5.0, 2.0]]), "change/0")
+        viewer.on_lights(b"\x00\x01\x00\x00junk")
+        viewer.on_lights(messages.CloudCdrPacker(lights).pack(np.ones((1, 2)), "cmd/3"))
+        viewer.on_lights(good)
+        for topic in ("/body/sensation", "/body/sensor_pose", "/body/joint_states"):
+            viewer._keeper(topic)(b"\x00\x01\x00\x00not a message")
+        viewer.tick()
+        bad_embedding = messages.table_to_cloud(
+            {"pov": [1], "x": [0.0], "y": [0.0], "z": [0.0]},
+            contracts.contract("/representation/embedding").columns,
+            Header(frame_id="4d/iteration/0"))
+        viewer.on_embedding(bad_embedding)
+        assert set(viewer.dropped) == {"/environment/lights", "/body/sensation",
+                                       "/body/sensor_pose", "/body/joint_states",
+                                       "/representation/embedding"}, viewer.dropped
+        assert viewer.dropped["/environment/lights"] == 2
+        np.testing.assert_array_equal(viewer.scene.lights, [[4.0, 1.0], [5.0, 2.0]])
+        assert viewer.published["/viewer/scene"] == 1 and viewer.change == 0
+        assert viewer.published["/viewer/representation_2d"] == 0
+    finally:
+        viewer.destroy_node()
+
+
 # ---------------------------------------------------------------- a smoke run, viewed live
 
 class SubscriptionObserver(Node):

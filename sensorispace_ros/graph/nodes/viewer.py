@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
 from sensorispace_ros import config, contracts, messages
@@ -54,15 +54,16 @@ class ViewerNode(GraphNode):
                             for topic in contracts.topics_published_by("viewer")}
         self.published = dict.fromkeys(self.publishers_, 0)
         self.live = self._start_live_view(int(self.graph["view_port"]))
-        # What the body sent last (bytes, read at the next tick) and the run so far.
-        self.latest = {"/body/sensation": None, "/body/sensor_pose": None}
+        # What the body sent last (bytes, read at the next tick: one message a tick
+        # is converted, not every one) and the run so far.
+        self.latest = {"/body/sensation": None, "/body/sensor_pose": None,
+                       "/body/joint_states": None}
         self.change = self.command = -1
         self.compensation_frames: set[str] = set()
         self.equality_rows = 0
         self.scene_changed = True
         self.activity_sent: tuple | None = None
         contracts.create_subscription(self, "/environment/lights", self.on_lights, raw=True)
-        self.create_subscription(JointState, "/body/joint_states", self.on_joint_state, BODY_QOS)
         for topic in self.latest:
             self.create_subscription(contracts.contract(topic).msg_type, topic,
                                      self._keeper(topic), BODY_QOS, raw=True)
@@ -105,12 +106,19 @@ class ViewerNode(GraphNode):
             self.scene_changed = True
         self.change = max(self.change, number)
 
-    def on_joint_state(self, msg: JointState) -> None:
+    def _take_joint_state(self) -> None:
+        raw, self.latest["/body/joint_states"] = self.latest["/body/joint_states"], None
+        if raw is None:
+            return
         try:
-            self.scene.set_motor_state(messages.joint_state_to_motor(msg))
+            motor_state = messages.joint_state_to_motor(deserialize_message(raw, JointState))
         except messages.MessageError as exc:
             self.drop("/body/joint_states", str(exc))
             return
+        except Exception as exc:            # bytes that are no JointState
+            self.drop("/body/joint_states", f"{type(exc).__name__}: {exc}")
+            return
+        self.scene.set_motor_state(motor_state)
         self.scene_changed = True
 
     def on_points_of_view(self, msg) -> None:
@@ -163,6 +171,7 @@ class ViewerNode(GraphNode):
     def tick(self) -> None:
         """Publish what changed since the last tick: the scene, the latest
         sensation, the run's counters."""
+        self._take_joint_state()
         poses = self._take_latest("/body/sensor_pose")
         if poses is not None:
             (kind, number), cloud = poses
