@@ -142,6 +142,8 @@ class Param(NamedTuple):
 
 
 P = Param
+# The most common check: a finite number > 0 (steps, tolerances, radii).
+positive = real(0.0, low_open=True)
 
 # ---------------------------------------------------------------------------
 # The run configuration: every parameter of the offline pipeline and the
@@ -149,7 +151,7 @@ P = Param
 # paper's values (Sec. 3-5) where it gives them.
 
 WORLD = {
-    "grid_half_width": P(6.0, real(0.0, low_open=True), "object positions span "
+    "grid_half_width": P(6.0, positive, "object positions span "
                          "[-w, w]^2 (12 x 12 units, Sec. 3.2)"),
     "grid_count": P(62, integer(2), "object positions per axis (62^2; the text's 64^2 is a typo)"),
     "schedule": P("random", choice("random", "tracking"), "order of the object positions: "
@@ -160,13 +162,13 @@ WORLD = {
         "count": P(10, integer(1), "lights L in the environment (L = 10)"),
         "radius_min": P(3.5, real(0.0), "inner radius of the lights' annulus; not in the "
                         "paper: outside the arm's reach 3"),
-        "radius_max": P(7.0, real(0.0, low_open=True), "outer radius of the lights' annulus"),
+        "radius_max": P(7.0, positive, "outer radius of the lights' annulus"),
         "min_in_view": P(3, integer(0), "lights the initial pose must see, so the sensation "
                          "pins the eye's pose"),
     },
     "retina": {
         "receptors": P(6, integer(1), "receptors of the retina"),
-        "half_width": P(1.0, real(0.0, low_open=True), "half width of the retina"),
+        "half_width": P(1.0, positive, "half width of the retina"),
     },
 }
 
@@ -176,15 +178,13 @@ WORLD = {
 # core.naive.equality_sets (match_sensations).
 NAIVE = {
     "n_samples": P(100, integer(2), "motor states kept per POV (N, as pov.n_samples)"),
-    "fd_step": P(1e-6, real(0.0, low_open=True), "finite-difference step (rad) of every "
+    "fd_step": P(1e-6, positive, "finite-difference step (rad) of every "
                  "sensory Jacobian the agent estimates"),
-    "pov_initial_step": P(0.05, real(0.0, low_open=True), "first knot interval (rad) of a "
+    "pov_initial_step": P(0.05, positive, "first knot interval (rad) of a "
                           "POV walk; within [pov_min_step, pov_max_step]"),
-    "pov_min_step": P(1e-3, real(0.0, low_open=True), "smallest knot interval (rad) of a "
-                      "POV walk"),
-    "pov_max_step": P(0.15, real(0.0, low_open=True), "largest knot interval (rad) of a "
-                      "POV walk"),
-    "pov_predictor_tol": P(1e-3, real(0.0, low_open=True), "Gauss-Newton correction the "
+    "pov_min_step": P(1e-3, positive, "smallest knot interval (rad) of a POV walk"),
+    "pov_max_step": P(0.15, positive, "largest knot interval (rad) of a POV walk"),
+    "pov_predictor_tol": P(1e-3, positive, "Gauss-Newton correction the "
                            "walk's step size aims at; a probe beyond 4x it is dropped"),
     "pov_max_queries": P(5000, integer(1), "sensed rows per POV walk before it gives up"),
     "pov_polish_iterations": P(2, integer(0), "Gauss-Newton iterations that bring a "
@@ -193,22 +193,21 @@ NAIVE = {
                            "compensation search"),
     "lm_stall_iterations": P(3, integer(1), "a search stops when its error has not halved "
                              "in this many iterations (a local minimum)"),
-    "lm_error_tol": P(1e-10, real(0.0, low_open=True), "accepted sensory error; tight: "
+    "lm_error_tol": P(1e-10, positive, "accepted sensory error; tight: "
                       "matches between sweeps need exact poses (pose error e ~ sensation "
                       "error e)"),
-    "lm_motor_tol": P(1e-8, real(0.0, low_open=True), "accepted motor residual (rad); tight "
-                      "for the same reason"),
-    "lm_max_step": P(0.5, real(0.0, low_open=True), "largest motor step (rad) of one "
+    "lm_motor_tol": P(1e-8, positive, "accepted motor residual (rad); tight for the same reason"),
+    "lm_max_step": P(0.5, positive, "largest motor step (rad) of one "
                      "Levenberg-Marquardt iteration"),
-    "lm_initial_damping": P(1e-7, real(0.0, low_open=True), "initial damping, relative to "
+    "lm_initial_damping": P(1e-7, positive, "initial damping, relative to "
                             "J's mean squared singular value: small = nearly Gauss-Newton"),
     "lm_restarts": P(2, integer(1), "remembered states tried per target besides the "
                      "resting state (the nearest ones)"),
-    "match_tol": P(1e-6, real(0.0, low_open=True), "two sensations within it are the same "
+    "match_tol": P(1e-6, positive, "two sensations within it are the same "
                    "pose; < match_separation"),
-    "match_separation": P(1e-4, real(0.0, low_open=True), "a match counts only if no other "
+    "match_separation": P(1e-4, positive, "a match counts only if no other "
                           "sensation lies within it (uniqueness radius)"),
-    "rank_ratio": P(1e-3, real(0.0, low_open=True), "smallest 3rd/1st singular-value ratio "
+    "rank_ratio": P(1e-3, positive, "smallest 3rd/1st singular-value ratio "
                     "of the sensory Jacobian for rank 3"),
     "min_singular": P(1e-4, real(0.0), "smallest 3rd singular value of the sensory "
                       "Jacobian for rank 3"),
@@ -241,24 +240,21 @@ SCHEMA: dict[str, Any] = {
     },
     "pov": {
         "n_samples": P(100, integer(3), "motor states kept per POV (N = 100)"),
-        "step": P(1e-3, real(0.0, low_open=True), "step epsilon (rad) of the "
-                  "Jacobian-kernel walk"),
+        "step": P(1e-3, positive, "step epsilon (rad) of the Jacobian-kernel walk"),
         "min_steps": P(50, integer(1), "steps a walk takes before it may close"),
-        "close_tol": P(1e-2, real(0.0, low_open=True), "the walk closes within this "
+        "close_tol": P(1e-2, positive, "the walk closes within this "
                        "periodic motor distance (rad) of its start"),
     },
     "compensation": {
-        "threshold": P(1e-3, real(0.0, low_open=True), "xi: accepted norm of the sensory "
-                       "error"),
-        "initial_simplex": P(0.25, real(0.0, low_open=True), "Nelder-Mead simplex size "
+        "threshold": P(1e-3, positive, "xi: accepted norm of the sensory error"),
+        "initial_simplex": P(0.25, positive, "Nelder-Mead simplex size "
                              "(rad); scipy's default gets stuck"),
     },
     "naive": NAIVE,
     "representation": {
         "cca": {
             "n_epochs": P(50, integer(1), "CCA epochs over the POVs"),
-            "alpha0": P(0.5, real(0.0, low_open=True), "CCA's initial step size (decays "
-                        "to alpha0 / 100)"),
+            "alpha0": P(0.5, positive, "CCA's initial step size (decays to alpha0 / 100)"),
             "lambda0": P(None, real(0.0, low_open=True, optional=True), "CCA's initial "
                          "neighbourhood radius; null: chosen from the distances"),
         },
@@ -266,8 +262,7 @@ SCHEMA: dict[str, Any] = {
             "iterations": P(10, integer(1), "regularisation passes (\"repeated 10 times\")"),
         },
         "reaching": {
-            "pairs": P(100, integer(1), "random start/target pairs for the straightness "
-                       "median"),
+            "pairs": P(100, integer(1), "random start/target pairs for the straightness median"),
             "max_degree": P(50, integer(1), "pruning: at most this many neighbours per "
                             "node (\"not more than 50 nodes\")"),
             "radius": P(None, real(0.0, low_open=True, optional=True), "pruning radius; "
@@ -286,7 +281,7 @@ GRAPH_PREFIX = "graph."
 GRAPH_SCHEMA: dict[str, Param] = {
     "results_dir": P("results/graph", text(), "where the agent and the representation "
                      "write their results"),
-    "resend_period_s": P(0.25, real(0.0, low_open=True), "re-send period (s) of a change "
+    "resend_period_s": P(0.25, positive, "re-send period (s) of a change "
                          "or a settle not yet acknowledged"),
     "wait_for_nodes": P(["body", "agent"], text_list, "nodes the environment waits for "
                         "before its first change"),
@@ -294,7 +289,7 @@ GRAPH_SCHEMA: dict[str, Param] = {
                         "after the last change"),
     "checkpoint_dir": P("", text(empty=True), "where a node persists what it needs to "
                         "resume after a kill -9 (<dir>/<node>.*); empty: no persistence"),
-    "command_timeout_s": P(2.0, real(0.0, low_open=True), "the agent re-sends a motor "
+    "command_timeout_s": P(2.0, positive, "the agent re-sends a motor "
                            "command unanswered this long (s); a late duplicate is dropped"),
     "executor": P("events", choice("events", "single_threaded"), "what spins a node: "
                   "rclpy's EventsExecutor, or SingleThreadedExecutor (its fallback, and "
