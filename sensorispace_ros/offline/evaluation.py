@@ -298,11 +298,8 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
 def evaluate_run(cfg: dict, results_dir: Path, bag_dir: Path | None) -> dict:
     """metrics.json + figures of a finished graph run: from the bag if one was
     recorded, otherwise from what the representation node wrote."""
-    import importlib.util
-
-    if bag_dir is not None and (bag_dir / "metadata.yaml").is_file() \
-            and importlib.util.find_spec("sensorispace_ros.recording.analyze") is not None:
-        from sensorispace_ros.recording import analyze
+    if bag_dir is not None and (bag_dir / "metadata.yaml").is_file():
+        from sensorispace_ros.recording import analyze    # only a graph run reads a bag
         return analyze.analyze_bag(bag_dir, results_dir, cfg)
     return evaluate_representation(results_dir, cfg)
 
