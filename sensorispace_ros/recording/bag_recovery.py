@@ -33,7 +33,7 @@ class RecoveryReport:
         total = sum(self.counts.values())
         state = "recovered" if self.truncated else "already complete"
         lines = [f"{self.path}: {state}, {total} messages on {len(self.counts)} topics"]
-        lines += [f"{self.path}: dropped {reason}" for reason in self.dropped]
+        lines += [f"{self.path}: dropped: {reason}" for reason in self.dropped]
         return "\n".join(lines)
 
 

@@ -208,7 +208,7 @@ def test_recovery_drops_a_torn_chunk_and_one_failing_its_crc_with_a_message(bag,
     assert f"chunk 2 (offset {indexes[1].chunk_start_offset})" in report.dropped[0]
     assert f"chunk at offset {indexes[-1].chunk_start_offset} is cut short" in report.dropped[1]
     summary = report.summary().splitlines()
-    assert len(summary) == 3 and summary[1].startswith(f"{killed}: dropped chunk 2")
+    assert len(summary) == 3 and summary[1].startswith(f"{killed}: dropped: chunk 2")
 
     kept = [i for i in range(len(indexes) - 1) if i != 1]
     expected = sum(sum(_chunk_counts(mcap, indexes[i]).values()) for i in kept)
