@@ -31,6 +31,17 @@ def mcap_files(bag_dir: Path) -> list[Path]:
     return sorted(p for p in bag_dir.glob("*.mcap"))
 
 
+def the_mcap_file(bag_dir: str | os.PathLike) -> Path:
+    """The one ``.mcap`` file of the bag directory ``bag_dir``, or a BagError."""
+    path = Path(bag_dir)
+    if not path.is_dir():
+        raise BagError(f"bag {path} does not exist or is not a directory")
+    files = mcap_files(path)
+    if len(files) != 1:
+        raise BagError(f"bag {path} must hold exactly one .mcap file, found {len(files)}")
+    return files[0]
+
+
 def open_reader(bag_dir: str | os.PathLike):
     """An open ``rosbags.rosbag2.Reader`` of a closed bag, or a BagError saying why not."""
     from rosbags.rosbag2 import Reader

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from sensorispace_ros.recording.bag_format import BagError, typestore
 from sensorispace_ros.recording.bag_integrity import DamagedMcap, scan_data_section
-from sensorispace_ros.recording.bag_reader import bag_info, mcap_files, open_reader
+from sensorispace_ros.recording.bag_reader import bag_info, mcap_files, open_reader, the_mcap_file
 from sensorispace_ros.recording.bag_writer import WAL_NAME, BagWriter, read_write_ahead_log
 
 
@@ -101,12 +101,7 @@ def recover_bag(bag_dir: str | os.PathLike) -> RecoveryReport:
     is left alone (a stale log in it is removed).
     """
     path = Path(bag_dir)
-    if not path.is_dir():
-        raise BagError(f"bag {path} does not exist or is not a directory")
-    files = mcap_files(path)
-    if len(files) != 1:
-        raise BagError(f"bag {path} must hold exactly one .mcap file, found {len(files)}")
-    original, wal = files[0], path / WAL_NAME
+    original, wal = the_mcap_file(path), path / WAL_NAME
     if _bag_is_complete(path):
         wal.unlink(missing_ok=True)
         return RecoveryReport(path, bag_info(path).counts, None, truncated=False)

@@ -23,7 +23,7 @@ from sensorispace_ros.recording.bag_integrity import (
     read_summary,
     scan_data_section,
 )
-from sensorispace_ros.recording.bag_reader import mcap_files
+from sensorispace_ros.recording.bag_reader import the_mcap_file
 
 
 @dataclass(frozen=True)
@@ -43,13 +43,8 @@ class VerifyReport:
 
 def verify_bag(bag_dir: str | os.PathLike) -> VerifyReport:
     path = Path(bag_dir)
-    if not path.is_dir():
-        raise BagError(f"bag {path} does not exist or is not a directory")
-    files = mcap_files(path)
-    if len(files) != 1:
-        raise BagError(f"bag {path} must hold exactly one .mcap file, found {len(files)}")
+    mcap = the_mcap_file(path)
     meta = _metadata(path)
-    mcap = files[0]
     scan = scan_data_section(mcap, strict=True)
     _check_message_indexes(mcap, scan)
     summary = read_summary(mcap)
