@@ -17,6 +17,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['tests', 'tests.*']),
+    # The table of every parameter, read by sensorispace_ros/config.py.
+    package_data={package_name: ['parameters.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages',
             ['resource/' + package_name]),

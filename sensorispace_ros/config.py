@@ -32,6 +32,7 @@ from __future__ import annotations
 import copy
 import math
 import numbers
+import re
 from pathlib import Path
 from typing import Any, Callable, NamedTuple
 
@@ -141,162 +142,47 @@ class Param(NamedTuple):
     meaning: str
 
 
-P = Param
-# The most common check: a finite number > 0 (steps, tolerances, radii).
-positive = real(0.0, low_open=True)
+def check_from_spec(spec: str) -> Callable[[str, Any], Any]:
+    """The check a parameter table names (the grammar heads parameters.yaml)."""
+    simple = {"boolean": boolean, "text list": text_list, "text": text(),
+              "text or empty": text(empty=True)}
+    if spec in simple:
+        return simple[spec]
+    if match := re.fullmatch(r"integer(?: >= (-?\d+))?", spec):
+        return integer(None if match[1] is None else int(match[1]))
+    if match := re.fullmatch(r"real vector of (\d+)", spec):
+        return real_vector(int(match[1]))
+    if match := re.fullmatch(r"one of (.+)", spec):
+        return choice(*match[1].split(", "))
+    if match := re.fullmatch(r"real(?: (>=|>) ([-+.\deE]+))?(?: and <= ([-+.\deE]+))?"
+                             r"( or null)?", spec):
+        return real(None if match[2] is None else float(match[2]),
+                    None if match[3] is None else float(match[3]),
+                    low_open=match[1] == ">", optional=bool(match[4]))
+    raise ValueError(f"parameters.yaml: unknown check {spec!r}")
 
-# ---------------------------------------------------------------------------
-# The run configuration: every parameter of the offline pipeline and the
-# nodes. World, arm, POV, compensation and representation defaults are the
-# paper's values (Sec. 3-5) where it gives them.
 
-WORLD = {
-    "grid_half_width": P(6.0, positive, "object positions span "
-                         "[-w, w]^2 (12 x 12 units, Sec. 3.2)"),
-    "grid_count": P(62, integer(2), "object positions per axis (62^2; the text's 64^2 is a typo)"),
-    "schedule": P("random", choice("random", "tracking"), "order of the object positions: "
-                  "random (\"in no particular order\") or neighbouring (boustrophedon)"),
-    "redistribution_probability": P(0.1, real(0.0, 1.0), "chance that an event redraws the "
-                                    "lights instead of moving the object (10 %)"),
-    "lights": {
-        "count": P(10, integer(1), "lights L in the environment (L = 10)"),
-        "radius_min": P(3.5, real(0.0), "inner radius of the lights' annulus; not in the "
-                        "paper: outside the arm's reach 3"),
-        "radius_max": P(7.0, positive, "outer radius of the lights' annulus"),
-        "min_in_view": P(3, integer(0), "lights the initial pose must see, so the sensation "
-                         "pins the eye's pose"),
-    },
-    "retina": {
-        "receptors": P(6, integer(1), "receptors of the retina"),
-        "half_width": P(1.0, positive, "half width of the retina"),
-    },
-}
+def _table(node: dict, prefix: str = "") -> dict:
+    """A nested table of ``Param`` from parameters.yaml's mapping ``node``."""
+    out = {}
+    for key, entry in node.items():
+        if set(entry) == {"default", "check", "meaning"}:
+            out[key] = Param(entry["default"], check_from_spec(entry["check"]),
+                             entry["meaning"])
+        else:
+            out[key] = _table(entry, f"{prefix}{key}.")
+    return out
 
-# The naive agent (core.naive.params.NaiveParams takes its fields and
-# defaults from here). Meanings refer to core.naive.points_of_view
-# (sample_sensory_points_of_view), core.naive.compensation (compensate) and
-# core.naive.equality_sets (match_sensations).
-NAIVE = {
-    "n_samples": P(100, integer(2), "motor states kept per POV (N, as pov.n_samples)"),
-    "fd_step": P(1e-6, positive, "finite-difference step (rad) of every "
-                 "sensory Jacobian the agent estimates"),
-    "pov_initial_step": P(0.05, positive, "first knot interval (rad) of a "
-                          "POV walk; within [pov_min_step, pov_max_step]"),
-    "pov_min_step": P(1e-3, positive, "smallest knot interval (rad) of a POV walk"),
-    "pov_max_step": P(0.15, positive, "largest knot interval (rad) of a POV walk"),
-    "pov_predictor_tol": P(1e-3, positive, "Gauss-Newton correction the "
-                           "walk's step size aims at; a probe beyond 4x it is dropped"),
-    "pov_max_queries": P(5000, integer(1), "sensed rows per POV walk before it gives up"),
-    "pov_polish_iterations": P(2, integer(0), "Gauss-Newton iterations that bring a "
-                               "closed POV's samples back onto the level set"),
-    "lm_max_iterations": P(40, integer(1), "Levenberg-Marquardt iterations per "
-                           "compensation search"),
-    "lm_stall_iterations": P(3, integer(1), "a search stops when its error has not halved "
-                             "in this many iterations (a local minimum)"),
-    "lm_error_tol": P(1e-10, positive, "accepted sensory error; tight: "
-                      "matches between sweeps need exact poses (pose error e ~ sensation "
-                      "error e)"),
-    "lm_motor_tol": P(1e-8, positive, "accepted motor residual (rad); tight for the same reason"),
-    "lm_max_step": P(0.5, positive, "largest motor step (rad) of one "
-                     "Levenberg-Marquardt iteration"),
-    "lm_initial_damping": P(1e-7, positive, "initial damping, relative to "
-                            "J's mean squared singular value: small = nearly Gauss-Newton"),
-    "lm_restarts": P(2, integer(1), "remembered states tried per target besides the "
-                     "resting state (the nearest ones)"),
-    "match_tol": P(1e-6, positive, "two sensations within it are the same "
-                   "pose; < match_separation"),
-    "match_separation": P(1e-4, positive, "a match counts only if no other "
-                          "sensation lies within it (uniqueness radius)"),
-    "rank_ratio": P(1e-3, positive, "smallest 3rd/1st singular-value ratio "
-                    "of the sensory Jacobian for rank 3"),
-    "min_singular": P(1e-4, real(0.0), "smallest 3rd singular value of the sensory "
-                      "Jacobian for rank 3"),
-    "max_snapshots": P(12, integer(1), "snapshots (remembered sensations of known POVs) "
-                       "kept as anchors"),
-    "snapshot_patience": P(20, integer(1), "events without a match or a compensation "
-                           "after which a snapshot is dropped"),
-    "unconfirmed_attempts": P(4, integer(0), "anchors of unconfirmed snapshots searched "
-                              "per event (most recent first)"),
-    "unconfirmed_max_povs": P(100, integer(0), "only snapshots that knew fewer POVs than "
-                              "this are searched while unconfirmed"),
-    "frontier_attempts": P(8, integer(0), "other rows of the most recent confirmed "
-                           "snapshot searched per event"),
-    "equality_snapshots": P(2, integer(0), "the most recent snapshots whose matches are "
-                            "all rank-tested and become equality sets"),
-    "confirm_checks": P(3, integer(1), "rank tests at most that confirm an older snapshot"),
-    "remember_sensations": P(True, boolean, "calls-only switch: answer a repeated sense "
-                             "request from memory; tests prove it changes no bit"),
-    "remember_split_povs": P(True, boolean, "calls-only switch: skip walking a state that "
-                             "senses as a known split POV; tests prove it changes no bit"),
-}
 
-SCHEMA: dict[str, Any] = {
-    "seed": P(0, integer(0), "every random choice (world, schedule, representation) comes "
-              "from it through named streams (core.seeding)"),
-    "world": WORLD,
-    "arm": {
-        "initial_motor_state": P([0.1, -1.5, 2.2, -3.0], real_vector(4),
-                                 "the arm's first motor state m0 (rad, Sec. 3.2)"),
-    },
-    "pov": {
-        "n_samples": P(100, integer(3), "motor states kept per POV (N = 100)"),
-        "step": P(1e-3, positive, "step epsilon (rad) of the Jacobian-kernel walk"),
-        "min_steps": P(50, integer(1), "steps a walk takes before it may close"),
-        "close_tol": P(1e-2, positive, "the walk closes within this "
-                       "periodic motor distance (rad) of its start"),
-    },
-    "compensation": {
-        "threshold": P(1e-3, positive, "xi: accepted norm of the sensory error"),
-        "initial_simplex": P(0.25, positive, "Nelder-Mead simplex size "
-                             "(rad); scipy's default gets stuck"),
-    },
-    "naive": NAIVE,
-    "representation": {
-        "cca": {
-            "n_epochs": P(50, integer(1), "CCA epochs over the POVs"),
-            "alpha0": P(0.5, positive, "CCA's initial step size (decays to alpha0 / 100)"),
-            "lambda0": P(None, real(0.0, low_open=True, optional=True), "CCA's initial "
-                         "neighbourhood radius; null: chosen from the distances"),
-        },
-        "regularization": {
-            "iterations": P(10, integer(1), "regularisation passes (\"repeated 10 times\")"),
-        },
-        "reaching": {
-            "pairs": P(100, integer(1), "random start/target pairs for the straightness median"),
-            "max_degree": P(50, integer(1), "pruning: at most this many neighbours per "
-                            "node (\"not more than 50 nodes\")"),
-            "radius": P(None, real(0.0, low_open=True, optional=True), "pruning radius; "
-                        "null: the largest keeping every degree <= max_degree"),
-        },
-    },
-    "output": {
-        "figures": P(True, boolean, "draw the paper's figures after a run"),
-    },
-}
-
-# The graph's own parameters (``graph.*``): where results go and how nodes
-# talk, not the science. They are no part of the run configuration (not in
-# metrics.json nor in a bag's stored configuration).
+PARAMETERS_FILE = Path(__file__).with_name("parameters.yaml")
+_TABLES = yaml.safe_load(PARAMETERS_FILE.read_text())
+SCHEMA: dict[str, Any] = _table(_TABLES["run"])
+WORLD = SCHEMA["world"]
+NAIVE = SCHEMA["naive"]
+# The graph's own parameters (``graph.*``); not part of the run configuration
+# (neither in metrics.json nor in a bag's stored configuration).
 GRAPH_PREFIX = "graph."
-GRAPH_SCHEMA: dict[str, Param] = {
-    "results_dir": P("results/graph", text(), "where the agent and the representation "
-                     "write their results"),
-    "resend_period_s": P(0.25, positive, "re-send period (s) of a change "
-                         "or a settle not yet acknowledged"),
-    "wait_for_nodes": P(["body", "agent"], text_list, "nodes the environment waits for "
-                        "before its first change"),
-    "exit_when_done": P(False, boolean, "the environment and the representation exit "
-                        "after the last change"),
-    "checkpoint_dir": P("", text(empty=True), "where a node persists what it needs to "
-                        "resume after a kill -9 (<dir>/<node>.*); empty: no persistence"),
-    "command_timeout_s": P(2.0, positive, "the agent re-sends a motor "
-                           "command unanswered this long (s); a late duplicate is dropped"),
-    "executor": P("events", choice("events", "single_threaded"), "what spins a node: "
-                  "rclpy's EventsExecutor, or SingleThreadedExecutor (its fallback, and "
-                  "the reference it is measured against)"),
-    "view_port": P(0, integer(0), "the viewer node serves its topics to the Foxglove app "
-                   "on ws://127.0.0.1:<port> (Foxglove SDK); 0: no server"),
-}
+GRAPH_SCHEMA: dict[str, Param] = _table(_TABLES["graph"])
 
 
 def _is_spec(node: Any) -> bool:

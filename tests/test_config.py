@@ -339,3 +339,19 @@ def test_config_files_are_valid_ros_parameter_files(path, monkeypatch, tmp_path)
             assert value == expected[name], name
             assert type(value) is type(expected[name]), name
     assert not any(isinstance(v, float) and math.isnan(v) for v in seen.values())
+
+
+def test_parameters_file_checks_are_the_named_checks_and_an_unknown_one_is_refused():
+    assert config.check_from_spec("integer >= 2")("x", 2) == 2
+    with pytest.raises(config.ConfigError, match="x: must be an integer >= 2, got 1"):
+        config.check_from_spec("integer >= 2")("x", 1)
+    with pytest.raises(config.ConfigError, match="x: must be a finite number > 0.0, got 0"):
+        config.check_from_spec("real > 0.0")("x", 0)
+    assert config.check_from_spec("real > 0.0 or null")("x", None) is None
+    with pytest.raises(config.ConfigError, match=r"<= 1.0, got 1.5"):
+        config.check_from_spec("real >= 0.0 and <= 1.0")("x", 1.5)
+    assert config.check_from_spec("one of a, b").options == ("a", "b")
+    with pytest.raises(config.ConfigError, match="a list of 2 finite numbers"):
+        config.check_from_spec("real vector of 2")("x", [1.0])
+    with pytest.raises(ValueError, match="unknown check 'positive number'"):
+        config.check_from_spec("positive number")
