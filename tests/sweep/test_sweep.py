@@ -86,17 +86,18 @@ def test_a_second_invocation_finishes_only_the_missing_runs(reference, tmp_path)
     class Interrupted(Exception):
         pass
 
-    def interrupt_after_two(line):
-        if line.startswith("sweep: 2/"):
-            raise Interrupted
+    def interrupt_at_the_first_result(line):
+        raise Interrupted
 
+    # Stopped after one run: the others were running or waiting (2 workers, 4 runs).
     with pytest.raises(Interrupted):
         with connect(workers=2) as client:
-            run_sweep(tasks, client, report=interrupt_after_two)
+            run_sweep(tasks, client, report=interrupt_at_the_first_result)
     complete = [t for t in tasks if (Path(t.run_dir) / METRICS_FILE).is_file()]
-    assert 2 <= len(complete) < len(tasks)
+    missing = [t for t in tasks if t not in complete]
+    assert complete and missing
     # A run torn by a kill -9 leaves only its private partial directory.
-    torn = Path(tasks[-1].run_dir).parent / f"{PARTIAL_PREFIX}seed-{tasks[-1].seed}-deadbeef"
+    torn = Path(missing[0].run_dir).parent / f"{PARTIAL_PREFIX}seed-{missing[0].seed}-deadbeef"
     torn.mkdir(parents=True, exist_ok=True)
     (torn / "arrays.npz").write_bytes(b"torn")
     stamps = {t.seed: (Path(t.run_dir) / METRICS_FILE).stat().st_mtime_ns for t in complete}
