@@ -173,8 +173,6 @@ def sweep(config_paths: Sequence[str | Path], strategy: str, seeds: Iterable[int
     from sensorispace_ros.offline.sweep_summary import summarize
 
     tasks = plan_sweep(config_paths, strategy, list(seeds), out_dir)
-    if scheduler is None:
-        _worker_count(workers)
     with connect(workers, scheduler) as client:
         outcome = run_sweep(tasks, client, report)
     runs: dict[str, dict[int, Path]] = {}
