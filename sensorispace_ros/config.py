@@ -25,7 +25,7 @@ meaning), the naive agent's too (``naive.*``, the fields of
 ``GRAPH_SCHEMA``'s. Every value is checked (``validate_config``,
 ``load_graph``); a bad value or an unknown key raises ``ConfigError`` naming
 the dotted parameter and the reason, so a typo can never pass silently.
-This module is pure Python (and yaml): ``core`` may import it.
+This module needs only yaml and numpy: ``core`` may import it.
 """
 from __future__ import annotations
 
@@ -36,6 +36,7 @@ import re
 from pathlib import Path
 from typing import Any, Callable, NamedTuple
 
+import numpy as np
 import yaml
 
 ROS_WRAPPER = "ros__parameters"
@@ -121,6 +122,13 @@ def real_vector(length: int) -> Callable[[str, Any], list[float]]:
     return check
 
 
+def real_list(name: str, value: Any) -> list[float]:
+    if (not isinstance(value, (list, tuple)) or not value
+            or not all(_is_real(v) for v in value)):
+        _fail(name, "a non-empty list of finite numbers", value)
+    return [float(v) for v in value]
+
+
 def text(empty: bool = False) -> Callable[[str, Any], str]:
     def check(name, value):
         if not isinstance(value, str) or (not empty and not value):
@@ -144,7 +152,7 @@ class Param(NamedTuple):
 
 def check_from_spec(spec: str) -> Callable[[str, Any], Any]:
     """The check a parameter table names (the grammar heads parameters.yaml)."""
-    simple = {"boolean": boolean, "text list": text_list, "text": text(),
+    simple = {"boolean": boolean, "text list": text_list, "real list": real_list, "text": text(),
               "text or empty": text(empty=True)}
     if spec in simple:
         return simple[spec]
@@ -232,7 +240,26 @@ def validate_config(cfg: dict) -> dict:
         raise ConfigError("world.lights.min_in_view: must be <= world.lights.count "
                           f"({lights['count']}), got {lights['min_in_view']}")
     _check_naive_relations(out["naive"])
+    _check_body(out)
     return out
+
+
+def _check_body(cfg: dict) -> None:
+    """The arm and the sensor code make sense together (``core.arm.Arm`` and
+    ``core.sensor_code.SensorCode`` name the parameter in their errors)."""
+    from sensorispace_ros.core.arm import Arm
+    from sensorispace_ros.core.sensor_code import SensorCode
+    arm_cfg, retina = cfg["arm"], cfg["world"]["retina"]
+    try:
+        body_arm = Arm(tuple(arm_cfg["segments"]), arm_cfg["eye"], arm_cfg["motor_unit"])
+        SensorCode(retina["code"], retina["code_value"], retina["receptors"],
+                   np.random.default_rng(0))
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
+    if len(arm_cfg["initial_motor_state"]) != body_arm.n_joints:
+        raise ConfigError(f"arm.initial_motor_state: must hold one value per joint "
+                          f"({body_arm.n_joints}: {body_arm.n_links} links, eye "
+                          f"{body_arm.eye!r}), got {arm_cfg['initial_motor_state']!r}")
 
 
 def validate_naive(values: dict) -> dict:

@@ -1,15 +1,27 @@
-"""Planar serial arm: three unit segments, four hinge joints (paper Sec. 2.3).
+"""Planar serial arms: any chain of hinged links with an eye at the tip
+(paper Sec. 2.3: three unit segments and a fourth joint turning the eye).
 
-Joints 1-3 orient the segments relative to the previous one; joint 4 rotates
-the eye at the tip. The sensor pose is ``(x_tip, y_tip, alpha_tip)``.
-All functions broadcast over leading axes: ``motor`` has shape ``(..., 4)``.
+``Arm(segments, eye, unit)``: one hinge per link; ``eye`` is ``"joint"`` (a
+last hinge turns the eye: the paper), ``"link"`` (the eye is fixed to the
+last link) or ``"level"`` (the eye keeps the world direction
+``LEVEL_DIRECTION``, a stabilised camera). The sensor pose is ``(x, y,
+alpha)`` of the eye; motor values are in ``unit`` (``rad`` or ``deg``).
+The module functions ``forward``/``jacobian`` are the paper arm's, written
+out for its three unit segments; ``Arm`` methods take that path for it.
+All functions broadcast over leading axes.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from sensorispace_ros.core.body_description import UNITS, BodyDescription
 
 N_JOINTS = 4
 SEGMENT_LENGTHS = (1.0, 1.0, 1.0)
+EYES = ("joint", "link", "level")
+LEVEL_DIRECTION = 0.0            # world direction of a level eye (rad)
 
 
 def _segment_angles(motor: np.ndarray) -> np.ndarray:
@@ -90,3 +102,121 @@ def pose_error(pose_a: np.ndarray, pose_b: np.ndarray) -> np.ndarray:
     diff = np.asarray(pose_a, dtype=float) - np.asarray(pose_b, dtype=float)
     diff = np.concatenate([diff[..., :2], wrap_angle(diff[..., 2:])], axis=-1)
     return np.linalg.norm(diff, axis=-1)
+
+
+@dataclass(frozen=True)
+class Arm:
+    """A planar chain: link lengths ``segments``, the eye's mount, the motor unit."""
+
+    segments: tuple = SEGMENT_LENGTHS
+    eye: str = "joint"
+    unit: str = "rad"
+
+    def __post_init__(self):
+        segments = tuple(float(v) for v in np.atleast_1d(np.asarray(self.segments, float)))
+        object.__setattr__(self, "segments", segments)
+        if not segments:
+            raise ValueError("arm.segments: needs at least one link, got []")
+        if not all(np.isfinite(v) and v > 0 for v in segments):
+            raise ValueError(f"arm.segments: every link length must be finite and > 0, "
+                             f"got {list(segments)}")
+        if self.eye not in EYES:
+            raise ValueError(f"arm.eye: must be one of {', '.join(EYES)}, got {self.eye!r}")
+        if self.unit not in UNITS:
+            raise ValueError(f"arm.motor_unit: must be one of {', '.join(UNITS)}, "
+                             f"got {self.unit!r}")
+
+    @property
+    def n_links(self) -> int:
+        return len(self.segments)
+
+    @property
+    def n_joints(self) -> int:
+        return self.n_links + (self.eye == "joint")
+
+    @property
+    def pose_rank(self) -> int:
+        """Degrees of freedom of the eye's pose over the joints (generic rank of J)."""
+        return min(self.n_joints, 2 + (self.eye != "level"))
+
+    @property
+    def pov_dim(self) -> int:
+        """Dimension of a point of view: joints the pose leaves free."""
+        return self.n_joints - self.pose_rank
+
+    @property
+    def reach(self) -> float:
+        return float(sum(self.segments))
+
+    @property
+    def inner_reach(self) -> float:
+        """Radius of the hole the tip cannot enter (0 when it can reach the base)."""
+        return max(0.0, 2.0 * max(self.segments) - self.reach)
+
+    @property
+    def is_paper(self) -> bool:
+        return self.segments == SEGMENT_LENGTHS and self.eye == "joint" and self.unit == "rad"
+
+    @property
+    def period(self) -> float:
+        """A full turn of a joint in its unit."""
+        return UNITS[self.unit]
+
+    def description(self, receptors: int) -> BodyDescription:
+        return BodyDescription.revolute(self.n_joints, receptors, self.unit)
+
+    def to_radians(self, motor: np.ndarray) -> np.ndarray:
+        motor = np.asarray(motor, dtype=float)
+        return motor if self.unit == "rad" else np.deg2rad(motor)
+
+    def from_radians(self, angles: np.ndarray) -> np.ndarray:
+        angles = np.asarray(angles, dtype=float)
+        return angles if self.unit == "rad" else np.rad2deg(angles)
+
+    def _check(self, motor: np.ndarray) -> np.ndarray:
+        motor = np.asarray(motor, dtype=float)
+        if motor.ndim == 0 or motor.shape[-1] != self.n_joints:
+            raise ValueError(f"motor must have shape (..., {self.n_joints}), got {motor.shape}")
+        return motor
+
+    def forward(self, motor: np.ndarray) -> np.ndarray:
+        """The eye's pose ``(..., 3)``; ``alpha`` unwrapped (``LEVEL_DIRECTION`` for a level eye)."""
+        motor = self._check(motor)
+        if self.is_paper:
+            return forward(motor)
+        angles = self.to_radians(motor)
+        # Link by link, left to right: the order the compiled body adds in
+        # (core.body), so both give the same bits.
+        theta = np.zeros(motor.shape[:-1])
+        pose = np.zeros(motor.shape[:-1] + (3,))
+        for k, length in enumerate(self.segments):
+            theta = theta + angles[..., k]
+            pose[..., 0] += length * np.cos(theta)
+            pose[..., 1] += length * np.sin(theta)
+        pose[..., 2] = (LEVEL_DIRECTION if self.eye == "level"
+                        else theta + angles[..., -1] if self.eye == "joint" else theta)
+        return pose
+
+    def jacobian(self, motor: np.ndarray) -> np.ndarray:
+        """d pose / d motor, ``(..., 3, n_joints)``, per motor unit."""
+        motor = self._check(motor)
+        if self.is_paper:
+            return jacobian(motor)
+        angles = self.to_radians(motor)
+        theta = np.cumsum(angles[..., :self.n_links], axis=-1)
+        lengths = np.asarray(self.segments)
+        tail_x = np.cumsum((lengths * np.cos(theta))[..., ::-1], axis=-1)[..., ::-1]
+        tail_y = np.cumsum((lengths * np.sin(theta))[..., ::-1], axis=-1)[..., ::-1]
+        jac = np.zeros(motor.shape[:-1] + (3, self.n_joints))
+        jac[..., 0, :self.n_links] = -tail_y
+        jac[..., 1, :self.n_links] = tail_x
+        if self.eye != "level":
+            jac[..., 2, :] = 1.0
+        return jac * (np.pi / 180.0) if self.unit == "deg" else jac
+
+    def pose_error(self, pose_a: np.ndarray, pose_b: np.ndarray) -> np.ndarray:
+        """Distance of two poses, the orientation on the circle (0 for a level eye)."""
+        return pose_error(pose_a, pose_b)
+
+
+PAPER_ARM = Arm()

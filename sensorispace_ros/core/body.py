@@ -27,6 +27,9 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core.arm import LEVEL_DIRECTION as _LEVEL_DIRECTION
+from sensorispace_ros.core.arm import PAPER_ARM, Arm
+from sensorispace_ros.core.sensor_code import SensorCode
 
 try:
     import numba
@@ -102,6 +105,61 @@ def _simulate_rows(motor, lights, receptors, sensations, poses):
 _simulate_rows_compiled = (None if numba is None
                            else numba.njit(nogil=True, cache=True)(_simulate_rows))
 
+EYE_CODES = {"joint": 0, "link": 1, "level": 2}
+
+
+def _simulate_chain_rows(angles, lengths, eye, lights, receptors, sensations, poses):
+    """``Arm.forward`` + ``retina.sensation`` of each row of ``angles`` (B, J,
+    radians) for any chain of ``lengths``; ``eye`` as ``EYE_CODES``. The
+    operations of the NumPy path in its order, like ``_simulate_rows``."""
+    n_links = lengths.shape[0]
+    n_lights = lights.shape[0]
+    n_receptors = receptors.shape[0]
+    for b in range(angles.shape[0]):
+        theta = 0.0
+        x = 0.0
+        y = 0.0
+        for k in range(n_links):
+            theta += angles[b, k]
+            x += lengths[k] * math.cos(theta)
+            y += lengths[k] * math.sin(theta)
+        alpha = _LEVEL_DIRECTION
+        if eye == 0:
+            alpha = theta + angles[b, n_links]
+        elif eye == 1:
+            alpha = theta
+        poses[b, 0] = x
+        poses[b, 1] = y
+        poses[b, 2] = alpha
+        _sense_row(x, y, alpha, lights, receptors, sensations[b], n_lights, n_receptors)
+
+
+def _sense_row(x, y, alpha, lights, receptors, out, n_lights, n_receptors):
+    """The retina of one pose into ``out`` (R,), as ``_simulate_rows`` does."""
+    cos_a = math.cos(alpha)
+    sin_a = math.sin(alpha)
+    for r in range(n_receptors):
+        out[r] = 0.0
+    for light in range(n_lights):
+        rel_x = lights[light, 0] - x
+        rel_y = lights[light, 1] - y
+        depth = rel_x * cos_a + rel_y * sin_a
+        if depth > 0.0:
+            projection = (-rel_x * sin_a + rel_y * cos_a) / depth
+            distance = math.hypot(rel_x, rel_y)
+            for r in range(n_receptors):
+                exponent = receptors[r] - projection
+                exponent *= exponent
+                if not exponent >= _EXP_ZERO:
+                    out[r] += math.exp(-exponent) / distance
+
+
+if numba is None:
+    _simulate_chain_compiled = None
+else:
+    _sense_row = numba.njit(nogil=True, cache=True, inline="always")(_sense_row)
+    _simulate_chain_compiled = numba.njit(nogil=True, cache=True)(_simulate_chain_rows)
+
 
 def numba_available() -> bool:
     """True when the compiled simulator can be used."""
@@ -109,12 +167,13 @@ def numba_available() -> bool:
 
 
 def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
-             receptor_positions: np.ndarray, kernel: str = "auto"
+             receptor_positions: np.ndarray, kernel: str = "auto", body_arm: Arm = PAPER_ARM
              ) -> tuple[np.ndarray, np.ndarray]:
-    """Sensations ``(B, R)`` and eye poses ``(B, 3)`` of motor states ``(B, 4)``
-    (unit segments) in the lights ``(L, 2)``: ``retina.sensation(arm.forward(m))``
-    and ``arm.forward(m)``, bit for bit, by the compiled loop when ``kernel``
-    allows it."""
+    """Raw receptor outputs ``(B, R)`` and eye poses ``(B, 3)`` of motor states
+    ``(B, J)`` in the lights ``(L, 2)``: ``retina.sensation(body_arm.forward(m))``
+    and ``body_arm.forward(m)``, bit for bit, by the compiled loop when
+    ``kernel`` allows it (the paper arm has a loop of its own, written out
+    for its three unit segments)."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     if kernel == "numba" and numba is None:
@@ -123,18 +182,24 @@ def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
     lights = np.asarray(lights_world, dtype=float)
     receptors = np.asarray(receptor_positions, dtype=float)
     if kernel == "numpy" or numba is None:
-        pose = arm.forward(motor_states)
+        pose = body_arm.forward(motor_states)
         return retina.sensation(pose, lights, receptors), pose
-    if motor_states.ndim != 2 or motor_states.shape[1] < 3:
-        raise ValueError(f"motor_states must have shape (B, {arm.N_JOINTS}), "
+    if motor_states.ndim != 2 or motor_states.shape[1] != body_arm.n_joints:
+        raise ValueError(f"motor_states must have shape (B, {body_arm.n_joints}), "
                          f"got {motor_states.shape}")
     if lights.ndim != 2 or lights.shape[1] != 2 or receptors.ndim != 1:
         raise ValueError(f"lights_world must be (L, 2) and receptor_positions 1-D, "
                          f"got {lights.shape} and {receptors.shape}")
     sensations = np.empty((len(motor_states), len(receptors)))
     poses = np.empty((len(motor_states), 3))
-    _simulate_rows_compiled(np.ascontiguousarray(motor_states), np.ascontiguousarray(lights),
-                            np.ascontiguousarray(receptors), sensations, poses)
+    lights, receptors = np.ascontiguousarray(lights), np.ascontiguousarray(receptors)
+    if body_arm.is_paper:
+        _simulate_rows_compiled(np.ascontiguousarray(motor_states), lights, receptors,
+                                sensations, poses)
+    else:
+        _simulate_chain_compiled(np.ascontiguousarray(body_arm.to_radians(motor_states)),
+                                 np.asarray(body_arm.segments), EYE_CODES[body_arm.eye],
+                                 lights, receptors, sensations, poses)
     return sensations, poses
 
 
@@ -142,18 +207,23 @@ class SimulatedBody:
     """Arm + retina simulator in a given light configuration (ground truth side).
 
     ``kernel``: "auto" (compiled when numba is installed), "numpy" or "numba"
-    (see ``simulate``); the answers are the same bits.
+    (see ``simulate``); the answers are the same bits. ``body_arm``: the
+    chain (the paper arm by default); ``code``: the sensor code between the
+    receptors and the agent (none: their raw outputs).
     """
 
-    n_motors = arm.N_JOINTS
-
     def __init__(self, receptor_positions: np.ndarray, lights_world: np.ndarray | None = None,
-                 motor_state: np.ndarray | None = None, kernel: str = "auto"):
+                 motor_state: np.ndarray | None = None, kernel: str = "auto",
+                 body_arm: Arm = PAPER_ARM, code: SensorCode | None = None):
         if kernel not in KERNELS:
             raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
         self.kernel = kernel
+        self.arm = body_arm
+        self.code = None if code is None or code.is_identity else code
         self.receptor_positions = np.asarray(receptor_positions, dtype=float)
+        self.n_motors = body_arm.n_joints
         self.n_sensors = len(self.receptor_positions)
+        self.description = body_arm.description(self.n_sensors)
         self.lights_world = None if lights_world is None else np.asarray(lights_world, float)
         self.motor_state = None if motor_state is None else np.asarray(motor_state, float)
         self.queries = 0          # motor states probed so far
@@ -172,7 +242,18 @@ class SimulatedBody:
             raise RuntimeError("SimulatedBody.sense called before any lights were set")
         motor_states = np.asarray(motor_states, dtype=float)
         self.move(motor_states)
-        return simulate(motor_states, self.lights_world, self.receptor_positions, self.kernel)
+        raw, poses = simulate(motor_states, self.lights_world, self.receptor_positions,
+                              self.kernel, self.arm)
+        return (raw if self.code is None else self.code.apply(raw)), poses
+
+    def sense_at_rest(self, kernel: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """What the resting eye sees, ``(R,)``, and its pose ``(3,)``: not a
+        query (no call is counted). ``kernel`` overrides the body's."""
+        if self.lights_world is None or self.motor_state is None:
+            raise RuntimeError("SimulatedBody.sense_at_rest needs lights and a motor state")
+        raw, poses = simulate(self.motor_state[None], self.lights_world, self.receptor_positions,
+                              kernel or self.kernel, self.arm)
+        return (raw if self.code is None else self.code.apply(raw))[0], poses[0]
 
     def move(self, motor_states: np.ndarray) -> None:
         """The command ``sense`` answers, for a caller that already has the
@@ -189,7 +270,7 @@ class SimulatedBody:
 
     def sensor_pose(self, motor_states: np.ndarray) -> np.ndarray:
         """Ground truth pose of the eye (evaluation only)."""
-        return arm.forward(np.asarray(motor_states, dtype=float))
+        return self.arm.forward(np.asarray(motor_states, dtype=float))
 
 
 class SensingOnly:
@@ -205,6 +286,15 @@ class SensingOnly:
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         return self._sense(motor_states)
+
+    def sense_at_rest(self, kernel: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """What the resting eye sees, ``(R,)``, and its pose ``(3,)``: not a
+        query (no call is counted). ``kernel`` overrides the body's."""
+        if self.lights_world is None or self.motor_state is None:
+            raise RuntimeError("SimulatedBody.sense_at_rest needs lights and a motor state")
+        raw, poses = simulate(self.motor_state[None], self.lights_world, self.receptor_positions,
+                              kernel or self.kernel, self.arm)
+        return (raw if self.code is None else self.code.apply(raw))[0], poses[0]
 
     def move(self, motor_states: np.ndarray) -> None:
         """The body's ``move``; a body without one senses and the answer is dropped."""

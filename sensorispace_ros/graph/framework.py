@@ -289,17 +289,5 @@ def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
 def build_world(cfg: dict):
     """The run's world (ground truth) from the validated configuration."""
     from sensorispace_ros.core.paper import exploration
-    world_cfg = cfg["world"]
-    return exploration.build_world(cfg["seed"], {
-        "m0": tuple(cfg["arm"]["initial_motor_state"]),
-        "grid_half_width": world_cfg["grid_half_width"],
-        "grid_count": world_cfg["grid_count"],
-        "n_lights": world_cfg["lights"]["count"],
-        "light_radius_min": world_cfg["lights"]["radius_min"],
-        "light_radius_max": world_cfg["lights"]["radius_max"],
-        "min_lights_in_view": world_cfg["lights"]["min_in_view"],
-        "n_receptors": world_cfg["retina"]["receptors"],
-        "retina_half_width": world_cfg["retina"]["half_width"],
-        "redistribution_probability": world_cfg["redistribution_probability"],
-        "order": world_cfg["schedule"],
-    })
+    from sensorispace_ros.offline.strategies import world_params
+    return exploration.build_world(cfg["seed"], world_params(cfg))

@@ -53,6 +53,11 @@ def world_params(cfg: dict) -> dict:
         "min_lights_in_view": lights["min_in_view"],
         "redistribution_probability": world["redistribution_probability"],
         "order": world["schedule"],
+        "segments": tuple(cfg["arm"]["segments"]),
+        "eye": cfg["arm"]["eye"],
+        "motor_unit": cfg["arm"]["motor_unit"],
+        "code": retina["code"],
+        "code_value": retina["code_value"],
     }
 
 

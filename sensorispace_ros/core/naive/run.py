@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -63,7 +62,7 @@ def explore_naive(world, params: NaiveParams | None = None, *, progress=None,
     computes. Arguments as ``run_naive``'s."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
-    body = SimulatedBody(world.receptors, world.initial_lights)
+    body = world.body(lights=world.initial_lights)
     agent = NaiveAgent(body_wrapper(body), params)
 
     centers = [np.asarray(world.initial_center, float)]
@@ -119,5 +118,4 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
 
 def _passive_sensation(body: SimulatedBody) -> np.ndarray:
     """What the resting eye sees after a change (not a query of the agent's)."""
-    pose = arm.forward(body.motor_state)
-    return retina.sensation(pose, body.lights_world, body.receptor_positions)
+    return body.sense_at_rest(kernel="numpy")[0]

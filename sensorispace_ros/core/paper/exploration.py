@@ -18,7 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sensorispace_ros.core import arm, retina, world as world_mod
+from sensorispace_ros.core.body import SimulatedBody
 from sensorispace_ros.core.paper.compensation import compensate_pose
+from sensorispace_ros.core.sensor_code import SensorCode
 from sensorispace_ros.core.seeding import rng_for
 
 # Paper values (Sec. 4); receptor and light layouts are ours (the paper
@@ -38,6 +40,11 @@ PAPER_PARAMS = {
     "max_light_draws": 10_000,
     "redistribution_probability": 0.1,
     "order": "random",
+    "segments": arm.SEGMENT_LENGTHS,
+    "eye": "joint",
+    "motor_unit": "rad",
+    "code": "identity",
+    "code_value": 1.0,
 }
 
 # Reasons an environmental change is not compensated.
@@ -54,6 +61,8 @@ class World:
     params: dict
     m0: np.ndarray
     receptors: np.ndarray
+    arm: arm.Arm
+    code: SensorCode
     initial_center: np.ndarray
     initial_offsets: np.ndarray
     grid: np.ndarray
@@ -63,6 +72,11 @@ class World:
     @property
     def initial_lights(self) -> np.ndarray:
         return self.initial_center + self.initial_offsets
+
+    def body(self, kernel: str = "auto", lights: np.ndarray | None = None) -> SimulatedBody:
+        """The simulated body of this world, resting at ``m0``."""
+        return SimulatedBody(self.receptors, lights, self.m0.copy(), kernel,
+                             body_arm=self.arm, code=self.code)
 
 
 def build_world(seed: int, params: dict | None = None) -> World:
@@ -80,9 +94,10 @@ def build_world(seed: int, params: dict | None = None) -> World:
         raise ValueError(f"unknown world parameters {sorted(unknown)}; "
                          f"known: {sorted(PAPER_PARAMS)}")
     merged.update(params or {})
+    body_arm = arm.Arm(tuple(merged["segments"]), merged["eye"], merged["motor_unit"])
     m0 = np.asarray(merged["m0"], dtype=float)
-    if m0.shape != (arm.N_JOINTS,):
-        raise ValueError(f"m0 must have {arm.N_JOINTS} joint angles, got {merged['m0']}")
+    if m0.shape != (body_arm.n_joints,):
+        raise ValueError(f"m0 must have {body_arm.n_joints} joint values, got {merged['m0']}")
     center = np.asarray(merged["initial_center"], dtype=float)
     if center.shape != (2,):
         raise ValueError(f"initial_center must be (x, y), got {merged['initial_center']}")
@@ -93,7 +108,9 @@ def build_world(seed: int, params: dict | None = None) -> World:
     light_kwargs = {"count": int(merged["n_lights"]),
                     "radius_min": float(merged["light_radius_min"]),
                     "radius_max": float(merged["light_radius_max"])}
-    pose0 = arm.forward(m0)
+    code = SensorCode(merged["code"], merged["code_value"], len(receptors),
+                      rng_for(seed, "sensor_code") if merged["code"] == "mix" else None)
+    pose0 = body_arm.forward(m0)
     light_rng = rng_for(seed, "lights")
     for _ in range(int(merged["max_light_draws"])):
         offsets = world_mod.draw_light_offsets(light_rng, **light_kwargs)
@@ -106,7 +123,8 @@ def build_world(seed: int, params: dict | None = None) -> World:
     events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
                                 redistribution_probability=float(merged["redistribution_probability"]),
                                 order=merged["order"], light_kwargs=light_kwargs)
-    return World(seed=int(seed), params=merged, m0=m0, receptors=receptors,
+    return World(seed=int(seed), params=merged, m0=m0, receptors=receptors, arm=body_arm,
+                 code=code,
                  initial_center=center, initial_offsets=offsets, grid=grid,
                  spacing=world_mod.grid_spacing(float(merged["grid_half_width"]),
                                                 int(merged["grid_count"])),
