@@ -126,6 +126,11 @@ class Arm:
             raise ValueError(f"arm.motor_unit: must be one of {', '.join(UNITS)}, "
                              f"got {self.unit!r}")
 
+    @classmethod
+    def from_config(cls, arm_cfg: dict) -> "Arm":
+        """The arm of a configuration's ``arm`` section."""
+        return cls(tuple(arm_cfg["segments"]), arm_cfg["eye"], arm_cfg["motor_unit"])
+
     @property
     def n_links(self) -> int:
         return len(self.segments)
@@ -154,6 +159,12 @@ class Arm:
         return max(0.0, 2.0 * max(self.segments) - self.reach)
 
     @property
+    def working_ring(self) -> tuple[float, float]:
+        """Tip radii at least one link from the base and within reach (the
+        paper arm's unsplit points of view: 1 <= |tip| <= 3)."""
+        return (min(self.segments[0], self.reach), self.reach)
+
+    @property
     def is_paper(self) -> bool:
         return self.segments == SEGMENT_LENGTHS and self.eye == "joint" and self.unit == "rad"
 
@@ -161,6 +172,22 @@ class Arm:
     def period(self) -> float:
         """A full turn of a joint in its unit."""
         return UNITS[self.unit]
+
+    def reachable(self, position: np.ndarray, orientation: float) -> np.ndarray:
+        """Whether the eye can be at ``position`` ``(..., 2)`` with the world
+        ``orientation`` it has (geometry alone: the workspace of the chain,
+        and for an eye fixed to its link, of the links before the last)."""
+        position = np.asarray(position, dtype=float)
+        if self.eye == "link":
+            last = self.segments[-1]
+            position = position - last * np.array([np.cos(orientation), np.sin(orientation)])
+            rest = self.segments[:-1]
+            outer = float(sum(rest))
+            inner = max(0.0, 2.0 * max(rest) - outer) if rest else 0.0
+        else:
+            outer, inner = self.reach, self.inner_reach
+        radius = np.hypot(position[..., 0], position[..., 1])
+        return (radius <= outer) & (radius >= inner)
 
     def description(self, receptors: int) -> BodyDescription:
         return BodyDescription.revolute(self.n_joints, receptors, self.unit)

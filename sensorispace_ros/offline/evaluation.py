@@ -23,10 +23,12 @@ import numpy as np
 
 from sensorispace_ros import config as config_mod
 from sensorispace_ros.core import arm
+from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
 from sensorispace_ros.core.naive.records import NaiveAgentRecords
 from sensorispace_ros.core.world import REDISTRIBUTION
-from sensorispace_ros.offline.ground_truth import (NaiveGroundTruth, ground_truth_from_motor,
+from sensorispace_ros.offline.ground_truth import (NaiveGroundTruth, body_truth,
+                                                   ground_truth_from_motor,
                                                    naive_truth_of_changes, naive_truth_of_run)
 from sensorispace_ros.offline.representation import (DIMENSIONS, STAGES, Representation,
                                                      random_state)
@@ -69,7 +71,8 @@ def evaluate(representation: Representation, true_positions: np.ndarray, povs: n
     from sensorispace_ros.core.world import grid_spacing
 
     step = grid_spacing(cfg["world"]["grid_half_width"], cfg["world"]["grid_count"])
-    metrics["exploration.missed_in_ring"] = len(missed_ring_positions(true_positions, step))
+    metrics["exploration.missed_in_ring"] = len(missed_ring_positions(
+        true_positions, step, Arm.from_config(cfg["arm"]).working_ring))
     timings: dict = {}
     with timed_stage(progress, "topology", timings):
         metrics.update(_topology_numbers(representation, true_positions))
@@ -134,7 +137,8 @@ def _topology_numbers(representation: Representation, true_positions: np.ndarray
             for key, value in topology_report(distance).items()}
 
 
-def missed_ring_positions(true_positions: np.ndarray, spacing: float) -> np.ndarray:
+def missed_ring_positions(true_positions: np.ndarray, spacing: float,
+                          ring: tuple = PAPER_ARM.working_ring) -> np.ndarray:
     """``(M, 2)`` sensor positions of the arm's working ring that no POV
     covers, on the lattice most POVs lie on (``core.sensor_grid``): the
     positions that should have been compensated but were not, for any
@@ -147,7 +151,7 @@ def missed_ring_positions(true_positions: np.ndarray, spacing: float) -> np.ndar
     positions = np.asarray(true_positions, dtype=float).reshape(-1, 2)
     if len(positions) < 2:
         return np.zeros((0, 2))
-    return missed_in_ring(positions, spacing)
+    return missed_in_ring(positions, spacing, ring)
 
 
 def _reaching_numbers(representation: Representation, true_positions: np.ndarray, cfg: dict,
@@ -249,7 +253,7 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     ``reaching`` and ``topology``, and ``total`` since ``started`` (a
     ``time.perf_counter`` value) when given.
     """
-    flat = dict(produced.metrics)
+    flat = {**body_truth(cfg), **produced.metrics}
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),
@@ -287,7 +291,8 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
     for key, value in representation.timings_s.items():
         timings.setdefault(key, value)
     flat.setdefault("pov.count", int(len(povs)))
-    flat.setdefault("pov.max_pose_drift", pose_drift(povs, truth["true_poses"]))
+    flat.setdefault("pov.max_pose_drift", pose_drift(povs, truth["true_poses"],
+                                                     Arm.from_config(cfg["arm"])))
     produced = StrategyOutput(povs=povs, pairs=arrays["pairs"], set_ids=arrays["set_ids"],
                               true_positions=arrays["true_positions"], metrics=flat,
                               arrays=arrays, timings_s={})
@@ -348,7 +353,8 @@ def _evaluate_agent_records(records_file: Path, arrays: dict, cfg: dict, changes
     if not np.array_equal(records.povs, arrays["povs"]):
         return {"analysis.naive_records": f"{records_file} does not hold the representation's "
                                           "points of view: naive.* not evaluated"}
-    poses = np.asarray(arm.forward(records.povs[:, 0]), dtype=float).reshape(-1, 3)
+    poses = np.asarray(Arm.from_config(cfg["arm"]).forward(records.povs[:, 0]),
+                       dtype=float).reshape(-1, 3)
     evaluated = naive_metrics(records, cfg, changes, poses)
     arrays["grid_index"] = evaluated.grid_index
     return {**evaluated.metrics,
@@ -407,7 +413,7 @@ def evaluate_naive_records(records: NaiveAgentRecords, truth: NaiveGroundTruth
         "exploration.state_changes": int(sum(k == REDISTRIBUTION for k in kinds)),
         "exploration.compensated": int(records.compensated),
         "pov.count": int(len(povs)),
-        "pov.max_pose_drift": pose_drift(povs, true_poses),
+        "pov.max_pose_drift": pose_drift(povs, true_poses, truth.arm),
         **_query_numbers(records),
         **_compensation_numbers(records, truth),
         **_coverage_numbers(true_poses, truth),
@@ -453,9 +459,9 @@ def _compensation_numbers(records: NaiveAgentRecords, truth: NaiveGroundTruth) -
     n_comp = len(events)
     worst, wrong = 0.0, 0
     if n_comp:
-        target = arm.forward(records.compensation_anchor_motor_state)
+        target = truth.arm.forward(records.compensation_anchor_motor_state)
         target[:, :2] += truth.centers[events] - truth.centers[anchors]
-        error = arm.pose_error(arm.forward(records.compensation_motor_state), target)
+        error = arm.pose_error(truth.arm.forward(records.compensation_motor_state), target)
         worst = float(np.max(error))
         wrong = int(np.sum(error > WRONG_POSE_TOL))
     return {
@@ -492,7 +498,7 @@ def _coverage_numbers(true_poses: np.ndarray, truth: NaiveGroundTruth) -> dict:
         if len(paper_positions):
             distance, _ = cKDTree(true_poses[:, :2]).query(paper_positions, k=1)
             covered = int(np.sum(distance <= WRONG_POSE_TOL))
-        pose0 = arm.forward(truth.initial_motor_state)
+        pose0 = truth.arm.forward(truth.initial_motor_state)
         orientation_error = float(np.max(np.abs(arm.wrap_angle(true_poses[:, 2] - pose0[2]))))
     return {
         "naive.coverage": distinct / max(len(paper_positions), 1),

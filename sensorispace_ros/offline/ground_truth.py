@@ -12,7 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
-from sensorispace_ros.core import arm
+from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 
@@ -34,6 +34,7 @@ class NaiveGroundTruth:
     true_poses: np.ndarray
     initial_motor_state: np.ndarray
     paper_positions: np.ndarray
+    arm: Arm = PAPER_ARM
 
     @staticmethod
     def layout_of(kinds) -> np.ndarray:
@@ -48,12 +49,13 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
     from sensorispace_ros.core.world import grid_spacing, position_grid
 
     povs = np.asarray(povs, dtype=float)
-    true_poses = arm.forward(povs[:, 0])
+    body_arm = Arm.from_config(cfg["arm"])
+    true_poses = body_arm.forward(povs[:, 0]).reshape(-1, 3)
     m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
     world = cfg["world"]
     grid = position_grid(world["grid_half_width"], world["grid_count"])
     spacing = grid_spacing(world["grid_half_width"], world["grid_count"])
-    displacement = true_poses[:, :2] - arm.forward(m0)[:2]
+    displacement = true_poses[:, :2] - body_arm.forward(m0)[:2]
     nearest = np.argmin(np.linalg.norm(displacement[:, None, :] - grid[None], axis=-1), axis=1)
     on_grid = np.linalg.norm(grid[nearest] - displacement, axis=1) < spacing / 4
     return {"true_poses": true_poses, "true_positions": true_poses[:, :2].copy(),
@@ -71,6 +73,27 @@ def paper_compensated_positions(world) -> np.ndarray:
     return explored.true_poses[:, :2].copy()
 
 
+def compensable_grid(world) -> np.ndarray:
+    """Grid indices whose object position a body can follow, from its geometry
+    alone: the eye's initial pose moved by the object's displacement lies in
+    the arm's workspace (``Arm.reachable``) for the eye's initial orientation."""
+    pose0 = world.arm.forward(world.m0)
+    targets = pose0[:2] + world.grid - np.asarray(world.initial_center, dtype=float)
+    return np.flatnonzero(world.arm.reachable(targets, float(pose0[2])))
+
+
+def body_truth(cfg: dict) -> dict:
+    """``body.*`` of a configuration: joints, the eye pose's rank, the
+    points of view's dimension, receptors and the compensable grid positions."""
+    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.offline.strategies import world_params
+
+    world = build_world(int(cfg["seed"]), world_params(cfg))
+    return {"body.joints": world.arm.n_joints, "body.pose_rank": world.arm.pose_rank,
+            "body.pov_dim": world.arm.pov_dim, "body.receptors": int(len(world.receptors)),
+            "body.compensable_positions": int(len(compensable_grid(world)))}
+
+
 def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
                        ) -> NaiveGroundTruth:
     """Ground truth of an offline naive run (``core.naive.run.run_naive``):
@@ -85,9 +108,10 @@ def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
         centers=np.asarray(explored.centers, dtype=float), layout=np.asarray(explored.layout),
         kinds=list(explored.kinds),
         grid_index=np.asarray([-1] + [e.grid_index for e in world.events], dtype=np.int64),
-        true_poses=arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
+        true_poses=world.arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
         initial_motor_state=np.asarray(world.m0, dtype=float),
-        paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2))
+        paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2),
+        arm=world.arm)
 
 
 def naive_truth_of_changes(cfg: dict, n_changes: int, poses: np.ndarray,
@@ -120,4 +144,4 @@ def naive_truth_of_changes(cfg: dict, n_changes: int, poses: np.ndarray,
         centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
         grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
         initial_motor_state=np.asarray(world.m0, dtype=float),
-        paper_positions=paper_compensated_positions(world))
+        paper_positions=paper_compensated_positions(world), arm=world.arm)

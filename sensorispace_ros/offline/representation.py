@@ -59,7 +59,8 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
                          executor: Executor | None = None,
                          distance: np.ndarray | None = None) -> Representation:
     """Hausdorff metric, CCA before regularisation and the regularisation
-    iterations, in 2-D and 3-D, from the agent's data only.
+    iterations, in 2-D and 3-D, from the agent's data only. ``povs``
+    ``(P, N, joints)`` are joint angles (a joint's period mapped to 2 pi).
 
     ``distance``: the Hausdorff matrix of ``povs`` when the caller already has
     it (the representation node grows it while the POVs arrive,
@@ -75,8 +76,8 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
     from sensorispace_ros.core.hausdorff import hausdorff_matrix
 
     povs = np.asarray(povs, dtype=float)
-    if povs.ndim != 3 or povs.shape[2] != 4 or len(povs) < 4:
-        raise ValueError(f"povs must have shape (P >= 4, N, 4), got {povs.shape}")
+    if povs.ndim != 3 or povs.shape[2] < 1 or len(povs) < 4:
+        raise ValueError(f"povs must have shape (P >= 4, N, joints), got {povs.shape}")
     workers = _chain_workers(processes, executor)
     if distance is not None:
         distance = np.asarray(distance, dtype=float)

@@ -199,7 +199,8 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     timings["naive_ground_truth"] = time.perf_counter() - started
     povs = np.asarray(result.povs)
     true_poses = np.asarray(evaluated.true_poses)
-    metrics = {"pov.count": len(povs), "pov.max_pose_drift": pose_drift(povs, true_poses),
+    metrics = {"pov.count": len(povs),
+               "pov.max_pose_drift": pose_drift(povs, true_poses, world.arm),
                **evaluated.metrics, **result.metrics,
                "naive.timings_s.evaluation": timings["naive_ground_truth"]}
     arrays = {
@@ -218,11 +219,13 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
                           arrays=arrays, timings_s=timings)
 
 
-def pose_drift(povs: np.ndarray, true_poses: np.ndarray) -> float:
-    """Largest pose error of any POV sample w.r.t. its POV's sensor pose (ground truth)."""
-    from sensorispace_ros.core import arm
+def pose_drift(povs: np.ndarray, true_poses: np.ndarray, body_arm=None) -> float:
+    """Largest pose error of any POV sample w.r.t. its POV's sensor pose
+    (ground truth, by ``body_arm``'s forward model; the paper arm's by default)."""
+    from sensorispace_ros.core.arm import PAPER_ARM
 
+    body_arm = PAPER_ARM if body_arm is None else body_arm
     if len(povs) == 0:
         return 0.0
-    poses = arm.forward(povs)
-    return float(np.max(arm.pose_error(poses, true_poses[:, None, :])))
+    poses = body_arm.forward(povs)
+    return float(np.max(body_arm.pose_error(poses, true_poses[:, None, :])))
