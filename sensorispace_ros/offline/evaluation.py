@@ -253,7 +253,7 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     ``reaching`` and ``topology``, and ``total`` since ``started`` (a
     ``time.perf_counter`` value) when given.
     """
-    flat = {**body_truth(cfg), **produced.metrics}
+    flat = {**body_truth(cfg), **produced.metrics, **_space_numbers(representation, strategy)}
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),
@@ -263,6 +263,18 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
         timings["total"] = time.perf_counter() - started
     arrays = {**produced.arrays, **run_arrays(produced, representation, cfg, cfg["seed"])}
     return write_run(out_dir, flat, arrays, cfg, strategy, timings, progress)
+
+
+def _space_numbers(representation: Representation, strategy: str) -> dict:
+    """The dimension of space the agent finds in its own metric: the estimate
+    and its rounding (``naive.space_dim`` too for the naive agent)."""
+    estimate = representation.space_dimension()
+    found = int(round(estimate)) if np.isfinite(estimate) else -1
+    numbers = {"representation.space_dim_estimate": estimate,
+               "representation.space_dim": found}
+    if strategy == "naive":
+        numbers["naive.space_dim"] = found
+    return numbers
 
 
 def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict | None = None,

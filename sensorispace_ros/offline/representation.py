@@ -43,6 +43,15 @@ class Representation:
     def embedding(self, dim: str, stage: str) -> np.ndarray:
         return self.before[dim] if stage == "before" else self.iterations[dim][-1]
 
+    def space_dimension(self) -> float:
+        """The intrinsic dimension of the points of view under the agent's own
+        metric (``core.intrinsic_dimension``); NaN with too few of them."""
+        from sensorispace_ros.core.intrinsic_dimension import K_RANGE, mle_dimension
+
+        if len(self.distance) <= K_RANGE[1]:
+            return float("nan")
+        return mle_dimension(self.distance)
+
 
 def random_state(seed: int, stream: str) -> int:
     """An integer seed for scikit-learn style ``random_state`` arguments."""
