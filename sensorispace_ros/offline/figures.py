@@ -555,6 +555,8 @@ def draw_all(arrays: Mapping, out_dir: str | Path, seed: int = 0,
 
 
 EXAMPLES_FIGURE = "fig06_point_of_view"
+# Figures that draw the paper's arm (its links, its 1-D loops in joints 1-3).
+PAPER_ARM_FIGURES = (EXAMPLES_FIGURE, "fig07_exploration")
 
 
 def draw_run_figures(arrays: Mapping, cfg: dict, figures_dir: Path, progress=None) -> dict:
@@ -562,9 +564,16 @@ def draw_run_figures(arrays: Mapping, cfg: dict, figures_dir: Path, progress=Non
 
     Fig. 6 samples POVs of its own (``figure_examples``), so when
     ``chain_pool.can_fork`` a forked process does it while this one draws the others.
+    On another body than the paper's, the figures of the paper's arm
+    (``PAPER_ARM_FIGURES``) are left out and the others drawn.
     """
+    from sensorispace_ros.core.arm import Arm
     from sensorispace_ros.offline.chain_pool import can_fork
 
+    if not Arm.from_config(cfg["arm"]).is_paper:
+        draw_all(arrays, figures_dir, seed=cfg["seed"], progress=progress,
+                 only=[name for name in FIGURES if name not in PAPER_ARM_FIGURES])
+        return {}
     others = [name for name in FIGURES if name != EXAMPLES_FIGURE]
     if not (can_fork() and (os.cpu_count() or 1) > 1):
         examples = _examples_figure(cfg, figures_dir)
