@@ -187,7 +187,8 @@ class Arm:
         else:
             outer, inner = self.reach, self.inner_reach
         radius = np.hypot(position[..., 0], position[..., 1])
-        return (radius <= outer) & (radius >= inner)
+        slack = 1e-9 * self.reach            # rounding of a pose the chain does reach
+        return (radius <= outer + slack) & (radius >= inner - slack)
 
     def description(self, receptors: int) -> BodyDescription:
         return BodyDescription.revolute(self.n_joints, receptors, self.unit)
