@@ -125,6 +125,10 @@ class Arm:
         if self.unit not in UNITS:
             raise ValueError(f"arm.motor_unit: must be one of {', '.join(UNITS)}, "
                              f"got {self.unit!r}")
+        # Read on every simulated batch: kept, not recomputed.
+        object.__setattr__(self, "_joints", len(segments) + (self.eye == "joint"))
+        object.__setattr__(self, "_paper", segments == SEGMENT_LENGTHS and self.eye == "joint"
+                           and self.unit == "rad")
 
     @classmethod
     def from_config(cls, arm_cfg: dict) -> "Arm":
@@ -137,7 +141,7 @@ class Arm:
 
     @property
     def n_joints(self) -> int:
-        return self.n_links + (self.eye == "joint")
+        return self._joints
 
     @property
     def pose_rank(self) -> int:
@@ -166,7 +170,8 @@ class Arm:
 
     @property
     def is_paper(self) -> bool:
-        return self.segments == SEGMENT_LENGTHS and self.eye == "joint" and self.unit == "rad"
+        """The paper's arm: three unit links, an eye joint, radians."""
+        return self._paper
 
     @property
     def period(self) -> float:

@@ -184,7 +184,7 @@ def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
     if kernel == "numpy" or numba is None:
         pose = body_arm.forward(motor_states)
         return retina.sensation(pose, lights, receptors), pose
-    if motor_states.ndim != 2 or motor_states.shape[1] != body_arm.n_joints:
+    if motor_states.ndim != 2 or motor_states.shape[1] != body_arm._joints:
         raise ValueError(f"motor_states must have shape (B, {body_arm.n_joints}), "
                          f"got {motor_states.shape}")
     if lights.ndim != 2 or lights.shape[1] != 2 or receptors.ndim != 1:
@@ -193,7 +193,7 @@ def simulate(motor_states: np.ndarray, lights_world: np.ndarray,
     sensations = np.empty((len(motor_states), len(receptors)))
     poses = np.empty((len(motor_states), 3))
     lights, receptors = np.ascontiguousarray(lights), np.ascontiguousarray(receptors)
-    if body_arm.is_paper:
+    if body_arm._paper:
         _simulate_rows_compiled(np.ascontiguousarray(motor_states), lights, receptors,
                                 sensations, poses)
     else:
