@@ -30,7 +30,7 @@ from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.offline.ground_truth import (NaiveGroundTruth, body_truth,
                                                    ground_truth_from_motor,
                                                    naive_truth_of_changes, naive_truth_of_run)
-from sensorispace_ros.offline.representation import (DIMENSIONS, STAGES, Representation,
+from sensorispace_ros.offline.representation import (STAGES, Representation,
                                                      random_state)
 from sensorispace_ros.offline.run_files import representation_from_arrays, run_arrays, write_run
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
@@ -99,7 +99,7 @@ def _metric_numbers(representation: Representation, true_positions: np.ndarray) 
     metrics["metric.hausdorff.unit_step_cv"] = _unit_step_cv(representation.distance, neighbours)
     metrics["metric.hausdorff.diagonal_ratio"] = diagonal_ratio(representation.distance,
                                                                 true_positions, spacing)
-    for dim in DIMENSIONS:
+    for dim in representation.before:
         for stage in STAGES:
             embedding = representation.embedding(dim, stage)
             prefix = f"quality.{dim}.{stage}"
@@ -122,7 +122,7 @@ def topology_spaces(representation: Representation, true_positions: np.ndarray) 
     from sensorispace_ros.core.topology import euclidean_distances
 
     spaces = {"truth": euclidean_distances(true_positions), "hausdorff": representation.distance}
-    for dim in DIMENSIONS:
+    for dim in representation.before:
         for stage in STAGES:
             spaces[f"{dim}.{stage}"] = euclidean_distances(representation.embedding(dim, stage))
     return spaces
@@ -167,7 +167,7 @@ def _reaching_numbers(representation: Representation, true_positions: np.ndarray
     # One stream for every representation: all are tested on the same pairs.
     reaching_seed = random_state(seed, "reaching")
     graphs = {"hausdorff": representation.distance}
-    for dim in DIMENSIONS:
+    for dim in representation.before:
         for stage in STAGES:
             graphs[f"{dim}.{stage}"] = squareform(pdist(representation.embedding(dim, stage)))
     metrics = {}

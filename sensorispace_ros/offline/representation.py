@@ -22,7 +22,8 @@ from sensorispace_ros.offline.timing import timed_stage
 if TYPE_CHECKING:
     from concurrent.futures import Executor
 
-DIMENSIONS = {"2d": 2, "3d": 3}
+DIMENSIONS = {"2d": 2, "3d": 3}            # the paper's embeddings, always made
+MAX_MEASURED_DIMENSION = 10
 STAGES = ("before", "after")
 
 
@@ -31,7 +32,7 @@ class Representation:
     """The agent's internal representation of its points of view."""
 
     distance: np.ndarray                         # (P, P) Hausdorff metric
-    before: dict                                 # "2d" -> (P, 2), "3d" -> (P, 3)
+    before: dict                                 # "2d" -> (P, 2), "3d" -> (P, 3), "<d>d"
     iterations: dict                             # "2d" -> (I, P, 2), one per iteration
     set_spread: dict                             # "2d" -> (I,) per iteration
     timings_s: dict = field(default_factory=dict)
@@ -68,7 +69,8 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
                          executor: Executor | None = None,
                          distance: np.ndarray | None = None) -> Representation:
     """Hausdorff metric, CCA before regularisation and the regularisation
-    iterations, in 2-D and 3-D, from the agent's data only. ``povs``
+    iterations, in 2-D, 3-D and the measured dimension (``embedding_dimensions``),
+    from the agent's data only. ``povs``
     ``(P, N, joints)`` are joint angles (a joint's period mapped to 2 pi).
 
     ``distance``: the Hausdorff matrix of ``povs`` when the caller already has
@@ -98,14 +100,30 @@ def build_representation(povs: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
         if distance is None:
             distance = hausdorff_matrix(povs, progress=progress)
     chains, block = {}, {}
-    with timed_stage(progress, "cca_regularization", block, total=len(DIMENSIONS)):
-        _run_chains(chains, workers, executor, distance, pairs, set_ids, cfg, seed, progress)
+    dimensions = embedding_dimensions(distance, cfg)
+    with timed_stage(progress, "cca_regularization", block, total=len(dimensions)):
+        _run_chains(chains, dimensions, workers, executor, distance, pairs, set_ids, cfg, seed,
+                    progress)
     timings.update(_chain_timings(chains, block["cca_regularization"], workers))
     return Representation(distance=distance,
                           before={name: chain["before"] for name, chain in chains.items()},
                           iterations={name: chain["iterations"] for name, chain in chains.items()},
                           set_spread={name: chain["spread"] for name, chain in chains.items()},
                           timings_s=timings)
+
+
+def embedding_dimensions(distance: np.ndarray, cfg: dict) -> dict:
+    """The embeddings to make: the paper's 2-D and 3-D, and with
+    ``representation.measured_dimension`` the dimension of space the agent
+    measures in its own metric (``Representation.space_dimension``) when it
+    is another, as ``"<d>d"``."""
+    dimensions = dict(DIMENSIONS)
+    if cfg["representation"]["measured_dimension"]:
+        estimate = Representation(distance, {}, {}, {}).space_dimension()
+        found = int(round(estimate)) if np.isfinite(estimate) else 0
+        if 1 <= found <= MAX_MEASURED_DIMENSION and found not in dimensions.values():
+            dimensions[f"{found}d"] = found
+    return dimensions
 
 
 def _chain_workers(processes: int | None, executor: Executor | None) -> int:
@@ -121,27 +139,27 @@ def _chain_workers(processes: int | None, executor: Executor | None) -> int:
     return int(processes)
 
 
-def _run_chains(chains: dict, workers: int, executor: Executor | None, distance: np.ndarray,
-                pairs: np.ndarray, set_ids: np.ndarray, cfg: dict, seed: int,
-                progress=None) -> None:
+def _run_chains(chains: dict, dimensions: dict, workers: int, executor: Executor | None,
+                distance: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray, cfg: dict,
+                seed: int, progress=None) -> None:
     """Every dimension's chain into ``chains``: on ``executor``, on a forked
     pool of ``workers`` processes, or in this process."""
     if executor is not None:
-        _chains_in(executor, chains, distance, pairs, set_ids, cfg, seed, progress)
+        _chains_in(executor, chains, dimensions, distance, pairs, set_ids, cfg, seed, progress)
     elif workers > 1:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
         context = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=min(workers, len(DIMENSIONS)),
+        with ProcessPoolExecutor(max_workers=min(workers, len(dimensions)),
                                  mp_context=context) as pool:
-            _chains_in(pool, chains, distance, pairs, set_ids, cfg, seed, progress)
+            _chains_in(pool, chains, dimensions, distance, pairs, set_ids, cfg, seed, progress)
     else:
-        for name, n_components in DIMENSIONS.items():
+        for name, n_components in dimensions.items():
             chains[name] = _dimension_chain(distance, pairs, set_ids, cfg, seed, name,
                                             n_components)
             if progress is not None:
-                progress(len(chains), len(DIMENSIONS))
+                progress(len(chains), len(dimensions))
 
 
 def _chain_timings(chains: dict, block_s: float, workers: int) -> dict:
@@ -157,16 +175,17 @@ def _chain_timings(chains: dict, block_s: float, workers: int) -> dict:
     return timings
 
 
-def _chains_in(pool: Executor, chains: dict, distance: np.ndarray, pairs: np.ndarray,
-               set_ids: np.ndarray, cfg: dict, seed: int, progress=None) -> None:
-    """The 2-D and 3-D chains as tasks of ``pool``, into ``chains``."""
+def _chains_in(pool: Executor, chains: dict, dimensions: dict, distance: np.ndarray,
+               pairs: np.ndarray, set_ids: np.ndarray, cfg: dict, seed: int,
+               progress=None) -> None:
+    """Every dimension's chain as a task of ``pool``, into ``chains``."""
     futures = {name: pool.submit(_dimension_chain, distance, pairs, set_ids, cfg, seed, name,
                                  n_components)
-               for name, n_components in DIMENSIONS.items()}
+               for name, n_components in dimensions.items()}
     for name, future in futures.items():
         chains[name] = future.result()
         if progress is not None:
-            progress(len(chains), len(DIMENSIONS))
+            progress(len(chains), len(dimensions))
 
 
 def _dimension_chain(distance: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray, cfg: dict,

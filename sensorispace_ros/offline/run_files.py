@@ -74,7 +74,7 @@ def run_arrays(produced: StrategyOutput, representation: Representation, cfg: di
         "config_json": np.asarray(json.dumps(cfg, sort_keys=True)),
         "seed": np.int64(seed),
     }
-    for dim in DIMENSIONS:
+    for dim in representation.before:
         arrays[f"embedding_{dim}_before"] = representation.before[dim]
         arrays[f"embedding_{dim}_iterations"] = representation.iterations[dim]
         arrays[f"set_spread_{dim}"] = representation.set_spread[dim]
@@ -86,11 +86,14 @@ def representation_from_arrays(arrays) -> Representation:
     timings = {}
     if "timings_s_json" in arrays:
         timings = json.loads(str(np.asarray(arrays["timings_s_json"])))
+    dims = [key[len("embedding_"):-len("_before")] for key in arrays
+            if key.startswith("embedding_") and key.endswith("_before")]
+    dims = sorted(dims, key=lambda dim: (dim not in DIMENSIONS, dim))
     return Representation(
         distance=np.asarray(arrays["hausdorff"]),
-        before={dim: np.asarray(arrays[f"embedding_{dim}_before"]) for dim in DIMENSIONS},
-        iterations={dim: np.asarray(arrays[f"embedding_{dim}_iterations"]) for dim in DIMENSIONS},
-        set_spread={dim: np.asarray(arrays[f"set_spread_{dim}"]) for dim in DIMENSIONS},
+        before={dim: np.asarray(arrays[f"embedding_{dim}_before"]) for dim in dims},
+        iterations={dim: np.asarray(arrays[f"embedding_{dim}_iterations"]) for dim in dims},
+        set_spread={dim: np.asarray(arrays[f"set_spread_{dim}"]) for dim in dims},
         timings_s=timings)
 
 
