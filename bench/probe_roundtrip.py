@@ -113,8 +113,11 @@ def measure(config: str | Path = "config/smoke.yaml", batch_rows: int = 649,
     def spin(timeout_s):
         executor.spin_once(timeout_sec=timeout_s)
     try:
-        command_columns = contracts.contract("/body/motor_command").columns
-        sensation_columns = contracts.contract("/body/sensation").columns
+        # The body node describes the configured body (its /body/description).
+        from sensorispace_ros.graph.framework import build_world
+        description = build_world(cfg).body().description
+        command_columns = contracts.contract("/body/motor_command").columns_for(description)
+        sensation_columns = contracts.contract("/body/sensation").columns_for(description)
         lights_columns = contracts.contract("/environment/lights").columns
         command_pub = contracts.create_publisher(node, "/body/motor_command")
         lights_pub = contracts.create_publisher(node, "/environment/lights")

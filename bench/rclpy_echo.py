@@ -82,8 +82,8 @@ def main(argv=None) -> int:
         from sensorispace_ros.graph.framework import build_world
         world = build_world(config.load_config(args.simulate))
         body = SimulatedBody(world.receptors, world.initial_lights, world.m0.copy())
-        command = contracts.contract("/body/motor_command").columns
-        sensation = contracts.contract("/body/sensation").columns
+        command = contracts.contract("/body/motor_command").columns_for(body.description)
+        sensation = contracts.contract("/body/sensation").columns_for(body.description)
         pub = node.create_publisher(PointCloud2, SIM_PONG, QOS)
         packer = messages.CloudCdrPacker(sensation)       # as the body node
         reader = messages.CloudCdrReader(command)

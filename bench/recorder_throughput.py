@@ -84,7 +84,8 @@ def recorder_run(messages: int, rows: int, work: Path) -> dict:
         publishers = {t: contracts.create_publisher(node, t) for t in (SENSATION, SETTLED)}
         wait_for(lambda: all(p.get_subscription_count() for p in publishers.values()), 60,
                  "the recorder's subscriptions")
-        columns = contracts.contract(SENSATION).columns
+        from sensorispace_ros.core.body_description import BodyDescription
+        columns = contracts.contract(SENSATION).columns_for(BodyDescription.revolute(4, 6))
         clouds = [msgs.matrix_to_cloud(np.random.default_rng(i).random((rows, 6)), columns,
                                        msgs.make_header(f"change/{i}", i)) for i in range(100)]
         cpu_before, started = cpu_seconds(recorder.pid), time.monotonic()

@@ -3,6 +3,15 @@
 Nodes create their publishers and subscriptions from here, and tests compare
 the live graph with the same file, so the documentation of a topic and the
 code that uses it cannot drift apart.
+
+Some topics are sized by the body: their columns are written with a
+placeholder, ``m<j>`` for one column per joint of the body description
+(``m0..m{N-1}``) and ``s<i>`` for one per receptor (``s0..s{R-1}``), and a
+JointState's ``joint_names: description`` names the description's joints.
+``TopicContract.columns_for(description)`` expands them (the description is
+what the body publishes on ``/body/description``:
+``core.body_description.BodyDescription``); ``columns`` of such a topic is a
+ContractError, so nothing can size it from anything but a description.
 """
 from __future__ import annotations
 
@@ -21,6 +30,32 @@ PACKAGE = "sensorispace_ros"
 _SCHEMA_FILE = Path("msg_schemas") / "topics.yaml"
 
 
+PER_JOINT = "<j>"           # in a column name: one column per joint, j = 0..N-1
+PER_RECEPTOR = "<i>"        # in a column name: one column per receptor, i = 0..R-1
+DESCRIBED = "description"   # joint_names: the body description's joint names
+
+
+class ContractError(ValueError):
+    """A topic's layout asked for without what it depends on (the body description)."""
+
+
+def _expanded(names, description, topic: str) -> list[str]:
+    """``names`` with every placeholder name expanded over the description's
+    joints or receptors."""
+    out = []
+    for name in names:
+        placeholder = next((p for p in (PER_JOINT, PER_RECEPTOR) if p in name), None)
+        if placeholder is None:
+            out.append(name)
+            continue
+        if description is None:
+            raise ContractError(f"{topic}: {name!r} depends on the body description "
+                                "(/body/description); use columns_for(description)")
+        count = description.n_motors if placeholder == PER_JOINT else description.receptors
+        out.extend(name.replace(placeholder, str(k)) for k in range(count))
+    return out
+
+
 @dataclass(frozen=True)
 class TopicContract:
     name: str
@@ -29,15 +64,52 @@ class TopicContract:
     publisher: str
     subscribers: tuple[str, ...]
     ground_truth: bool
-    columns: dict                  # {column: type name}, empty for non-table types
+    column_spec: dict              # {column: type name} as written, placeholders included
     frame_id: str
     meaning: str
-    elements: tuple[str, ...] = ()  # names of a Float64MultiArray's data[i]
+    element_spec: tuple[str, ...] = ()   # names of a Float64MultiArray's data[i], as written
+    joint_names_spec: tuple[str, ...] | str = ()   # a JointState's names, or DESCRIBED
 
     @property
     def msg_type(self):
         package, _, name = self.type_name.split("/")
         return getattr(importlib.import_module(f"{package}.msg"), name)
+
+    @property
+    def described(self) -> bool:
+        """Whether the body description fixes this topic's columns, elements or joint names."""
+        names = (*self.column_spec, *self.element_spec)
+        return (self.joint_names_spec == DESCRIBED
+                or any(PER_JOINT in n or PER_RECEPTOR in n for n in names))
+
+    def columns_for(self, description) -> dict:
+        """{column: type name} for a body of ``description`` (None: a topic
+        whose columns do not depend on the body)."""
+        columns = {}
+        for name, kind in self.column_spec.items():
+            columns.update(dict.fromkeys(_expanded([name], description, self.name), kind))
+        return columns
+
+    @property
+    def columns(self) -> dict:
+        """{column: type name}, empty for non-table types; ContractError for a
+        topic sized by the body (``columns_for``)."""
+        return self.columns_for(None)
+
+    def elements_for(self, description) -> tuple[str, ...]:
+        return tuple(_expanded(self.element_spec, description, self.name))
+
+    @property
+    def elements(self) -> tuple[str, ...]:
+        return self.elements_for(None)
+
+    def joint_names_for(self, description) -> tuple[str, ...]:
+        if self.joint_names_spec != DESCRIBED:
+            return tuple(self.joint_names_spec)
+        if description is None:
+            raise ContractError(f"{self.name}: its joint names are the body description's "
+                                "(/body/description)")
+        return tuple(description.joint_names)
 
 
 def schema_path() -> Path:
@@ -83,10 +155,17 @@ def load_contracts(path: str | None = None) -> dict[str, TopicContract]:
             name=name, type_name=spec["type"], qos=qos_profile(spec["qos"]),
             publisher=spec["publisher"], subscribers=tuple(spec.get("subscribers", ())),
             ground_truth=bool(spec.get("ground_truth", False)),
-            columns=dict(spec.get("columns") or {}), frame_id=str(spec.get("frame_id", "")),
+            column_spec=dict(spec.get("columns") or {}), frame_id=str(spec.get("frame_id", "")),
             meaning=str(spec.get("meaning", "")),
-            elements=tuple(spec.get("elements") or ()))
+            element_spec=tuple(spec.get("elements") or ()),
+            joint_names_spec=_joint_names_spec(spec.get("joint_names")))
     return contracts
+
+
+def _joint_names_spec(spec) -> tuple[str, ...] | str:
+    if spec == DESCRIBED:
+        return DESCRIBED
+    return tuple(str(name) for name in spec or ())
 
 
 def contract(topic: str) -> TopicContract:

@@ -26,6 +26,11 @@ unset in rclpy's). ``CloudCdrReader`` reads a float cloud's bytes as
 ``cloud_from_cdr`` + ``cloud_to_matrix`` do, and those laid out exactly as
 ``CloudCdrPacker`` writes them (the probe topics) by comparing them with the
 contract's: half the cost, the same matrix or the same MessageError.
+
+The body's description (``core.body_description.BodyDescription``) travels on
+/body/description as a ``sensor_msgs/JointState``: ``name`` the joints,
+``position`` their periods, frame id ``<unit>/<receptors>``
+(``description_to_msg`` / ``description_from_msg``).
 """
 from __future__ import annotations
 
@@ -39,7 +44,12 @@ from builtin_interfaces.msg import Time
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Header
 
-JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4")
+from sensorispace_ros.core.body_description import UNITS, BodyDescription
+
+# Bounds of what a description may announce: a malformed one must not make a
+# node allocate for millions of columns.
+MAX_RECEPTORS = 100_000
+MAX_JOINTS = 10_000
 
 # PointField datatype <-> little-endian numpy dtype (only the types the contract uses).
 _FIELD_DTYPES = {
@@ -166,6 +176,33 @@ def cloud_to_table(msg: PointCloud2, columns: Mapping[str, str]) -> np.ndarray:
     if bad is not None:
         raise MessageError(f"column {bad!r} holds NaN or inf")
     return records
+
+
+def cloud_column(msg: PointCloud2, name: str, kind: str) -> np.ndarray:
+    """Column ``name`` (type ``kind``) of a cloud whatever its other columns, for
+    a reader that needs that one only; MessageError unless the cloud is a
+    little-endian table of one row per point that holds it once."""
+    fields = (msg.field_tuples if isinstance(msg, SerializedCloud)
+              else tuple((f.name, f.offset, f.datatype, f.count) for f in msg.fields))
+    datatype, dtype = _FIELD_DTYPES[kind]
+    found = [field for field in fields if field[0] == name]
+    if len(found) != 1 or found[0][2:] != (datatype, 1):
+        raise MessageError(f"no single {kind} column {name!r} in fields "
+                           f"{[field[0] for field in fields]}")
+    offset, point_step, width = found[0][1], msg.point_step, msg.width
+    if msg.is_bigendian:
+        raise MessageError("big-endian data is not accepted")
+    if offset + dtype.itemsize > point_step:
+        raise MessageError(f"column {name!r} at {offset} overruns point_step {point_step}")
+    if msg.height != 1 and width * msg.height != 0:
+        raise MessageError(f"height must be 1, got {msg.height}")
+    n_rows = width if msg.height else 0
+    if msg.row_step != width * point_step or len(msg.data) != n_rows * point_step:
+        raise MessageError(f"row_step {msg.row_step} / {len(msg.data)} data bytes do not "
+                           f"fit {n_rows} rows of {point_step} bytes")
+    if n_rows == 0:
+        return np.zeros(0, dtype)
+    return np.ndarray((n_rows,), dtype, bytes(msg.data), offset, (point_step,)).copy()
 
 
 def matrix_to_cloud(matrix: np.ndarray, columns: Mapping[str, str], header: Header) -> PointCloud2:
@@ -439,7 +476,7 @@ class CloudCdrReader:
 # ---------------------------------------------------------------- joint states
 
 def motor_to_joint_state(motor_state: np.ndarray, header: Header,
-                         names: Sequence[str] = JOINT_NAMES) -> JointState:
+                         names: Sequence[str]) -> JointState:
     motor_state = np.asarray(motor_state, dtype=float).reshape(-1)
     if len(motor_state) != len(names):
         raise ValueError(f"motor state has {len(motor_state)} joints, expected {len(names)}")
@@ -451,7 +488,7 @@ class JointStateCdrPacker:
     ``CloudCdrPacker``): header, the names, the positions (float64, 8-aligned),
     empty velocity and effort."""
 
-    def __init__(self, names: Sequence[str] = JOINT_NAMES):
+    def __init__(self, names: Sequence[str]):
         self._n_joints = len(names)
         position = len(_ENCAPSULATION)
         parts = [_UINT32.pack(len(names))]
@@ -476,7 +513,7 @@ class JointStateCdrPacker:
             b"\x00" * 8))                                   # no velocity, no effort
 
 
-def joint_state_to_motor(msg: JointState, names: Sequence[str] = JOINT_NAMES) -> np.ndarray:
+def joint_state_to_motor(msg: JointState, names: Sequence[str]) -> np.ndarray:
     """Joint positions in the order of ``names``; unknown, missing or non-finite -> MessageError."""
     if list(msg.name) != list(names):
         raise MessageError(f"joint names {list(msg.name)} != expected {list(names)}")
@@ -490,6 +527,40 @@ def joint_state_to_motor(msg: JointState, names: Sequence[str] = JOINT_NAMES) ->
         if values and len(values) != len(names):
             raise MessageError(f"{len(values)} {extra} values for {len(names)} joints")
     return position
+
+
+# ---------------------------------------------------------------- the body's description
+
+def description_to_msg(description: BodyDescription, stamp_ns: int = 0) -> JointState:
+    """``description`` as /body/description carries it: names = the joints,
+    positions = their periods, frame id ``<unit>/<receptors>``; no velocity, no effort."""
+    return JointState(header=make_header(f"{description.unit}/{description.receptors}", stamp_ns),
+                      name=list(description.joint_names), position=list(description.periods))
+
+
+def description_from_msg(msg: JointState) -> BodyDescription:
+    """The description a /body/description message carries; MessageError if it
+    is malformed (frame id, names, periods, a velocity or effort, sizes)."""
+    unit, slash, receptors = str(msg.header.frame_id).partition("/")
+    if not slash or unit not in UNITS or not (receptors.isascii() and receptors.isdigit()) \
+            or len(receptors) > 6:
+        raise MessageError(f"frame id {msg.header.frame_id!r} is not <unit>/<receptors> "
+                           f"with a unit of {sorted(UNITS)}")
+    if not 1 <= int(receptors) <= MAX_RECEPTORS:
+        raise MessageError(f"{receptors} receptors: must be 1..{MAX_RECEPTORS}")
+    names, periods = list(msg.name), np.asarray(msg.position, dtype=float)
+    if not 1 <= len(names) <= MAX_JOINTS:
+        raise MessageError(f"{len(names)} joints: must be 1..{MAX_JOINTS}")
+    if periods.shape != (len(names),):
+        raise MessageError(f"{len(periods)} periods for {len(names)} joints")
+    if len(msg.velocity) or len(msg.effort):
+        raise MessageError("a description has no velocity and no effort")
+    if not all(names):
+        raise MessageError("a joint name is empty")
+    try:
+        return BodyDescription(tuple(names), unit, tuple(periods.tolist()), int(receptors))
+    except ValueError as exc:         # repeated names, periods not finite and > 0
+        raise MessageError(str(exc)) from None
 
 
 # ---------------------------------------------------------------- what viewers draw

@@ -3,8 +3,10 @@
 What they share lives here: reading the run configuration from ROS
 parameters (``--ros-args --params-file config/paper.yaml``), the protocol
 frame ids of msg_schemas/topics.yaml, logging-and-dropping of malformed
-messages, and a ``main`` that exits cleanly on SIGTERM / Ctrl-C and stops
-with the parameter's name (no traceback) on an invalid configuration.
+messages, the body description a node sizes itself from (the latched
+/body/description: messages sized by the body wait for it), and a
+``main`` that exits cleanly on SIGTERM / Ctrl-C and stops with the
+parameter's name (no traceback) on an invalid configuration.
 """
 from __future__ import annotations
 
@@ -38,6 +40,9 @@ PUBLISH_RETRY_PAUSE_S = 0.05
 # again with the same command line (EX_TEMPFAIL); it resumes from its
 # checkpoint. The body does so when its answers stop reaching the agent.
 RESTART_EXIT_CODE = 75
+DESCRIPTION_TOPIC = "/body/description"
+# Messages kept while a node waits for the body description; more are dropped.
+MAX_WAITING = 10_000
 
 
 def frame(kind: str, number: int) -> str:
@@ -101,6 +106,65 @@ class GraphNode(Node):
         # waits for an answer keep the executor turning (see graph.body_over_topics).
         self.spin_once: Callable[[float], None] | None = None
         self.publish_failures = 0
+        # The body description (/body/description), once taken; what waits for it.
+        self.description = None
+        self._columns: dict[str, dict] = {}
+        self._waiting: list = []
+        self._on_described: Callable | None = None
+
+    # ------------------------------------------------------------ the body description
+
+    def subscribe_description(self, on_first: Callable) -> None:
+        """Take the body description from /body/description; ``on_first(description)``
+        sizes the node when the first one comes, then the messages that waited for
+        it (``when_described``) are handed over in their order of arrival."""
+        self._on_described = on_first
+        contracts.create_subscription(self, DESCRIPTION_TOPIC, self.on_description)
+
+    def on_description(self, msg) -> None:
+        """A malformed description, or one that differs from the one taken, is dropped."""
+        try:
+            description = messages.description_from_msg(msg)
+        except messages.MessageError as exc:
+            self.drop(DESCRIPTION_TOPIC, str(exc))
+            return
+        if self.description is not None:
+            if description != self.description:
+                self.drop(DESCRIPTION_TOPIC, f"{description} differs from the body "
+                                             f"description taken, {self.description}")
+            return
+        self.description = description
+        self._columns.clear()
+        self._cloud_readers.clear()
+        self.get_logger().info(f"body: {description.n_motors} joints "
+                               f"({', '.join(description.joint_names)}) in "
+                               f"{description.unit}, {description.receptors} receptors")
+        if self._on_described is not None:
+            self._on_described(description)
+        waiting, self._waiting = self._waiting, []
+        for callback, waiting_msg in waiting:
+            callback(waiting_msg)
+
+    def when_described(self, topic: str, callback: Callable) -> Callable:
+        """``callback`` for messages on ``topic`` that need the body description:
+        until it is taken they wait (at most MAX_WAITING in all, then dropped)."""
+        def call(msg) -> None:
+            if self.description is not None:
+                callback(msg)
+            elif len(self._waiting) < MAX_WAITING:
+                self._waiting.append((callback, msg))
+            else:
+                self.drop(topic, f"more than {MAX_WAITING} messages before the body description")
+        return call
+
+    def columns_of(self, topic: str) -> dict:
+        """The contract's columns of ``topic`` for this node's body description
+        (contracts.ContractError for a topic sized by the body before it is known)."""
+        columns = self._columns.get(topic)
+        if columns is None:
+            columns = contracts.contract(topic).columns_for(self.description)
+            self._columns[topic] = columns
+        return columns
 
     def create_publisher(self, *args, **kwargs) -> Publisher:
         """rclpy's publisher whose ``publish`` survives a full writer history
@@ -163,7 +227,7 @@ class GraphNode(Node):
         parsed = self.frame_of(topic, msg.header.frame_id, kinds)
         if parsed is None:
             return None
-        columns = contracts.contract(topic).columns
+        columns = self.columns_of(topic)
         try:
             data = (messages.cloud_to_table(msg, columns).copy() if as_table
                     else messages.cloud_to_matrix(msg, columns))
@@ -192,7 +256,7 @@ class GraphNode(Node):
         reader = self._cloud_readers.get(topic)
         if reader is None:
             reader = self._cloud_readers[topic] = messages.CloudCdrReader(
-                contracts.contract(topic).columns)
+                self.columns_of(topic))
         cloud = reader.read_packed(msg)
         if cloud is not None:
             parsed = self.frame_of(topic, cloud.frame_id, kinds)

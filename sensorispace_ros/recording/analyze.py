@@ -4,14 +4,19 @@ What the bag gives (see recording.bag_format, nodes/recorder.py):
 
 - configuration and seed: the first ``/session/config`` message (the ROS
   params file every node of the run was started with);
+- the body description: the first well-formed ``/body/description``
+  message, which sizes the motor columns and gives their unit (the
+  Hausdorff metric takes angles, ``BodyDescription.to_radians``); a bag
+  recorded before bodies described themselves has none, and the configured
+  arm and retina stand in for it;
 - the agent's data: ``/agent/points_of_view`` and ``/agent/compensations``,
   assembled exactly as the representation node assembles them (same
   function; a message re-sent with the same frame id counts once);
 - ground truth, joined here as the evaluator: the sensor position of each
   point of view is looked up in the recorded ``/body/sensor_pose`` rows (the
   row answering the motor command equal to the POV's first sample); a POV
-  whose first sample was never commanded (resampled) gets ``core.arm.forward``
-  of it, the same model the body uses. ``analysis.true_positions`` says how
+  whose first sample was never commanded (resampled) gets the configured
+  arm's forward model of it (``core.arm.Arm``), the same model the body uses. ``analysis.true_positions`` says how
   many came from which. The object position of each change comes from
   ``/environment/event``;
 - the naive run's ground-truth metrics (``exploration.*``, ``naive.*``):
@@ -54,6 +59,7 @@ from sensorispace_ros.recording.completeness import DONE, POVS, ROWS
 POV_RECORDS, COMPENSATION_RECORDS = "/agent/pov_records", "/agent/compensation_records"
 STAGE_COUNTERS = "/agent/stage_counters"
 EVENT, COMMAND, POSE = "/environment/event", "/body/motor_command", "/body/sensor_pose"
+DESCRIPTION = "/body/description"
 
 
 def config_from_bag(bag_dir) -> dict:
@@ -71,13 +77,31 @@ def config_from_bag(bag_dir) -> dict:
                            f"configuration: {' '.join(str(exc).split())}") from None
 
 
-def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
+def body_description(bag_dir, cfg: dict | None = None):
+    """The body description of the run: the bag's first well-formed
+    /body/description; without one (a bag recorded before it existed), the
+    configured arm and retina (``cfg``, or the bag's configuration)."""
+    from sensorispace_ros import messages
+    from sensorispace_ros.core.arm import Arm
+
+    if DESCRIPTION in bag_info(bag_dir).topics:
+        for _, _, _, msg in read_bag_messages(bag_dir, [DESCRIPTION]):
+            try:
+                return messages.description_from_msg(msg)
+            except messages.MessageError:
+                continue
+    cfg = config_from_bag(bag_dir) if cfg is None else cfg
+    return Arm.from_config(cfg["arm"]).description(int(cfg["world"]["retina"]["receptors"]))
+
+
+def _tables(bag_dir, topic: str, kinds=("change",), description=None) -> dict[str, np.ndarray]:
     """frame id -> decoded table of the first message of ``topic`` with that frame id
-    (a re-send after a restart is a duplicate, see the module docstring)."""
+    (a re-send after a restart is a duplicate, see the module docstring);
+    ``description`` sizes a topic sized by the body."""
     from sensorispace_ros import contracts, messages
     from sensorispace_ros.graph.framework import parse_frame
 
-    columns = contracts.contract(topic).columns
+    columns = contracts.contract(topic).columns_for(description)
     tables = {}
     for _, _, _, msg in read_bag_messages(bag_dir, [topic]):
         parsed = parse_frame(msg.header.frame_id)
@@ -90,17 +114,19 @@ def _tables(bag_dir, topic: str, kinds=("change",)) -> dict[str, np.ndarray]:
     return tables
 
 
-def agent_data(bag_dir) -> dict:
+def agent_data(bag_dir, description=None) -> dict:
     """POV ids, POV motor samples, equality pairs (POV positions) and set ids, as the
-    representation node builds them, plus the change each POV was published for."""
+    representation node builds them, plus the change each POV was published for.
+    ``description``: the body's (``body_description`` by default)."""
     from sensorispace_ros import contracts, messages
     from sensorispace_ros.graph.nodes.representation import assemble_points_of_view
 
-    pov_tables = _tables(bag_dir, POVS)
+    description = body_description(bag_dir) if description is None else description
+    pov_tables = _tables(bag_dir, POVS, description=description)
     row_tables = _tables(bag_dir, ROWS)
     if not pov_tables:
         raise BagError(f"bag {bag_dir} holds no {POVS} message: nothing to analyse")
-    ids, povs = assemble_points_of_view(list(pov_tables.values()))
+    ids, povs = assemble_points_of_view(list(pov_tables.values()), description.n_motors)
     rows = (np.concatenate(list(row_tables.values())) if row_tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))
     pairs = np.stack([np.searchsorted(ids, rows["pov_from"]),
@@ -122,19 +148,24 @@ def agent_totals(bag_dir) -> dict | None:
     return {name: int(table[name][0]) for name in table.dtype.names}
 
 
-def true_poses(bag_dir, povs: np.ndarray) -> tuple[np.ndarray, int]:
+def true_poses(bag_dir, povs: np.ndarray, description=None, body_arm=None
+               ) -> tuple[np.ndarray, int]:
     """Sensor pose (x, y, alpha) of each POV's first sample: recorded where that motor
-    state was commanded, ``arm.forward`` otherwise. Returns (poses, number recorded)."""
+    state was commanded, ``body_arm``'s forward model otherwise (the arm of the bag's
+    configuration by default). Returns (poses, number recorded)."""
     from sensorispace_ros import contracts, messages
-    from sensorispace_ros.core import arm
+    from sensorispace_ros.core.arm import Arm
 
+    description = body_description(bag_dir) if description is None else description
+    if body_arm is None:
+        body_arm = Arm.from_config(config_from_bag(bag_dir)["arm"])
     first = np.ascontiguousarray(povs[:, 0], dtype="<f8")
     wanted = {row.tobytes(): k for k, row in enumerate(first)}
-    poses = np.asarray(arm.forward(first), dtype=float).reshape(-1, 3)
+    poses = np.asarray(body_arm.forward(first), dtype=float).reshape(-1, 3)
     found = np.zeros(len(first), dtype=bool)
     info = bag_info(bag_dir)
     if info.counts.get(COMMAND) and info.counts.get(POSE):
-        command_columns = contracts.contract(COMMAND).columns
+        command_columns = contracts.contract(COMMAND).columns_for(description)
         pose_columns = contracts.contract(POSE).columns
         commands = {}
         # The recorder writes messages of different topics in the order its
@@ -167,19 +198,19 @@ def events(bag_dir) -> dict[str, np.ndarray]:
     return {frame: table[0] for frame, table in _tables(bag_dir, EVENT).items() if len(table)}
 
 
-def _concatenated(bag_dir, topic: str) -> np.ndarray:
+def _concatenated(bag_dir, topic: str, description=None) -> np.ndarray:
     from sensorispace_ros import contracts, messages
 
     present = topic in bag_info(bag_dir).topics
-    tables = list(_tables(bag_dir, topic).values()) if present else []
-    return (np.concatenate(tables) if tables
-            else np.zeros(0, dtype=messages.record_dtype(contracts.contract(topic).columns)))
+    tables = list(_tables(bag_dir, topic, description=description).values()) if present else []
+    columns = contracts.contract(topic).columns_for(description)
+    return np.concatenate(tables) if tables else np.zeros(0, dtype=messages.record_dtype(columns))
 
 
-def naive_records(bag_dir, data: dict, totals: dict | None):
+def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
     """The agent's records of the run (``core.naive.records.NaiveAgentRecords``),
     or None when the bag lacks them (recorded before they were published, or the
-    run did not end)."""
+    run did not end). ``description``: the body's (``body_description`` by default)."""
     from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords
 
     info = bag_info(bag_dir)
@@ -196,9 +227,12 @@ def naive_records(bag_dir, data: dict, totals: dict | None):
     if not np.array_equal(pov_rows["pov"], ids):
         raise BagError(f"bag {bag_dir}: {POV_RECORDS} names POVs {pov_rows['pov'].tolist()}, "
                        f"{POVS} holds {ids.tolist()}")
-    comp = _concatenated(bag_dir, COMPENSATION_RECORDS)     # one copy of each change's rows
-    motor = np.stack([comp[f"m{j}"] for j in range(4)], axis=-1).astype(float)
-    anchor = np.stack([comp[f"a{j}"] for j in range(4)], axis=-1).astype(float)
+    description = body_description(bag_dir) if description is None else description
+    # one copy of each change's rows
+    comp = _concatenated(bag_dir, COMPENSATION_RECORDS, description)
+    joints = range(description.n_motors)
+    motor = np.stack([comp[f"m{j}"] for j in joints], axis=-1).astype(float)
+    anchor = np.stack([comp[f"a{j}"] for j in joints], axis=-1).astype(float)
     return NaiveAgentRecords(
         povs=data["povs"], pov_events=pov_rows["event"].astype(np.int64),
         pov_queries=pov_rows["queries"].astype(np.int64),
@@ -233,6 +267,7 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     ``arrays.npz`` and figures (``evaluation.evaluate_graph_run``, as for a live graph run).
     ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics."""
     from sensorispace_ros import config, contracts
+    from sensorispace_ros.core.arm import Arm
     from sensorispace_ros.offline.evaluation import evaluate_graph_run, naive_metrics
     from sensorispace_ros.offline.ground_truth import ground_truth_from_motor
     from sensorispace_ros.offline.representation import build_representation
@@ -245,13 +280,16 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     cfg = config_from_bag(bag_dir) if cfg is None else config.validate_config(cfg)
     seed = int(cfg["seed"])
 
-    data = agent_data(bag_dir)
+    description, body_arm = body_description(bag_dir, cfg), Arm.from_config(cfg["arm"])
+    data = agent_data(bag_dir, description)
     povs, pairs, set_ids = data["povs"], data["pairs"], data["set_ids"]
-    poses, recorded = true_poses(bag_dir, povs)
+    poses, recorded = true_poses(bag_dir, povs, description, body_arm)
     change_events = events(bag_dir)
     totals = agent_totals(bag_dir)
 
-    representation = build_representation(povs, pairs, set_ids, cfg, seed, progress)
+    # The Hausdorff metric's wrap is 2 pi: the POVs as angles (the same bits for rad).
+    representation = build_representation(description.to_radians(povs), pairs, set_ids, cfg,
+                                           seed, progress)
     produced = StrategyOutput(povs=povs, pairs=pairs, set_ids=set_ids,
                               true_positions=poses[:, :2].copy(), metrics={}, arrays={},
                               timings_s={})
@@ -265,7 +303,7 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         [int(change_events[f]["grid_index"]) if f in change_events else int(g)
          for f, g in zip(data["pov_frames"], inferred)], dtype=int)
     counters = {
-        "pov.max_pose_drift": pose_drift(povs, poses),
+        "pov.max_pose_drift": pose_drift(povs, poses, body_arm),
         "analysis.bag": str(bag_dir),
         "analysis.true_positions": f"{recorded} of {len(povs)} from recorded /body/sensor_pose, "
                                    f"{len(povs) - recorded} from core.arm.forward",
@@ -275,7 +313,7 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     }
     for name, value in (totals or {}).items():
         counters[f"agent.{name}"] = value       # the agent's own counters (/agent/done)
-    records = naive_records(bag_dir, data, totals)
+    records = naive_records(bag_dir, data, totals, description)
     if records is not None:
         try:
             evaluated = naive_metrics(records, cfg, totals["changes"], poses,

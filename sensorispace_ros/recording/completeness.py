@@ -54,12 +54,17 @@ class RunCompleteness:
         from sensorispace_ros import contracts, messages  # the recorder's process has them loaded
         try:
             cloud = messages.cloud_from_cdr(cdr)
-            table = messages.cloud_to_table(cloud, contracts.contract(topic).columns)
+            if topic == POVS:
+                # The POV ids only: the motor columns are the body's (any number).
+                pov_ids = messages.cloud_column(cloud, "pov", contracts.contract(POVS)
+                                                .column_spec["pov"])
+            else:
+                table = messages.cloud_to_table(cloud, contracts.contract(topic).columns)
         except messages.MessageError:
             self.undecodable += 1        # recorded all the same; it just counts for nothing
             return False
         if topic == POVS:
-            self.pov_ids.update(int(pov) for pov in table["pov"])
+            self.pov_ids.update(int(pov) for pov in pov_ids)
         elif topic == ROWS:
             self.rows_by_frame.setdefault(cloud.header.frame_id, len(table))
         elif len(table) == 1:

@@ -1,4 +1,6 @@
-"""analyze.py: the agent's data, the ground truth and the config come back from a bag exactly."""
+"""analyze.py: the agent's data, the ground truth, the config and the body
+description come back from a bag exactly (a bag without a description: the
+configured body's)."""
 from __future__ import annotations
 
 import importlib.util
@@ -20,6 +22,7 @@ from sensorispace_ros.recording.bag_format import (
 from sensorispace_ros.recording.bag_writer import BagWriter
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core import arm
+from sensorispace_ros.core.body_description import BodyDescription
 
 P, N = 12, 5
 IDS = 10 * np.arange(P) + 3                      # ids are not positions: the mapping is tested
@@ -42,14 +45,21 @@ CONFIG = """/**:
 """
 
 
-def cloud(topic, table, frame_id, stamp=1):
+PAPER_BODY = BodyDescription.revolute(4, 6)
+
+
+def cloud(topic, table, frame_id, stamp=1, description=PAPER_BODY):
     return serialize_message(messages.table_to_cloud(
-        table, contracts.contract(topic).columns, messages.make_header(frame_id, stamp)))
+        table, contracts.contract(topic).columns_for(description),
+        messages.make_header(frame_id, stamp)))
 
 
-def write_run(bag, with_poses=True, config=CONFIG, pose_first=False):
+def write_run(bag, with_poses=True, config=CONFIG, pose_first=False, description=None):
+    """A recorded run; ``description``: the /body/description recorded (None:
+    a bag recorded before bodies described themselves, of the paper's body)."""
     rng = np.random.default_rng(0)
-    povs = rng.uniform(-np.pi, np.pi, size=(P, N, 4))
+    body = PAPER_BODY if description is None else description
+    povs = rng.uniform(-np.pi, np.pi, size=(P, N, body.n_motors))
     rows = np.array([[0, 0, 1], [0, 2, 3], [1, 4, 5], [1, 6, 7], [2, 8, 9], [2, 10, 11]])
     topics = {name: c.type_name for name, c in contracts.load_contracts().items()}
     topics[SESSION_CONFIG_TOPIC] = SESSION_CONFIG_TYPE
@@ -57,6 +67,9 @@ def write_run(bag, with_poses=True, config=CONFIG, pose_first=False):
     with BagWriter(bag, topics) as writer:
         if config is not None:
             writer.write(SESSION_CONFIG_TOPIC, 1, session_config_cdr(config))
+        if description is not None:
+            writer.write("/body/description", 2, serialize_message(
+                messages.description_to_msg(description)))
         if with_poses:
             commanded = np.vstack([povs[:RECORDED, 0], rng.uniform(-1, 1, size=(3, 4))])
             command = cloud("/body/motor_command", {f"m{j}": commanded[:, j] for j in range(4)},
@@ -76,11 +89,11 @@ def write_run(bag, with_poses=True, config=CONFIG, pose_first=False):
                 "/environment/event", {"index": [i], "kind": [i % 2], "center_x": [0.0],
                                        "center_y": [0.0], "grid_index": [100 + i]}, frame))
             table = {"pov": np.full(N, IDS[i]), "sample": np.arange(N),
-                     **{f"m{j}": povs[i, :, j] for j in range(4)}}
-            writer.write("/agent/points_of_view", next(t), cloud("/agent/points_of_view", table, frame))
+                     **{f"m{j}": povs[i, :, j] for j in range(body.n_motors)}}
+            pov_cloud = cloud("/agent/points_of_view", table, frame, description=body)
+            writer.write("/agent/points_of_view", next(t), pov_cloud)
             if i == 2:  # a re-send of the same message must count once
-                writer.write("/agent/points_of_view", next(t),
-                             cloud("/agent/points_of_view", table, frame))
+                writer.write("/agent/points_of_view", next(t), pov_cloud)
             writer.write("/agent/settled", next(t), serialize_message(UInt64(data=i + 1)))
         for k, part in enumerate((rows[:3], rows[3:])):
             writer.write("/agent/compensations", next(t), cloud(
@@ -120,6 +133,16 @@ def test_ground_truth_comes_from_recorded_poses_then_forward_kinematics(tmp_path
     poses, recorded = analyze.true_poses(tmp_path / "no_poses", povs)
     assert recorded == 0
     np.testing.assert_array_equal(poses, forward)
+
+
+def test_the_body_description_comes_from_the_bag_or_from_the_configuration(tmp_path):
+    small = BodyDescription(("hip", "knee"), "deg", (360.0, 360.0), 3)
+    povs, _ = write_run(tmp_path / "described", with_poses=False, description=small)
+    assert analyze.body_description(tmp_path / "described") == small
+    data = analyze.agent_data(tmp_path / "described")
+    assert data["povs"].shape == (P, N, 2) and np.array_equal(data["povs"], povs)
+    write_run(tmp_path / "old")                 # no /body/description: the configured body
+    assert analyze.body_description(tmp_path / "old") == PAPER_BODY
 
 
 def test_config_and_seed_come_from_the_bag(tmp_path):

@@ -136,8 +136,8 @@ def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_r
     try:
         replay = subprocess.run(
             [sys.executable, "-m", "sensorispace_ros.cli", "replay", str(tiny_run["bag"]),
-             "--fast", "--topics", "/agent/points_of_view", "/agent/compensations",
-             "/agent/done"], env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
+             "--fast", "--topics", "/body/description", "/agent/points_of_view",
+             "/agent/compensations", "/agent/done"], env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
         assert replay.returncode == 0, replay.stderr
         output, _ = representation.communicate(timeout=180)
     finally:

@@ -54,14 +54,18 @@ class Publishers:
 
         from sensorispace_ros import contracts, messages
 
+        from sensorispace_ros.core.body_description import BodyDescription
+
+        body = BodyDescription.revolute(4, 6)
         header = messages.make_header(str(i), i)
         self.pub[SENSATION].publish(messages.matrix_to_cloud(
-            np.full((1, 6), float(i)), contracts.contract(SENSATION).columns, header))
+            np.full((1, 6), float(i)), contracts.contract(SENSATION).columns_for(body), header))
         self.pub[SETTLED].publish(UInt64(data=i))
         self.sent[SENSATION] += 1
         self.sent[SETTLED] += 1
         if i % 4 == 0:
-            self.pub[JOINTS].publish(messages.motor_to_joint_state(np.full(4, i * 1e-3), header))
+            self.pub[JOINTS].publish(messages.motor_to_joint_state(np.full(4, i * 1e-3), header,
+                                                                   body.joint_names))
             self.sent[JOINTS] += 1
 
     def wait_acked(self):

@@ -8,20 +8,26 @@ import numpy as np
 from rclpy.serialization import serialize_message
 
 from sensorispace_ros import contracts, messages
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.recording.completeness import (DONE, POVS, ROWS, RunCompleteness,
     marker_path, remove_marker, wait_for_complete_recording, write_marker)
 
 
-def _cdr(topic: str, frame_id: str, table: dict) -> bytes:
+PAPER_BODY = BodyDescription.revolute(4, 6)
+
+
+def _cdr(topic: str, frame_id: str, table: dict, description=PAPER_BODY) -> bytes:
     return serialize_message(messages.table_to_cloud(
-        table, contracts.contract(topic).columns, messages.make_header(frame_id, 1)))
+        table, contracts.contract(topic).columns_for(description),
+        messages.make_header(frame_id, 1)))
 
 
-def _povs(frame_id: str, ids, samples: int = 3) -> bytes:
+def _povs(frame_id: str, ids, samples: int = 3, joints: int = 4) -> bytes:
     ids = np.asarray(ids)
     return _cdr(POVS, frame_id, {"pov": np.repeat(ids, samples),
                                  "sample": np.tile(np.arange(samples), len(ids)),
-                                 **{f"m{j}": np.zeros(samples * len(ids)) for j in range(4)}})
+                                 **{f"m{j}": np.zeros(samples * len(ids)) for j in range(joints)}},
+                BodyDescription.revolute(joints, 1))
 
 
 def _rows(frame_id: str, n: int) -> bytes:
@@ -47,6 +53,14 @@ def test_complete_only_once_povs_and_rows_add_up_to_the_agents_totals():
     assert run.add(ROWS, _rows("change/4", 3))            # now 3 POVs, 5 rows
     assert run.complete and run.held == run.totals
     assert not run.add(ROWS, _rows("change/5", 1))        # said once
+
+
+def test_the_povs_of_a_body_of_any_size_are_counted():
+    run = RunCompleteness()
+    assert not run.add(DONE, _done(povs=3, rows=0))
+    assert not run.add(POVS, _povs("change/1", [0], joints=2))
+    assert run.add(POVS, _povs("change/2", [1, 2], joints=2))
+    assert run.held == {"points_of_view": 3, "compensation_rows": 0}
 
 
 def test_without_the_agents_totals_nothing_is_complete():

@@ -10,6 +10,7 @@ every topic a node subscribes to, at a bounded rate, for ``--seconds``:
 - huge batches (``--huge-rows`` rows, one of them non-finite or mis-sized)
 - frame ids outside the protocol grammar, incl. non-ASCII digits ("cmd/²")
 - stale (stamp 0) and far-future stamps on all of the above
+- body descriptions broken in one way each (frame id, names, periods, sizes)
 - exact duplicates of real messages seen earlier on /body/sensation,
   /agent/settled, /agent/points_of_view and /agent/compensations
 
@@ -46,6 +47,7 @@ else:
     from . import node_processes as np_mod
 
 from sensorispace_ros import contracts, messages
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import dds_environment, in_process  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -56,6 +58,15 @@ DUPLICATED = ("/body/sensation", "/agent/settled", "/agent/points_of_view",
               "/agent/compensations")
 # --duplicate-all adds these (see the module docstring: they stalled the run).
 DUPLICATED_TOO = ("/environment/lights", "/body/motor_command")
+PAPER_BODY = BodyDescription.revolute(4, 6)     # the smoke run's body
+DESCRIPTION = "/body/description"
+# (frame id, names, periods, velocity) of descriptions that break the contract
+BAD_DESCRIPTIONS = (("rad", ["a"], [1.0], []), ("rad/0", ["a"], [1.0], []),
+                    ("deg/" + "9" * 40, ["a"], [1.0], []), ("furlong/6", ["a"], [1.0], []),
+                    ("rad/6", [], [], []), ("rad/6", ["a", "a"], [1.0, 1.0], []),
+                    ("rad/6", ["a"], [float("nan")], []), ("rad/6", ["a", "b"], [1.0], []),
+                    ("rad/6", ["a"], [-1.0], []), ("rad/6", ["a"], [1.0], [0.0]),
+                    ("rad/\u00b2", ["a"], [1.0], []))
 BAD_FRAMES = ("cmd/²", "change/", "end/x", "cmd/-1", "", "bogus/1", "change/1/2",
               "cmd/" + "9" * 400, "\u202ecmd/1", "change/ 1", "end")
 
@@ -109,7 +120,7 @@ class Fuzzer:
             real = msg.data < 10 ** 6          # fuzzed settled numbers are >= 10**6
         else:
             try:
-                messages.cloud_to_table(msg, contracts.contract(topic).columns)
+                messages.cloud_to_table(msg, contracts.contract(topic).columns_for(PAPER_BODY))
                 real = parse_frame(msg.header.frame_id) is not None
             except messages.MessageError:
                 real = False
@@ -133,7 +144,7 @@ class Fuzzer:
         return f"{kind}/{int(self.rng.integers(0, 400))}"
 
     def _cloud(self, topic: str, rows: int, frame_id: str, nonfinite=None):
-        columns = contracts.contract(topic).columns
+        columns = contracts.contract(topic).columns_for(PAPER_BODY)
         table = {}
         for name, kind in columns.items():
             if kind == "float64":
@@ -148,7 +159,9 @@ class Fuzzer:
 
     def malformed(self, topic: str):
         """One message that breaks ``topic``'s contract; returns (kind, message)."""
-        columns = contracts.contract(topic).columns
+        if topic == DESCRIPTION:
+            return "bad_description", self._description()
+        columns = contracts.contract(topic).columns_for(PAPER_BODY)
         has_float = any(k == "float64" for k in columns.values())
         frame_id = self._valid_frame(topic)
         rows = int(self.rng.integers(1, 60))
@@ -192,6 +205,12 @@ class Fuzzer:
             msg.header.frame_id = str(self.rng.choice(BAD_FRAMES))
             # Valid layout and random content: must be refused for the frame id alone.
         return kind, msg
+
+    def _description(self):
+        msg = messages.description_to_msg(PAPER_BODY)
+        (msg.header.frame_id, msg.name, msg.position, msg.velocity) = BAD_DESCRIPTIONS[
+            int(self.rng.integers(len(BAD_DESCRIPTIONS)))]
+        return msg
 
     def fire(self) -> None:
         from std_msgs.msg import UInt64

@@ -215,14 +215,15 @@ def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_ki
         old_lights = np.asarray(world.initial_lights)
         current_lights = old_lights + np.array([0.7, -0.4])
         answers = {}
+        sensation_columns = contracts.contract("/body/sensation").columns_for(body.description)
         contracts.create_subscription(
             probe, "/body/sensation",
             lambda m: answers.setdefault(m.header.frame_id, []).append(
-                messages.cloud_to_matrix(m, contracts.contract("/body/sensation").columns)))
+                messages.cloud_to_matrix(m, sensation_columns)))
         lights_pub = contracts.create_publisher(probe, "/environment/lights")
         command_pub = contracts.create_publisher(probe, "/body/motor_command")
         lights_columns = contracts.contract("/environment/lights").columns
-        command_columns = contracts.contract("/body/motor_command").columns
+        command_columns = contracts.contract("/body/motor_command").columns_for(body.description)
         motor = np.array([[0.1, -1.5, 2.2, -3.0], [0.2, -1.4, 2.1, -2.9]])
 
         def spin(seconds):

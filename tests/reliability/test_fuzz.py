@@ -21,7 +21,7 @@ def test_fifteen_seconds_of_hostile_input_change_nothing(tmp_path, single_host_r
     assert set(report["sent_per_topic"]) == every, report["sent_per_topic"]
     assert min(report["sent_per_topic"].values()) >= 50, report["sent_per_topic"]
     for kind in ("random_bytes", "wrong_width", "bad_fields", "bad_frame", "nonfinite",
-                 "duplicate", "settled_unknown"):
+                 "duplicate", "settled_unknown", "bad_description"):
         assert report["sent_by_kind"].get(kind, 0) > 0, (kind, report["sent_by_kind"])
     assert report["sent_by_kind"].get("huge_nonfinite", 0) + \
         report["sent_by_kind"].get("huge_wrong_width", 0) >= 6

@@ -15,6 +15,7 @@ import pytest
 from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import in_process
 from sensorispace_ros.state.agent_journal import JOURNAL_FILE, SNAPSHOT_FILE, read_journal
 from sensorispace_ros.graph.framework import frame
@@ -23,6 +24,9 @@ from sensorispace_ros.graph.nodes.agent import AgentNode
 from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
 from .conftest import SMOKE
+
+PAPER_BODY = BodyDescription.revolute(4, 6)
+SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
 
 
 # ------------------------------------------------------------- retransmit
@@ -90,14 +94,53 @@ class RecordingPublisher:
 
 
 def _passive(kind, number, value=0.5):
-    return messages.matrix_to_cloud(np.full((1, 6), value),
-                                    contracts.contract("/body/sensation").columns,
+    return messages.matrix_to_cloud(np.full((1, 6), value), SENSATION,
                                     messages.make_header(frame(kind, number)))
 
 
-def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
+def _agent(context, description=PAPER_BODY, **graph):
+    """An agent node told what its body is (as the body's /body/description does)."""
+    node = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
+        SMOKE, graph))
+    node.on_description(messages.description_to_msg(description))
+    return node
+
+
+def test_the_agent_waits_for_its_body_description_and_sizes_itself_from_it(context, tmp_path):
     node = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
         SMOKE, {"graph.results_dir": str(tmp_path)}))
+    try:
+        assert node.body is None and node.agent is None
+        node.step()                                      # nothing to react with yet
+        small = BodyDescription(("a", "b"), "deg", (360.0, 360.0), 3)
+        node.on_description(messages.description_to_msg(small))
+        assert (node.body.n_motors, node.body.n_sensors) == (2, 3)
+        assert node.agent.n_motors == 2 and node.initial_motor_state.tolist() == [0.0, 0.0]
+        assert list(node.columns["/body/motor_command"]) == ["m0", "m1"]
+        assert list(node.columns["/agent/points_of_view"])[2:] == ["m0", "m1"]
+        # A sensation of another size is dropped, not handed to the agent.
+        node.on_sensation(_passive("change", 0))
+        assert node.dropped["/body/sensation"] == 1 and not node.passive
+        node.on_sensation(messages.matrix_to_cloud(
+            np.full((1, 3), 0.5), contracts.contract("/body/sensation").columns_for(small),
+            messages.make_header("change/0")))
+        assert [(k, n) for k, n, _ in node.passive] == [("change", 0)]
+    finally:
+        node.destroy_node()
+
+
+def test_the_paper_body_keeps_the_configured_posture(context, tmp_path):
+    node = _agent(context, **{"graph.results_dir": str(tmp_path)})
+    try:
+        assert (node.body.n_motors, node.body.n_sensors) == (4, 6)
+        np.testing.assert_array_equal(node.initial_motor_state,
+                                      config.load_config(SMOKE)["arm"]["initial_motor_state"])
+    finally:
+        node.destroy_node()
+
+
+def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
+    node = _agent(context, **{"graph.results_dir": str(tmp_path)})
     try:
         node.settled_pub = RecordingPublisher()
         node.last_passive = node.last_settled = 3
@@ -115,12 +158,10 @@ def test_a_passive_of_the_settled_change_is_settled_again(context, tmp_path):
 
 
 def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
-    node = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
-        SMOKE, {"graph.results_dir": str(tmp_path)}))
-    columns = contracts.contract("/body/sensation").columns
+    node = _agent(context, **{"graph.results_dir": str(tmp_path)})
 
     def answer(n):
-        return messages.matrix_to_cloud(np.zeros((1, 6)), columns,
+        return messages.matrix_to_cloud(np.zeros((1, 6)), SENSATION,
                                         messages.make_header(frame("cmd", n)))
     try:
         node.body.requests = 5                  # cmd/5 answered, nothing pending
@@ -136,9 +177,8 @@ def test_a_second_answer_to_an_answered_command_is_no_drop(context, tmp_path):
 def test_journal_records_older_than_the_snapshot_are_not_replayed(context, tmp_path):
     """A kill between the snapshot's os.replace and the journal's truncation
     leaves records the snapshot already holds: they must not be fed twice."""
-    overrides = in_process.parameter_overrides(SMOKE, {
-        "graph.results_dir": str(tmp_path), "graph.checkpoint_dir": str(tmp_path / "cp")})
-    first = AgentNode(context=context, parameter_overrides=overrides)
+    graph = {"graph.results_dir": str(tmp_path), "graph.checkpoint_dir": str(tmp_path / "cp")}
+    first = _agent(context, **graph)
     first.last_passive = first.last_settled = 5
     first.body.requests = 10
     first.take_snapshot()
@@ -149,8 +189,11 @@ def test_journal_records_older_than_the_snapshot_are_not_replayed(context, tmp_p
     first.journal.settled(5)
     first.journal.settled(6)
     first.destroy_node()                     # dies: no close, nothing more written
-    second = AgentNode(context=context, parameter_overrides=overrides)
+    second = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
+        SMOKE, graph))
     try:
+        assert second.agent is None and not second.passive   # resumed once it has its body
+        second.on_description(messages.description_to_msg(PAPER_BODY))
         assert [(k, n) for k, n, _ in second.passive] == [("change", 6)]
         np.testing.assert_array_equal(second.passive[0][2], np.full(6, 6.0))
         assert sorted(second.body.replay) == [11, 12] and second.body.requests == 10
@@ -187,8 +230,26 @@ def test_a_bad_checkpoint_stops_the_agent_naming_the_file(context, tmp_path, dam
                     "graph.checkpoint_dir": str(checkpoints)}))
 
 
+def test_a_snapshot_of_another_body_stops_the_agent_naming_the_file(context, tmp_path):
+    graph = {"graph.results_dir": str(tmp_path), "graph.checkpoint_dir": str(tmp_path / "cp")}
+    first = _agent(context, **graph)
+    first.take_snapshot()
+    first.close()
+    first.destroy_node()
+    second = AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
+        SMOKE, graph))
+    try:
+        errors = []
+        second.get_logger().error = errors.append
+        second.on_description(messages.description_to_msg(BodyDescription.revolute(4, 7)))
+        assert second.finished and second.exit_code == 2
+        assert len(errors) == 1 and "agent.snapshot: written for another body" in errors[0]
+    finally:
+        second.destroy_node()
+
+
 def _table(topic, frame_id, **columns):
-    return messages.table_to_cloud(columns, contracts.contract(topic).columns,
+    return messages.table_to_cloud(columns, contracts.contract(topic).columns_for(PAPER_BODY),
                                    messages.make_header(frame_id))
 
 
@@ -198,6 +259,8 @@ def test_representation_ignores_re_published_povs_and_rows(context, tmp_path):
     started = []
     node.build = lambda: started.append(True)
     try:
+        node.on_description(messages.description_to_msg(PAPER_BODY))
+
         def povs(frame_id, ids, value):
             ids = np.asarray(ids)
             return _table("/agent/points_of_view", frame_id, pov=np.repeat(ids, 2),
@@ -225,7 +288,7 @@ def test_representation_ignores_re_published_povs_and_rows(context, tmp_path):
         assert node.worker is not None, "duplicates were counted: totals never matched"
         assert node.duplicates == 3
         from sensorispace_ros.graph.nodes.representation import assemble_points_of_view
-        ids, motor = assemble_points_of_view(list(node.pov_tables.values()))
+        ids, motor = assemble_points_of_view(list(node.pov_tables.values()), 4)
         assert list(ids) == [0, 1, 2, 3] and np.all(motor[3] == 3.0)
         assert sum(len(t) for t in node.row_tables.values()) == 4
     finally:
@@ -245,6 +308,10 @@ class MortalAgent(AgentNode):
         super().__init__(**kwargs)
         self.dead = False
         self.snapshot_at_death: dict | None = None
+        self.resumed_at = None
+
+    def start_body(self, description):
+        super().start_body(description)        # resumes from the checkpoint
         self.resumed_at = (self.last_passive, self.last_settled, len(self.passive))
 
     def snapshot_due(self):

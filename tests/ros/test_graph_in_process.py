@@ -2,8 +2,9 @@
 
 (a) the smoke run completes and equals the offline naive run on the same
 config and seed; (c) the live graph shows the agent subscribing only to
-/body/sensation and the representation only to /agent/*; (d) malformed
-messages on every subscribed topic are dropped and change nothing.
+/body/sensation and the body's description, the representation only to
+/agent/* and the description; (d) malformed messages on every subscribed
+topic are dropped and change nothing.
 """
 import array
 
@@ -13,6 +14,7 @@ from rclpy.node import Node
 from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import in_process
 from sensorispace_ros.offline import strategies
 from sensorispace_ros.offline.representation import DIMENSIONS, build_representation
@@ -23,6 +25,8 @@ pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 SUBSCRIBED = {node: contracts.topics_subscribed_by(node)
               for node in ("environment", "body", "agent", "representation")}
+PAPER_BODY = BodyDescription.revolute(4, 6)
+DESCRIPTION = "/body/description"
 
 
 @pytest.fixture(scope="module")
@@ -98,8 +102,12 @@ def test_graph_equals_offline_and_agent_is_naive(tmp_path, domain_id, offline):
 
     seen = observer.subscriptions_by_node
     assert seen is not None, "the observer never saw the running graph"
-    assert seen["agent"] == ["/body/sensation"]
-    assert seen["representation"] and all(t.startswith("/agent/") for t in seen["representation"])
+    assert seen["agent"] == [DESCRIPTION, "/body/sensation"]
+    assert DESCRIPTION in seen["representation"] and all(
+        t.startswith("/agent/") for t in seen["representation"] if t != DESCRIPTION)
+    # The paper body described itself as the paper's: 4 joints in rad, 6 receptors.
+    for name in ("agent", "representation"):
+        assert result["nodes"][name].description == PAPER_BODY
     ground_truth = {t for t, c in contracts.load_contracts().items() if c.ground_truth}
     for name in ("agent", "representation"):
         assert not ground_truth & set(seen[name])
@@ -112,7 +120,7 @@ def test_graph_equals_offline_and_agent_is_naive(tmp_path, domain_id, offline):
 
 def _broken_clouds(topic: str, frame_id: str) -> list:
     """Malformed PointCloud2 messages for ``topic``, each wrong in one way."""
-    columns = contracts.contract(topic).columns
+    columns = contracts.contract(topic).columns_for(PAPER_BODY)
     rows = 2
 
     def valid():
@@ -158,6 +166,22 @@ def _broken_clouds(topic: str, frame_id: str) -> list:
 SERIALIZED_TOPICS = ("/environment/lights", "/body/motor_command", "/body/sensation")
 
 
+def _broken_descriptions() -> list:
+    """Malformed /body/description messages, each wrong in one way."""
+    broken = []
+    for frame_id, names, periods, velocity in (
+            ("rad", ["a"], [1.0], []), ("rad/0", ["a"], [1.0], []),
+            ("furlong/6", ["a"], [1.0], []), ("rad/6", [], [], []),
+            ("rad/6", ["a", "a"], [1.0, 1.0], []), ("rad/6", ["a"], [np.nan], []),
+            ("rad/6", ["a", "b"], [1.0], []), ("rad/6", ["a"], [-1.0], []),
+            ("rad/6", ["a"], [1.0], [0.0])):
+        msg = messages.description_to_msg(PAPER_BODY)
+        msg.header.frame_id, msg.name, msg.position, msg.velocity = (
+            frame_id, names, periods, velocity)
+        broken.append(msg)
+    return broken
+
+
 HOSTILE_FRAMES = {
     "/environment/lights": "change/1",
     "/body/motor_command": "cmd/1",
@@ -173,9 +197,11 @@ class HostilePublisher(Node):
 
     def __init__(self, context):
         super().__init__("hostile", context=context)
-        self.publishers_ = {t: contracts.create_publisher(self, t) for t in HOSTILE_FRAMES}
+        self.publishers_ = {t: contracts.create_publisher(self, t)
+                            for t in (*HOSTILE_FRAMES, DESCRIPTION)}
         self.settled_pub = contracts.create_publisher(self, "/agent/settled")
         self.messages = {t: _broken_clouds(t, f) for t, f in HOSTILE_FRAMES.items()}
+        self.messages[DESCRIPTION] = _broken_descriptions()
         self.sent = 0
         # A few per second: enough to cover every variant during a run without
         # turning the test into a load test (flooding is tests/reliability/test_fuzz.py).

@@ -1,7 +1,8 @@
 """GraphNode's reading of the probe topics' bytes (read_float_cloud: the same
-results and drop reasons as read_serialized + decode) and its clock (now_ns:
-the node clock's time, simulated time included). A node on a private context,
-no graph."""
+results and drop reasons as read_serialized + decode), its body description
+(messages sized by the body wait for it; a malformed or a different one is
+dropped) and its clock (now_ns: the node clock's time, simulated time
+included). A node on a private context, no graph."""
 import time
 
 import numpy as np
@@ -11,20 +12,24 @@ from rclpy.serialization import serialize_message
 from rclpy.time import Time
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.graph import in_process
+from sensorispace_ros.core.body_description import BodyDescription
+from sensorispace_ros.graph import framework, in_process
 from sensorispace_ros.graph.framework import MAX_FRAME_NUMBER, GraphNode, parse_frame
 
 from .conftest import SMOKE
 
-SENSATION = contracts.contract("/body/sensation").columns
+PAPER_BODY = BodyDescription.revolute(4, 6)
+SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
 KINDS = ("cmd", "change", "end")
 
 
-def _node(context, **graph):
+def _node(context, described=True, **graph):
     node = GraphNode("reader", context=context,
                      parameter_overrides=in_process.parameter_overrides(SMOKE, graph))
     node.reasons = []
     node.drop = lambda topic, reason: node.reasons.append((topic, reason))
+    if described:
+        node.on_description(messages.description_to_msg(PAPER_BODY))
     return node
 
 
@@ -96,6 +101,52 @@ def test_read_float_cloud_reads_and_drops_as_read_serialized_and_decode(context,
     finally:
         before.destroy_node()
         now.destroy_node()
+
+
+def test_messages_sized_by_the_body_wait_for_its_description(context):
+    node = _node(context, described=False)
+    sized, got = [], []
+    node._on_described = lambda description: sized.append(description)
+    take = node.when_described("/body/sensation", got.append)
+    small = BodyDescription(("a", "b"), "deg", (360.0, 360.0), 3)
+    try:
+        with pytest.raises(contracts.ContractError):
+            node.columns_of("/body/sensation")
+        take("first")
+        take("second")
+        assert got == [] and not sized
+        bad = messages.description_to_msg(small)
+        bad.header.frame_id = "deg/none"
+        node.on_description(bad)                       # malformed: dropped, still waiting
+        assert node.description is None and got == []
+        node.on_description(messages.description_to_msg(small))
+        assert sized == [small] and got == ["first", "second"]
+        assert list(node.columns_of("/body/sensation")) == ["s0", "s1", "s2"]
+        take("third")                                  # described: straight through
+        assert got == ["first", "second", "third"]
+        node.on_description(messages.description_to_msg(small))       # the same: nothing
+        node.on_description(messages.description_to_msg(PAPER_BODY))  # another: dropped
+        assert node.description == small and sized == [small]
+        assert [topic for topic, _ in node.reasons] == ["/body/description"] * 2
+        assert "differs" in node.reasons[1][1]
+    finally:
+        node.destroy_node()
+
+
+def test_the_messages_waiting_for_the_description_are_bounded(context, monkeypatch):
+    monkeypatch.setattr(framework, "MAX_WAITING", 3)
+    node = _node(context, described=False)
+    got = []
+    take = node.when_described("/agent/points_of_view", got.append)
+    try:
+        for k in range(5):
+            take(k)
+        assert node.reasons == [("/agent/points_of_view",
+                                 "more than 3 messages before the body description")] * 2
+        node.on_description(messages.description_to_msg(PAPER_BODY))
+        assert got == [0, 1, 2]
+    finally:
+        node.destroy_node()
 
 
 def test_now_ns_is_the_node_clocks_time(context):

@@ -8,10 +8,13 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState, PointCloud2
 
 from sensorispace_ros import contracts, messages
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.messages import MessageError
 
-MOTOR = contracts.contract("/body/motor_command").columns
-POV = contracts.contract("/agent/points_of_view").columns
+PAPER_BODY = BodyDescription.revolute(4, 6)       # joint1..joint4 in rad, 6 receptors
+JOINT_NAMES = list(PAPER_BODY.joint_names)
+MOTOR = contracts.contract("/body/motor_command").columns_for(PAPER_BODY)
+POV = contracts.contract("/agent/points_of_view").columns_for(PAPER_BODY)
 EVENT = contracts.contract("/environment/event").columns
 
 
@@ -120,16 +123,93 @@ def test_message_error_is_a_value_error():
 
 def test_joint_state_round_trip_and_rejections():
     motor = np.array([0.1, -1.5, 2.2, -3.0])
-    msg = _wire(messages.motor_to_joint_state(motor, messages.make_header("cmd/2")))
+    msg = _wire(messages.motor_to_joint_state(motor, messages.make_header("cmd/2"), JOINT_NAMES))
     assert list(msg.name) == ["joint1", "joint2", "joint3", "joint4"]
-    assert np.array_equal(messages.joint_state_to_motor(msg), motor)
+    assert np.array_equal(messages.joint_state_to_motor(msg, JOINT_NAMES), motor)
     bad_names = JointState(name=["joint1", "joint2", "joint3", "elbow"], position=list(motor))
-    short = JointState(name=list(messages.JOINT_NAMES), position=[0.0, 1.0, 2.0])
-    nan = JointState(name=list(messages.JOINT_NAMES), position=[0.0, np.nan, 2.0, 3.0])
-    bad_velocity = JointState(name=list(messages.JOINT_NAMES), position=list(motor), velocity=[1.0])
+    short = JointState(name=JOINT_NAMES, position=[0.0, 1.0, 2.0])
+    nan = JointState(name=JOINT_NAMES, position=[0.0, np.nan, 2.0, 3.0])
+    bad_velocity = JointState(name=JOINT_NAMES, position=list(motor), velocity=[1.0])
     for bad in (bad_names, short, nan, bad_velocity):
         with pytest.raises(MessageError):
-            messages.joint_state_to_motor(_wire(bad))
+            messages.joint_state_to_motor(_wire(bad), JOINT_NAMES)
+
+
+# ------------------------------------------------ the body description (/body/description)
+
+@pytest.mark.parametrize("description", [
+    PAPER_BODY, BodyDescription.revolute(2, 3, "deg"),
+    BodyDescription(("shoulder", "elbow", "wrist"), "rad", (6.283185307179586, 3.0, 1e-3), 1)],
+    ids=["paper", "deg", "named"])
+def test_description_round_trip_through_cdr(description):
+    msg = _wire(messages.description_to_msg(description, 42))
+    assert msg.header.frame_id == f"{description.unit}/{description.receptors}"
+    assert list(msg.name) == list(description.joint_names)
+    assert list(msg.position) == list(description.periods)
+    assert not len(msg.velocity) and not len(msg.effort)
+    assert messages.description_from_msg(msg) == description
+
+
+def test_the_paper_body_describes_itself_as_the_paper_columns():
+    msg = messages.description_to_msg(PAPER_BODY)
+    assert msg.header.frame_id == "rad/6" and msg.position.tolist() == [2 * np.pi] * 4
+    assert list(MOTOR) == ["m0", "m1", "m2", "m3"]
+    assert list(SENSATION) == [f"s{i}" for i in range(6)]
+    assert contracts.contract("/body/joint_states").joint_names_for(PAPER_BODY) == \
+        ("joint1", "joint2", "joint3", "joint4")
+
+
+def _description(frame_id="deg/3", name=("a", "b"), position=(360.0, 360.0), **extra):
+    return JointState(header=messages.make_header(frame_id), name=list(name),
+                      position=list(position), **extra)
+
+
+BAD_DESCRIPTIONS = {
+    "no unit": _description("3"), "unknown unit": _description("grad/3"),
+    "no receptors": _description("deg/"), "zero receptors": _description("deg/0"),
+    "signed receptors": _description("deg/+3"), "huge receptors": _description("deg/99999999"),
+    "too many receptors": _description(f"deg/{messages.MAX_RECEPTORS + 1}"),
+    "superscript receptors": _description("deg/\u00b3"),
+    "no joints": _description(name=(), position=()),
+    "periods missing": _description(position=(360.0,)),
+    "repeated names": _description(name=("a", "a")), "empty name": _description(name=("a", "")),
+    "zero period": _description(position=(360.0, 0.0)),
+    "negative period": _description(position=(-360.0, 360.0)),
+    "nan period": _description(position=(360.0, np.nan)),
+    "inf period": _description(position=(np.inf, 360.0)),
+    "velocity": _description(velocity=[0.0, 0.0]), "effort": _description(effort=[1.0, 1.0]),
+}
+
+
+def test_a_well_formed_description_decodes():
+    assert messages.description_from_msg(_wire(_description())) == \
+        BodyDescription(("a", "b"), "deg", (360.0, 360.0), 3)
+
+
+@pytest.mark.parametrize("bad", BAD_DESCRIPTIONS.values(), ids=BAD_DESCRIPTIONS.keys())
+def test_a_malformed_description_is_a_message_error(bad):
+    with pytest.raises(MessageError):
+        messages.description_from_msg(_wire(bad))
+
+
+def test_cloud_column_reads_one_column_whatever_the_others():
+    for description in (PAPER_BODY, BodyDescription.revolute(2, 1), BodyDescription.revolute(9, 1)):
+        columns = contracts.contract("/agent/points_of_view").columns_for(description)
+        rows = {"pov": np.array([3, 3, 8]), "sample": np.array([0, 1, 0]),
+                **{name: np.full(3, 0.5) for name in columns if name.startswith("m")}}
+        msg = messages.table_to_cloud(rows, columns, messages.make_header("change/1"))
+        for cloud in (_wire(msg), messages.cloud_from_cdr(serialize_message(msg))):
+            assert messages.cloud_column(cloud, "pov", "uint32").tolist() == [3, 3, 8]
+            assert messages.cloud_column(cloud, "m1", "float64").tolist() == [0.5] * 3
+    empty = messages.table_to_cloud({name: [] for name in POV}, POV, messages.make_header("x"))
+    assert messages.cloud_column(_wire(empty), "pov", "uint32").shape == (0,)
+    # The layouts broken beyond the pov column (renamed, shifted or missing m
+    # columns leave it readable).
+    for name in ("type", "point_step", "row_step", "width", "height", "bigendian", "short_data"):
+        with pytest.raises(MessageError):
+            messages.cloud_column(_wire(BAD_LAYOUTS[name]), "pov", "uint32")
+    with pytest.raises(MessageError, match="pov"):
+        messages.cloud_column(_wire(_valid_pov_cloud()), "pov", "float64")
 
 
 def test_encode_refuses_wrong_shapes():
@@ -143,7 +223,7 @@ def test_encode_refuses_wrong_shapes():
 
 # ------------------------------------------------ serialized clouds (raw publish / take)
 
-SENSATION = contracts.contract("/body/sensation").columns
+SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
 POSE = contracts.contract("/body/sensor_pose").columns
 # Every frame id length mod 4 (the padding after it) and mod 8 (JointState's float64s).
 FRAME_IDS = ["", "c", "cm", "cmd", "cmd/", "cmd/7", "cmd/78", "cmd/789", "change/12345", "é/1"]
@@ -175,15 +255,17 @@ def test_cdr_packer_writes_what_rclpy_reads_and_cloud_from_cdr_reads_what_rclpy_
 
 
 def test_joint_state_cdr_packer_writes_what_rclpy_reads():
-    packer = messages.JointStateCdrPacker()
-    motor = np.array([0.1, -1.5, 2.2, -3.0])
-    for frame_id in FRAME_IDS:
-        expected = messages.motor_to_joint_state(motor, messages.make_header(frame_id, 7))
-        got = deserialize_message(packer.pack(motor, frame_id, 7), JointState)
-        assert got == expected
-        assert np.array_equal(messages.joint_state_to_motor(got), motor)
-    with pytest.raises(ValueError, match="joints"):
-        packer.pack(np.zeros(3), "cmd/1")
+    for names in (JOINT_NAMES, ["shoulder", "é"], [f"j{k}" for k in range(7)]):
+        packer = messages.JointStateCdrPacker(names)
+        motor = np.linspace(-3.0, 2.0, len(names))
+        for frame_id in FRAME_IDS:
+            expected = messages.motor_to_joint_state(motor, messages.make_header(frame_id, 7),
+                                                     names)
+            got = deserialize_message(packer.pack(motor, frame_id, 7), JointState)
+            assert got == expected
+            assert np.array_equal(messages.joint_state_to_motor(got, names), motor)
+        with pytest.raises(ValueError, match="joints"):
+            packer.pack(np.zeros(len(names) + 1), "cmd/1")
 
 
 def test_mixed_type_table_through_serialized_bytes():

@@ -15,6 +15,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core import scene
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import in_process
 from sensorispace_ros.graph.live_view import LiveView
 from sensorispace_ros.graph.nodes.viewer import ViewerNode
@@ -25,6 +26,7 @@ from .foxglove_client import FoxgloveClient
 STORE = get_typestore(Stores.ROS2_JAZZY)
 VIEWER_TOPICS = contracts.topics_published_by("viewer")
 CLOUD_COLUMNS = contracts.contract("/viewer/representation_2d").columns
+PAPER_BODY = BodyDescription.revolute(4, 6)
 
 
 def free_port() -> int:
@@ -88,7 +90,7 @@ def test_scene_shapes_become_markers_of_the_matching_type():
 
 
 def test_series_are_multiarrays_named_by_their_contract():
-    names = contracts.contract("/viewer/sensation").elements
+    names = contracts.contract("/viewer/sensation").elements_for(PAPER_BODY)
     msg = deserialize_message(cdr(messages.values_to_multiarray(np.arange(6.0), names)),
                               Float64MultiArray)
     assert list(msg.data) == [0, 1, 2, 3, 4, 5]
@@ -98,8 +100,9 @@ def test_series_are_multiarrays_named_by_their_contract():
 
 
 def test_the_viewer_contract_follows_the_topics_it_shows():
-    assert contracts.contract("/viewer/sensation").elements == tuple(
-        contracts.contract("/body/sensation").columns)
+    for body in (PAPER_BODY, BodyDescription.revolute(2, 3, "deg")):
+        assert contracts.contract("/viewer/sensation").elements_for(body) == tuple(
+            contracts.contract("/body/sensation").columns_for(body))
     assert contracts.contract("/viewer/stage_counters").elements == tuple(
         contracts.contract("/agent/stage_counters").columns)
     assert set(VIEWER_TOPICS) == {"/viewer/scene", "/viewer/representation_2d",
@@ -110,7 +113,7 @@ def test_the_viewer_contract_follows_the_topics_it_shows():
         assert spec.subscribers == ("recorder",), topic   # nothing of the graph reads them
         assert spec.type_name in STORE.types, topic         # the recorder can store them
         if spec.type_name == "std_msgs/msg/Float64MultiArray":
-            assert spec.elements, topic
+            assert spec.element_spec, topic
     # the viewer may read ground truth; the agent and the representation still do not
     for node in ("agent", "representation"):
         assert not {t for t in contracts.topics_subscribed_by(node)
@@ -122,8 +125,8 @@ def test_the_live_view_advertises_ros2msg_channels_and_sends_cdr():
     live = LiveView(port, {"/viewer/sensation": "std_msgs/msg/Float64MultiArray"})
     client = FoxgloveClient(live.url).start()
     try:
-        sent = cdr(messages.values_to_multiarray(np.arange(6.0) / 10,
-                                                 contracts.contract("/viewer/sensation").elements))
+        sent = cdr(messages.values_to_multiarray(
+            np.arange(6.0) / 10, contracts.contract("/viewer/sensation").elements_for(PAPER_BODY)))
         deadline = time.monotonic() + 30
         while not client.received("/viewer/sensation") and time.monotonic() < deadline:
             live.log("/viewer/sensation", sent, time.time_ns())   # dropped until subscribed
@@ -163,6 +166,7 @@ def test_the_viewer_drops_malformed_messages_and_draws_on(context):
     viewer = ViewerNode(context=context,
                         parameter_overrides=in_process.parameter_overrides(SMOKE))
     try:
+        viewer.on_description(messages.description_to_msg(PAPER_BODY))
         lights = contracts.contract("/environment/lights").columns
         good = messages.CloudCdrPacker(lights).pack(np.array([[4.0, 1.0], [5.0, 2.0]]), "change/0")
         viewer.on_lights(b"\x00\x01\x00\x00junk")
@@ -244,8 +248,9 @@ def test_a_smoke_run_is_served_to_a_foxglove_client_and_the_agent_stays_naive(
 
     # naivety holds with the viewer in the graph; the viewer reads what its contract says
     seen = observers[0].seen
-    assert seen["agent"] == ["/body/sensation"]
-    assert seen["representation"] and all(t.startswith("/agent/") for t in seen["representation"])
+    assert seen["agent"] == ["/body/description", "/body/sensation"]
+    assert "/body/description" in seen["representation"] and all(
+        t.startswith("/agent/") for t in seen["representation"] if t != "/body/description")
     assert seen["viewer"] == sorted(contracts.topics_subscribed_by("viewer"))
 
     advertised = {c["topic"]: c for c in client.channels.values()}
@@ -321,7 +326,8 @@ def test_the_foxglove_layout_shows_the_viewer_topics_in_their_frames():
     for config in plots.values():
         for path in config["paths"]:
             topic, index = re.fullmatch(r"(/[\w/]+)\.data\[(\d+)\]", path["value"]).groups()
-            elements = contracts.contract(topic).elements
+            # The layout plots the paper's body (6 receptors).
+            elements = contracts.contract(topic).elements_for(PAPER_BODY)
             assert int(index) < len(elements)
             assert path["label"].replace(" ", "_") == elements[int(index)], path
 

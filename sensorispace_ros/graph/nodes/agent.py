@@ -1,7 +1,11 @@
 """Agent node: the naive agent (core.naive.agent.NaiveAgent, unchanged).
 
-It subscribes to ``/body/sensation`` and nothing else, and meets its body
-through ``graph.body_over_topics.BodyOverTopics`` (a ``sense`` is a round trip
+It subscribes to ``/body/sensation`` and ``/body/description`` and nothing
+else. It starts once the body has said what it is (the latched
+``/body/description``): its motor commands have one column per joint, its
+sensations one per receptor, and the naive agent is sized from that, never
+from the configuration; sensations that come before the description wait
+for it. It meets its body through ``graph.body_over_topics.BodyOverTopics`` (a ``sense`` is a round trip
 of ``/body/motor_command`` and ``/body/sensation``, spun in this thread; with
 each settle it sends the next change's first call ahead). Commands and answers
 travel as serialized bytes (``messages.CloudCdrPacker`` /
@@ -23,7 +27,8 @@ it also writes them to ``<graph.results_dir>/agent_records.npz``, for a run
 evaluated without a bag (``launch --no-record``).
 
 Restart (only with ``graph.checkpoint_dir`` set, "" costs nothing).
-The agent persists ``<dir>/agent.snapshot`` and ``<dir>/agent.journal``
+The checkpoint is read and checked at start-up (a bad one stops the node
+there), and resumed once the body description has come. The agent persists ``<dir>/agent.snapshot`` and ``<dir>/agent.journal``
 (format: ``sensorispace_ros.state.agent_journal``). The journal gets, unbuffered
 (one ``os.writev`` each, kept by the page cache through a kill -9), every
 input the agent consumes: each new passive sensation when it arrives, each
@@ -82,6 +87,9 @@ from sensorispace_ros.graph.framework import GraphNode, frame, run_node
 
 
 AGENT_RECORDS_FILE = "agent_records.npz"
+TOPICS = ("/body/motor_command", "/body/sensation", "/agent/points_of_view",
+          "/agent/compensations", "/agent/done", "/agent/pov_records",
+          "/agent/compensation_records", "/agent/stage_counters")
 
 
 class AgentNode(GraphNode):
@@ -96,15 +104,12 @@ class AgentNode(GraphNode):
 
     def __init__(self, **kwargs):
         super().__init__("agent", **kwargs)
-        self.columns = {topic: contracts.contract(topic).columns for topic in (
-            "/body/motor_command", "/body/sensation", "/agent/points_of_view",
-            "/agent/compensations", "/agent/done", "/agent/pov_records",
-            "/agent/compensation_records", "/agent/stage_counters")}
+        self.columns: dict[str, dict] = {}
         self.command_pub = contracts.create_publisher(self, "/body/motor_command")
         # Commands go out and answers come in as serialized bytes (messages.CloudCdrPacker,
         # GraphNode.read_float_cloud): rclpy's message conversions would cost more
         # than the rest of a round trip, once per sense call each way.
-        self.command_packer = messages.CloudCdrPacker(self.columns["/body/motor_command"])
+        self.command_packer: messages.CloudCdrPacker | None = None
         self.pov_pub = contracts.create_publisher(self, "/agent/points_of_view")
         self.compensation_pub = contracts.create_publisher(self, "/agent/compensations")
         self.settled_pub = contracts.create_publisher(self, "/agent/settled")
@@ -113,16 +118,14 @@ class AgentNode(GraphNode):
         self.compensation_record_pub = contracts.create_publisher(
             self, "/agent/compensation_records")
         self.stage_counter_pub = contracts.create_publisher(self, "/agent/stage_counters")
-        contracts.create_subscription(self, "/body/sensation", self.on_sensation, raw=True)
-
-        self.body = BodyOverTopics(self.publish_command, lambda t: self.spin_once(t),
-                                   n_motors=len(self.columns["/body/motor_command"]),
-                                   n_sensors=len(self.columns["/body/sensation"]),
-                                   command_timeout_s=float(self.graph["command_timeout_s"]),
-                                   on_retransmit=self.log_retransmit)
-        # The agent knows its own initial posture (proprioception), nothing of the world.
-        self.initial_motor_state = np.asarray(self.cfg["arm"]["initial_motor_state"], float)
-        self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]))
+        contracts.create_subscription(
+            self, "/body/sensation", self.when_described("/body/sensation", self.on_sensation),
+            raw=True)
+        # Sized by the body description (start_body).
+        self.body: BodyOverTopics | None = None
+        self.agent: NaiveAgent | None = None
+        self.initial_motor_state: np.ndarray | None = None
+        self.aborted = False
         self.passive: collections.deque = collections.deque()
         self.last_passive = -1
         self.last_settled = -1
@@ -144,24 +147,69 @@ class AgentNode(GraphNode):
         self._last_snapshot = time.monotonic()
         self._resume_timer = None
         self._await_peers = False
+        self.checkpoint = None
         if self.graph["checkpoint_dir"]:
             try:
-                self.restore(Path(self.graph["checkpoint_dir"]))
+                self.checkpoint = self.read_checkpoint(Path(self.graph["checkpoint_dir"]))
             except (CheckpointError, OSError) as exc:
                 # run_node turns this into one line and exit code 2, no traceback.
                 raise config.ConfigError(f"graph.checkpoint_dir: {exc}") from exc
+        self.subscribe_description(self.start_body)
+
+    def start_body(self, description) -> None:
+        """Size the agent from the body description: its commands, its sensations,
+        the naive agent; then resume from the checkpoint, if any."""
+        self.columns = {topic: self.columns_of(topic) for topic in TOPICS}
+        self.command_packer = messages.CloudCdrPacker(self.columns["/body/motor_command"])
+        self.body = BodyOverTopics(self.publish_command, lambda t: self.spin_once(t),
+                                   n_motors=description.n_motors,
+                                   n_sensors=description.receptors,
+                                   command_timeout_s=float(self.graph["command_timeout_s"]),
+                                   on_retransmit=self.log_retransmit)
+        self.body.aborted = self.aborted
+        self.initial_motor_state = self.initial_posture(description)
+        self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]))
+        if self.checkpoint is not None:
+            checkpoint, self.checkpoint = self.checkpoint, None
+            try:
+                self.restore(*checkpoint)
+            except CheckpointError as exc:
+                self.get_logger().error(f"graph.checkpoint_dir: {exc}")
+                self.exit_code = 2
+                self.finished = True
+
+    def initial_posture(self, description) -> np.ndarray:
+        """The agent's first motor state (proprioception, nothing of the world):
+        ``arm.initial_motor_state`` when it has a value per joint of this body
+        (the simulated body starts there), otherwise every joint at 0."""
+        posture = np.asarray(self.cfg["arm"]["initial_motor_state"], float)
+        if posture.shape == (description.n_motors,):
+            return posture
+        self.get_logger().warning(
+            f"arm.initial_motor_state has {len(posture)} values for a body of "
+            f"{description.n_motors} joints: starting with every joint at 0")
+        return np.zeros(description.n_motors)
 
     # ------------------------------------------------------------ restart
 
-    def restore(self, directory: Path) -> None:
-        """Load the snapshot and the journal of ``directory`` (none: a fresh
-        start) and open the journal for appending."""
+    def read_checkpoint(self, directory: Path) -> tuple:
+        """The snapshot and the journal of ``directory`` (none: a fresh start),
+        read and checked against this run's configuration."""
         snapshot_path = directory / SNAPSHOT_FILE
         snapshot = read_snapshot(snapshot_path)
+        if snapshot is not None and snapshot.get("config") != self.cfg:
+            raise CheckpointError(f"{snapshot_path}: written by a run with another "
+                                  "configuration; remove it to start afresh")
+        return directory, snapshot, read_journal(directory / JOURNAL_FILE)
+
+    def restore(self, directory: Path, snapshot, journal) -> None:
+        """Resume from ``read_checkpoint``'s snapshot and journal, and open the
+        journal for appending."""
+        snapshot_path = directory / SNAPSHOT_FILE
         if snapshot is not None:
-            if snapshot.get("config") != self.cfg:
-                raise CheckpointError(f"{snapshot_path}: written by a run with another "
-                                      "configuration; remove it to start afresh")
+            if snapshot.get("description", self.description) != self.description:
+                raise CheckpointError(f"{snapshot_path}: written for another body "
+                                      f"({snapshot['description']}); remove it to start afresh")
             try:
                 self.agent = NaiveAgent.from_state(self.body, snapshot["agent"])
                 node = snapshot["node"]
@@ -175,7 +223,6 @@ class AgentNode(GraphNode):
                 raise CheckpointError(f"{snapshot_path}: incomplete agent snapshot "
                                       f"({type(exc).__name__}: {exc})") from exc
         journal_path = directory / JOURNAL_FILE
-        journal = read_journal(journal_path)
         # Records older than the snapshot: a kill fell between its replace and
         # the journal's truncation.
         passives = [p for p in journal.passives if p[1] > self.last_passive]
@@ -235,7 +282,7 @@ class AgentNode(GraphNode):
             if not publisher.wait_for_all_acked(Duration(seconds=1.0)):
                 self.checkpoint_stats["ack_timeouts"] += 1
         size = write_snapshot(self.journal.path.with_name(SNAPSHOT_FILE), {
-            "config": self.cfg, "agent": self.agent.state(),
+            "config": self.cfg, "description": self.description, "agent": self.agent.state(),
             "node": {"last_passive": self.last_passive, "last_settled": self.last_settled,
                      "n_povs": self.n_povs, "n_rows": self.n_rows, "run_over": self.run_over,
                      "requests": self.body.requests, "retransmits": self.body.retransmits,
@@ -260,7 +307,9 @@ class AgentNode(GraphNode):
     # ------------------------------------------------------------ the run
 
     def abort(self) -> None:
-        self.body.aborted = True
+        self.aborted = True
+        if self.body is not None:
+            self.body.aborted = True
 
     def on_sensation(self, msg) -> None:
         tracing.stamp("agent.answer")
@@ -309,7 +358,7 @@ class AgentNode(GraphNode):
 
     def step(self) -> None:
         """React to the queued passive sensations; call between callbacks, not inside one."""
-        if self._stepping or self.run_over:
+        if self._stepping or self.run_over or self.agent is None or self.finished:
             return
         self._stepping = True
         try:

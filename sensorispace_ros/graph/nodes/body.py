@@ -1,5 +1,8 @@
 """Body node: the simulated arm + retina (core.body.SimulatedBody).
 
+At start it publishes what it is on the latched ``/body/description``
+(``core.body_description.BodyDescription``: joint names, unit, periods,
+receptors), which the agent and the representation size themselves from.
 Answers each ``/body/motor_command`` batch with one ``/body/sensation``
 carrying the same header (the request id), and after each lights message a
 one-row passive sensation of the resting arm (frame ``change/<k>`` or
@@ -30,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros import contracts, messages
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import tracing
 from sensorispace_ros.core.body import SimulatedBody, simulate
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, GraphNode, build_world, run_node
@@ -42,6 +46,8 @@ class BodyNode(GraphNode):
         super().__init__("body", **kwargs)
         world = build_world(self.cfg)
         self.body = SimulatedBody(world.receptors, None, world.m0.copy())
+        self.description = (getattr(self.body, "description", None)
+                            or BodyDescription.revolute(self.body.n_motors, self.body.n_sensors))
         self.resting_file = None
         # After a restart: commands wait until the lights history (transient_local,
         # re-delivered interleaved with commands) is back at the change applied
@@ -58,16 +64,16 @@ class BodyNode(GraphNode):
         self.held: "messages.FloatCloud | None" = None
         self.held_for = -1
         if self.graph["checkpoint_dir"]:
-            # [m0..m3, k]: the resting state and the number of the last lights applied
+            # [m0..m{N-1}, k]: the resting state and the number of the last lights applied
             self.resting_file = RestingStateFile(
-                Path(self.graph["checkpoint_dir"]) / "body.state", len(world.m0) + 1)
+                Path(self.graph["checkpoint_dir"]) / "body.state", self.description.n_motors + 1)
             saved = self.resting_file.load()
             if saved is not None:
                 resting, self.lights_before_kill = saved[:-1], int(saved[-1])
                 self.body.motor_state = resting
                 self.get_logger().warning(f"restarted: resting motor state {resting.tolist()} "
                                           f"restored from {self.resting_file.path}")
-        self.columns = {topic: contracts.contract(topic).columns for topic in (
+        self.columns = {topic: self.columns_of(topic) for topic in (
             "/environment/lights", "/body/motor_command", "/body/sensation", "/body/sensor_pose")}
         # Replies go out, and commands and lights come in, as serialized bytes (messages.
         # CloudCdrPacker, GraphNode.read_float_cloud): rclpy's message conversions
@@ -75,7 +81,11 @@ class BodyNode(GraphNode):
         # three publications.
         self.sensation_packer = messages.CloudCdrPacker(self.columns["/body/sensation"])
         self.pose_packer = messages.CloudCdrPacker(self.columns["/body/sensor_pose"])
-        self.joint_packer = messages.JointStateCdrPacker()
+        self.joint_packer = messages.JointStateCdrPacker(
+            contracts.contract("/body/joint_states").joint_names_for(self.description))
+        # Once, kept for late joiners (transient_local): what this body is.
+        self.description_pub = contracts.create_publisher(self, "/body/description")
+        self.description_pub.publish(messages.description_to_msg(self.description, self.now_ns()))
         self.sensation_pub = contracts.create_publisher(self, "/body/sensation")
         self.pose_pub = contracts.create_publisher(self, "/body/sensor_pose")
         self.joint_pub = contracts.create_publisher(self, "/body/joint_states")

@@ -1,8 +1,13 @@
 """Representation node: points of view + equality sets -> embeddings.
 
-Subscribes only to ``/agent/*``. Collects the points of view and the
-equality rows; a re-sent message is not counted twice and the first copy
-wins: POV ids it already holds and a second ``/agent/compensations`` message
+Subscribes only to ``/agent/*`` and to the body description
+(``/body/description``), which fixes the POVs' motor columns (``m0..m{N-1}``)
+and their unit: POV messages that come before it wait for it, and motor
+values are turned into angles (``BodyDescription.to_radians``, a period to
+2 pi; the same bits for radians) before the Hausdorff metric, whose wrap is
+2 pi. The arrays written keep the body's own unit. Collects the points of
+view and the equality rows; a re-sent message is not counted twice and the
+first copy wins: POV ids it already holds and a second ``/agent/compensations`` message
 for one change (frame id) are ignored (a restarted agent re-publishes the
 reaction of the change it died in); once ``/agent/done`` has arrived and
 the totals match, runs ``offline.representation.build_representation`` in a worker
@@ -39,16 +44,18 @@ RESULT_FILE = "representation.npz"
 CHAIN_POOL_DELAY_S = 3.0
 
 
-def assemble_points_of_view(tables: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """POV ids (sorted) and motor samples ``(n_povs, n_samples, 4)`` from row tables."""
+def assemble_points_of_view(tables: list[np.ndarray], n_motors: int
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """POV ids (sorted) and motor samples ``(n_povs, n_samples, n_motors)`` from
+    row tables (columns pov, sample, m0..m{n_motors-1})."""
     if not tables:
-        return np.zeros(0, dtype=np.int64), np.zeros((0, 0, 4))
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 0, n_motors))
     rows = np.concatenate(tables)
     ids = np.unique(rows["pov"]).astype(np.int64)
     n_samples = int(rows["sample"].max()) + 1
-    motor = np.full((len(ids), n_samples, 4), np.nan)
+    motor = np.full((len(ids), n_samples, n_motors), np.nan)
     where = np.searchsorted(ids, rows["pov"])
-    for j in range(4):
+    for j in range(n_motors):
         motor[where, rows["sample"], j] = rows[f"m{j}"]
     if np.isnan(motor).any():
         raise ValueError("some point of view misses samples")
@@ -59,11 +66,12 @@ class RepresentationNode(GraphNode):
 
     def __init__(self, **kwargs):
         super().__init__("representation", **kwargs)
-        self.columns = {topic: contracts.contract(topic).columns for topic in (
-            "/agent/points_of_view", "/agent/compensations", "/agent/done",
-            "/representation/embedding")}
+        self.columns = {topic: self.columns_of(topic) for topic in (
+            "/agent/compensations", "/agent/done", "/representation/embedding")}
         self.embedding_pub = contracts.create_publisher(self, "/representation/embedding")
-        contracts.create_subscription(self, "/agent/points_of_view", self.on_points_of_view)
+        self.subscribe_description(lambda description: self.maybe_start())
+        contracts.create_subscription(self, "/agent/points_of_view", self.when_described(
+            "/agent/points_of_view", self.on_points_of_view))
         contracts.create_subscription(self, "/agent/compensations", self.on_compensations)
         contracts.create_subscription(self, "/agent/done", self.on_done)
         self.pov_tables: dict[str, np.ndarray] = {}
@@ -102,7 +110,7 @@ class RepresentationNode(GraphNode):
             return
         started = time.monotonic()
         # Loads numba's cached Hausdorff kernels now rather than after
-        # /agent/done (import and first call: ~0.5 s).
+        # /agent/done (import and first call: ~0.5 s); any shape loads the same.
         hausdorff_matrix(np.linspace(0.0, 1.0, 6 * 10 * 4).reshape(6, 10, 4))
         try:
             pool = chain_pool.start_chain_pool()
@@ -147,7 +155,7 @@ class RepresentationNode(GraphNode):
         if self.hausdorff_failed:
             return
         try:
-            ids, povs = assemble_points_of_view([table])
+            ids, povs = assemble_points_of_view([table], self.description.n_motors)
         except ValueError as exc:
             self.give_up_hausdorff(f"a message holds part of a POV ({exc})")
             return
@@ -161,7 +169,8 @@ class RepresentationNode(GraphNode):
                                    f"{self.hausdorff.n_samples}")
             return
         try:
-            self.hausdorff_worker.submit(self._add_to_hausdorff, povs)
+            self.hausdorff_worker.submit(self._add_to_hausdorff,
+                                         self.description.to_radians(povs))
         except RuntimeError:                # after the build took the matrix (shut down)
             self.give_up_hausdorff("a POV arrived after the representation was started")
             return
@@ -214,7 +223,7 @@ class RepresentationNode(GraphNode):
         self.maybe_start()
 
     def maybe_start(self) -> None:
-        if self.totals is None or self.worker is not None:
+        if self.totals is None or self.worker is not None or self.description is None:
             return
         n_povs = len(self.pov_ids)
         n_rows = sum(len(t) for t in self.row_tables.values())
@@ -225,7 +234,8 @@ class RepresentationNode(GraphNode):
 
     def build(self) -> None:
         try:
-            ids, povs = assemble_points_of_view(list(self.pov_tables.values()))
+            ids, povs = assemble_points_of_view(list(self.pov_tables.values()),
+                                                self.description.n_motors)
             rows = (np.concatenate(list(self.row_tables.values())) if self.row_tables
                     else np.zeros(0, dtype=messages.record_dtype(self.columns["/agent/compensations"])))
             # Equality rows name POVs by id; the representation indexes them by position.
@@ -236,7 +246,8 @@ class RepresentationNode(GraphNode):
                                    f"{len(rows)} equality rows")
             distance = self.grown_hausdorff(ids)
             self.chain_pool_starter.join()
-            representation = self._build_representation(povs, pairs, set_ids, distance)
+            representation = self._build_representation(
+                self.description.to_radians(povs), pairs, set_ids, distance)
             # Same array names as offline.run_files.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
                       "hausdorff": representation.distance}
@@ -262,14 +273,16 @@ class RepresentationNode(GraphNode):
             raise
         self.finished = bool(self.graph["exit_when_done"])
 
-    def _build_representation(self, povs: np.ndarray, pairs: np.ndarray,
+    def _build_representation(self, angles: np.ndarray, pairs: np.ndarray,
                               set_ids: np.ndarray, distance: np.ndarray | None = None):
+        """``offline.representation.build_representation`` of the POVs as angles
+        (rad, period 2 pi)."""
         from concurrent.futures.process import BrokenProcessPool
 
         from sensorispace_ros.offline.representation import build_representation
         if self.chain_pool is not None:
             try:
-                return build_representation(povs, pairs, set_ids, self.cfg,
+                return build_representation(angles, pairs, set_ids, self.cfg,
                                             self.cfg["seed"], executor=self.chain_pool,
                                             distance=distance)
             except BrokenProcessPool as exc:
@@ -277,7 +290,7 @@ class RepresentationNode(GraphNode):
                     raise
                 self.get_logger().warning(f"the chain pool broke ({exc}); "
                                           "building again with the chains in turn")
-        return build_representation(povs, pairs, set_ids, self.cfg, self.cfg["seed"],
+        return build_representation(angles, pairs, set_ids, self.cfg, self.cfg["seed"],
                                     processes=1, distance=distance)
 
     def destroy_node(self):

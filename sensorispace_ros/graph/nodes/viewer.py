@@ -5,7 +5,12 @@ nothing in the graph reads what it publishes but the recorder. It follows
 the world (/environment/lights), the body (/body/joint_states,
 /body/sensor_pose, /body/sensation; best effort, so a display never holds
 back the body's writers) and the agent's and the representation's outputs,
-keeps them in a ``core.scene.Scene`` and publishes (msg_schemas/topics.yaml):
+keeps them in a ``core.scene.Scene`` and publishes (msg_schemas/topics.yaml).
+What is sized by the body (the POVs' motor columns, the joint names, the
+receptors of /viewer/sensation) comes from the latched /body/description;
+until it has come, the body's latest messages and the POVs wait for it.
+
+
 
   /viewer/scene               markers of the arm, its eye, the lights, the POVs found
   /viewer/representation_2d   each embedding as a coloured PointCloud2 (frame
@@ -47,8 +52,8 @@ class ViewerNode(GraphNode):
         self.scene = scene.Scene(world.receptors, self.cfg["world"]["retina"]["half_width"],
                                  ray_length=self.cfg["world"]["grid_half_width"])
         self.scene.set_motor_state(world.m0)
-        self.columns = {topic: contracts.contract(topic).columns for topic in (
-            "/agent/points_of_view", "/agent/compensations", "/agent/stage_counters",
+        self.columns = {topic: self.columns_of(topic) for topic in (
+            "/agent/compensations", "/agent/stage_counters",
             "/representation/embedding", "/viewer/representation_2d")}
         self.publishers_ = {topic: contracts.create_publisher(self, topic)
                             for topic in contracts.topics_published_by("viewer")}
@@ -63,11 +68,14 @@ class ViewerNode(GraphNode):
         self.equality_rows = 0
         self.scene_changed = True
         self.activity_sent: tuple | None = None
+        self.undrawable = 0
         contracts.create_subscription(self, "/environment/lights", self.on_lights, raw=True)
         for topic in self.latest:
             self.create_subscription(contracts.contract(topic).msg_type, topic,
                                      self._keeper(topic), BODY_QOS, raw=True)
-        contracts.create_subscription(self, "/agent/points_of_view", self.on_points_of_view)
+        self.subscribe_description(lambda description: None)
+        contracts.create_subscription(self, "/agent/points_of_view", self.when_described(
+            "/agent/points_of_view", self.on_points_of_view))
         contracts.create_subscription(self, "/agent/compensations", self.on_compensations)
         contracts.create_subscription(self, "/agent/stage_counters", self.on_stage_counters)
         contracts.create_subscription(self, "/representation/embedding", self.on_embedding)
@@ -110,16 +118,17 @@ class ViewerNode(GraphNode):
         raw, self.latest["/body/joint_states"] = self.latest["/body/joint_states"], None
         if raw is None:
             return
+        names = contracts.contract("/body/joint_states").joint_names_for(self.description)
         try:
-            motor_state = messages.joint_state_to_motor(deserialize_message(raw, JointState))
+            motor_state = messages.joint_state_to_motor(deserialize_message(raw, JointState),
+                                                        names)
         except messages.MessageError as exc:
             self.drop("/body/joint_states", str(exc))
             return
         except Exception as exc:            # bytes that are no JointState
             self.drop("/body/joint_states", f"{type(exc).__name__}: {exc}")
             return
-        self.scene.set_motor_state(motor_state)
-        self.scene_changed = True
+        self.draw(self.scene.set_motor_state, motor_state)
 
     def on_points_of_view(self, msg) -> None:
         decoded = self.decode("/agent/points_of_view", msg, ("change",), as_table=True)
@@ -127,8 +136,20 @@ class ViewerNode(GraphNode):
             return
         table = decoded[1]
         ids, first = np.unique(table["pov"], return_index=True)
-        motor = np.column_stack([table[f"m{j}"][first] for j in range(4)])
-        self.scene.add_points_of_view(ids, motor)
+        motor = np.column_stack([table[f"m{j}"][first]
+                                 for j in range(self.description.n_motors)])
+        self.draw(self.scene.add_points_of_view, ids, motor)
+
+    def draw(self, change, *args) -> None:
+        """``change(*args)`` of the scene (the simulated arm of the configuration);
+        a body it cannot draw is said once and left undrawn."""
+        try:
+            change(*args)
+        except ValueError as exc:
+            if not self.undrawable:
+                self.get_logger().warning(f"the scene cannot draw this body: {exc}")
+            self.undrawable += 1
+            return
         self.scene_changed = True
 
     def on_compensations(self, msg) -> None:
@@ -170,7 +191,21 @@ class ViewerNode(GraphNode):
 
     def tick(self) -> None:
         """Publish what changed since the last tick: the scene, the latest
-        sensation, the run's counters."""
+        sensation, the run's counters (the body's messages once it is described)."""
+        if self.description is not None:
+            self._take_body_messages()
+        if self.scene_changed:
+            self.scene_changed = False
+            self.publish("/viewer/scene", messages.shapes_to_marker_array(
+                self.scene.shapes(), messages.make_header(scene.WORLD_FRAME, self.now_ns())))
+        activity = (self.change, self.command, len(self.scene.pov_positions),
+                    self.equality_rows)
+        if activity != self.activity_sent:
+            self.activity_sent = activity
+            self.publish("/viewer/activity", messages.values_to_multiarray(
+                activity, contracts.contract("/viewer/activity").elements))
+
+    def _take_body_messages(self) -> None:
         self._take_joint_state()
         poses = self._take_latest("/body/sensor_pose")
         if poses is not None:
@@ -182,17 +217,8 @@ class ViewerNode(GraphNode):
         sensation = self._take_latest("/body/sensation")
         if sensation is not None and len(sensation[1].matrix):
             self.publish("/viewer/sensation", messages.values_to_multiarray(
-                sensation[1].matrix[-1], contracts.contract("/viewer/sensation").elements))
-        if self.scene_changed:
-            self.scene_changed = False
-            self.publish("/viewer/scene", messages.shapes_to_marker_array(
-                self.scene.shapes(), messages.make_header(scene.WORLD_FRAME, self.now_ns())))
-        activity = (self.change, self.command, len(self.scene.pov_positions),
-                    self.equality_rows)
-        if activity != self.activity_sent:
-            self.activity_sent = activity
-            self.publish("/viewer/activity", messages.values_to_multiarray(
-                activity, contracts.contract("/viewer/activity").elements))
+                sensation[1].matrix[-1],
+                contracts.contract("/viewer/sensation").elements_for(self.description)))
 
     def _take_latest(self, topic: str):
         raw, self.latest[topic] = self.latest[topic], None
