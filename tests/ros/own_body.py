@@ -1,0 +1,128 @@
+"""A body of one's own, outside the project: ``python tests/ros/own_body.py``.
+
+Two hinges, ``hip`` and ``knee``, commanded in degrees, and three receptors
+whose outputs are smooth functions of the joint angles and of where the
+lights are: s = [cos(hip + u), sin(hip + u), cos(knee + v)], with (u, v) a
+tenth of the lights' mean position (rad). It honours the topics a body
+honours (docs/own-body.md) with rclpy, sensor_msgs and numpy alone, nothing
+of sensorispace_ros, as a body in another process or language would.
+"""
+from __future__ import annotations
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState, PointCloud2, PointField
+from std_msgs.msg import Header
+
+JOINTS = ("hip", "knee")
+UNIT, PERIOD = "deg", 360.0
+RECEPTORS = 3
+
+LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DATA = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                  durability=DurabilityPolicy.VOLATILE)
+LIGHTS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def parse(frame_id: str):
+    """(kind, number) of a protocol frame id, or None."""
+    kind, _, number = frame_id.partition("/")
+    if kind in ("change", "end", "cmd", "next") and number.isascii() and number.isdigit() \
+            and len(number) <= 18:
+        return kind, int(number)
+    return None
+
+
+def read_table(msg: PointCloud2, names: tuple[str, ...]) -> np.ndarray | None:
+    """The float64 columns ``names`` of a cloud laid out as the contract says, else None."""
+    fields = [(f.name, f.offset, f.datatype, f.count) for f in msg.fields]
+    if fields != [(n, 8 * k, PointField.FLOAT64, 1) for k, n in enumerate(names)] \
+            or msg.is_bigendian or msg.point_step != 8 * len(names) \
+            or len(msg.data) != msg.width * msg.point_step:
+        return None
+    table = np.frombuffer(bytes(msg.data), "<f8").reshape(msg.width, len(names))
+    return table if np.isfinite(table).all() else None
+
+
+def table_cloud(rows: np.ndarray, prefix: str, header: Header) -> PointCloud2:
+    rows = np.ascontiguousarray(rows, dtype="<f8")
+    fields = [PointField(name=f"{prefix}{k}", offset=8 * k, datatype=PointField.FLOAT64, count=1)
+              for k in range(rows.shape[1])]
+    return PointCloud2(header=header, height=1, width=len(rows), fields=fields,
+                       is_bigendian=False, point_step=8 * rows.shape[1],
+                       row_step=8 * rows.shape[1] * len(rows), data=rows.tobytes(),
+                       is_dense=True)
+
+
+class OwnBody(Node):
+
+    def __init__(self):
+        super().__init__("own_body")
+        self.rest = np.zeros(len(JOINTS))
+        self.offset = np.zeros(2)
+        self.applied = -1                 # the number of the last change applied
+        self.held = None                  # a next/<k> command, before change k
+        self.sensation_pub = self.create_publisher(PointCloud2, "/body/sensation", DATA)
+        description = self.create_publisher(JointState, "/body/description", LATCHED)
+        description.publish(JointState(
+            header=Header(frame_id=f"{UNIT}/{RECEPTORS}"), name=list(JOINTS),
+            position=[PERIOD] * len(JOINTS)))
+        self.create_subscription(PointCloud2, "/environment/lights", self.on_lights, LIGHTS)
+        self.create_subscription(PointCloud2, "/body/motor_command", self.on_command, DATA)
+
+    def sense(self, motor: np.ndarray) -> np.ndarray:
+        angles = np.deg2rad(motor) + self.offset
+        return np.column_stack([np.cos(angles[:, 0]), np.sin(angles[:, 0]),
+                                np.cos(angles[:, 1])])
+
+    def answer(self, motor: np.ndarray, header: Header) -> None:
+        self.sensation_pub.publish(table_cloud(self.sense(motor), "s", header))
+        self.rest = motor[-1].copy()
+
+    def on_lights(self, msg: PointCloud2) -> None:
+        frame = parse(msg.header.frame_id)
+        lights = read_table(msg, ("x", "y"))
+        if frame is None or frame[0] not in ("change", "end") or lights is None:
+            return
+        kind, number = frame
+        if kind == "change" and len(lights):
+            self.offset = 0.1 * lights.mean(axis=0)
+        self.applied = max(self.applied, number)
+        self.answer(self.rest[None], msg.header)         # the passive sensation
+        if self.held is not None and self.held[0] <= self.applied:
+            _, motor, header = self.held
+            self.held = None
+            self.answer(motor, header)
+
+    def on_command(self, msg: PointCloud2) -> None:
+        frame = parse(msg.header.frame_id)
+        motor = read_table(msg, tuple(f"m{k}" for k in range(len(JOINTS))))
+        if frame is None or frame[0] not in ("cmd", "next") or motor is None or not len(motor):
+            return
+        if frame[0] == "next" and frame[1] > self.applied:
+            self.held = (frame[1], motor, msg.header)    # answered once change k is applied
+            return
+        self.answer(motor, msg.header)
+
+
+def main() -> int:
+    rclpy.init()
+    node = OwnBody()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
