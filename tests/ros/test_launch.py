@@ -2,7 +2,7 @@
 
 Also (c) on the multi-process graph: the live graph, read from another
 participant, shows the agent subscribing only to /body/sensation and the
-representation only to /agent/*. And parity with the offline run: the launched smoke
+body's description, the representation only to /agent/* and the description. And parity with the offline run: the launched smoke
 run's metrics.json (evaluated from its bag by ``sensorispace analyze``) has
 every key of ``sensorispace reproduce --strategy naive`` and the same numbers.
 """
@@ -109,9 +109,9 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
     assert f"ROS_DOMAIN_ID={domain_id}" in output and "LOCALHOST" in output
     # progress from the environment's record (the launcher is not in the graph)
     assert re.search(r"^\[launch\] change \d+/\d+ \(\d+ %\) after ", output, re.M), output
-    assert seen.get("agent") == ["/body/sensation"], seen
-    assert seen.get("representation") and all(
-        t.startswith("/agent/") for t in seen["representation"]), seen
+    assert seen.get("agent") == ["/body/description", "/body/sensation"], seen
+    assert "/body/description" in seen.get("representation", []) and all(
+        t.startswith("/agent/") for t in seen["representation"] if t != "/body/description"), seen
     assert "/environment/lights" in seen.get("body", [])
     metrics = json.loads((smoke_launch["results"] / "metrics.json").read_text())
     # The agent's own counters made it through /agent/done to the evaluator.
