@@ -44,7 +44,8 @@ class _Sent(NamedTuple):
 
 
 class BodyOverTopics:
-    """A SensingBody whose ``sense`` is a round trip over the body's topics.
+    """A SensingBody whose ``sense`` is a round trip over the body's topics;
+    ``description`` is the body's own (``core.body_description.BodyDescription``).
 
     ``spin_once(timeout_s)`` services the executor while the reply is
     awaited: the agent runs in the thread that spins, so the answer is
@@ -53,13 +54,19 @@ class BodyOverTopics:
     """
 
     def __init__(self, publish_command, spin_once, n_motors: int, n_sensors: int,
-                 command_timeout_s: float = 2.0, on_retransmit=None):
+                 command_timeout_s: float = 2.0, on_retransmit=None, description=None):
         if not command_timeout_s > 0:
             raise ValueError(f"command_timeout_s: must be > 0, got {command_timeout_s!r}")
+        if description is not None and (description.n_motors, description.receptors) != (
+                n_motors, n_sensors):
+            raise ValueError(f"description: {description} is not a body of {n_motors} "
+                             f"motors and {n_sensors} sensors")
         self._publish_command = publish_command
         self._spin_once = spin_once
         self.n_motors = n_motors
         self.n_sensors = n_sensors
+        # What the body said of itself (/body/description): its joints' periods.
+        self.description = description
         self.command_timeout_s = float(command_timeout_s)
         self._on_retransmit = on_retransmit
         self._pending: tuple[str, int] | None = None

@@ -83,6 +83,12 @@ def test_command_timeout_must_be_positive():
         BodyOverTopics(None, None, 4, 6, command_timeout_s=0)
 
 
+def test_the_body_over_topics_is_the_body_its_description_states():
+    with pytest.raises(ValueError, match="description"):
+        BodyOverTopics(None, None, 4, 6, description=BodyDescription.revolute(4, 7))
+    assert BodyOverTopics(None, None, 4, 6, description=PAPER_BODY).description == PAPER_BODY
+
+
 # ------------------------------------------- nodes fed by hand (no graph)
 
 class RecordingPublisher:
@@ -115,6 +121,7 @@ def test_the_agent_waits_for_its_body_description_and_sizes_itself_from_it(conte
         small = BodyDescription(("a", "b"), "deg", (360.0, 360.0), 3)
         node.on_description(messages.description_to_msg(small))
         assert (node.body.n_motors, node.body.n_sensors) == (2, 3)
+        assert node.body.description == small           # the periods, for the naive agent
         assert node.agent.n_motors == 2 and node.initial_motor_state.tolist() == [0.0, 0.0]
         assert list(node.columns["/body/motor_command"]) == ["m0", "m1"]
         assert list(node.columns["/agent/points_of_view"])[2:] == ["m0", "m1"]

@@ -1,7 +1,8 @@
 """The whole graph in one process (one SingleThreadedExecutor, a private Context).
 
 (a) the smoke run completes and equals the offline naive run on the same
-config and seed; (c) the live graph shows the agent subscribing only to
+config and seed, on the paper's body and on the same arm commanded in
+degrees; (c) the live graph shows the agent subscribing only to
 /body/sensation and the body's description, the representation only to
 /agent/* and the description; (d) malformed messages on every subscribed
 topic are dropped and change nothing.
@@ -34,16 +35,27 @@ def smoke_cfg():
     return config.load_config(SMOKE)
 
 
-@pytest.fixture(scope="module")
-def offline(smoke_cfg):
+def _offline_run(cfg, description):
+    """The offline naive run and its representation (of the POVs as angles)."""
     from sensorispace_ros.core.paper.exploration import build_world
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
-    world = build_world(smoke_cfg["seed"], strategies.world_params(smoke_cfg))
-    produced = run_naive(world, NaiveParams(**smoke_cfg["naive"]))
+    world = build_world(cfg["seed"], strategies.world_params(cfg))
+    produced = run_naive(world, NaiveParams(**cfg["naive"]))
     representation = build_representation(
-        produced.povs, produced.pairs, produced.set_ids, smoke_cfg, smoke_cfg["seed"])
+        description.to_radians(produced.povs), produced.pairs, produced.set_ids, cfg,
+        cfg["seed"])
     return produced, representation
+
+
+@pytest.fixture(scope="module")
+def offline(smoke_cfg):
+    return _offline_run(smoke_cfg, PAPER_BODY)
+
+
+# The smoke configuration with the paper's arm commanded in degrees.
+SMOKE_IN_DEGREES = {"arm": {"motor_unit": "deg", "initial_motor_state": [
+    5.729577951308232, -85.94366926962348, 126.05071492878111, -171.88733853924697]}}
 
 
 class GraphObserver(Node):
@@ -61,7 +73,7 @@ class GraphObserver(Node):
                 for name in SUBSCRIBED}
 
 
-def _run(tmp_path, domain_id, extra_nodes=()):
+def _run(tmp_path, domain_id, extra_nodes=(), config_path=SMOKE):
     observers = []
 
     def make_observer(context):
@@ -69,8 +81,8 @@ def _run(tmp_path, domain_id, extra_nodes=()):
         return observers[-1]
 
     result = in_process.run_graph_in_process(
-        SMOKE, domain_id, tmp_path, extra_nodes=(make_observer, *extra_nodes), timeout_s=600,
-        on_spin=lambda nodes, replace: observers[0].look(nodes))
+        config_path, domain_id, tmp_path, extra_nodes=(make_observer, *extra_nodes),
+        timeout_s=600, on_spin=lambda nodes, replace: observers[0].look(nodes))
     return result, observers[0]
 
 
@@ -114,6 +126,19 @@ def test_graph_equals_offline_and_agent_is_naive(tmp_path, domain_id, offline):
         assert not any(t.startswith("/environment/") for t in seen[name])
     for name, topics in SUBSCRIBED.items():
         assert seen[name] == sorted(topics), f"{name} does not subscribe as topics.yaml says"
+
+
+def test_a_body_in_degrees_gives_the_offline_run_and_is_measured_in_angles(tmp_path, domain_id):
+    cfg = config.load_config(SMOKE, overrides=config.flatten(SMOKE_IN_DEGREES))
+    config_path = tmp_path / "smoke-degrees.yaml"
+    config_path.write_text(config.to_parameter_file(cfg))
+    degrees = BodyDescription.revolute(4, 6, "deg")
+    result, _ = _run(tmp_path / "run", domain_id, config_path=config_path)
+    for name in ("agent", "representation"):
+        assert result["nodes"][name].description == degrees
+    _assert_same_as_offline(result, _offline_run(cfg, degrees))
+    povs = result["nodes"]["representation"].result["povs"]
+    assert np.abs(povs).max() > 2 * np.pi          # kept in degrees in the arrays
 
 
 # ---------------------------------------------------------------- (d) bad input

@@ -165,7 +165,7 @@ class AgentNode(GraphNode):
                                    n_motors=description.n_motors,
                                    n_sensors=description.receptors,
                                    command_timeout_s=float(self.graph["command_timeout_s"]),
-                                   on_retransmit=self.log_retransmit)
+                                   on_retransmit=self.log_retransmit, description=description)
         self.body.aborted = self.aborted
         self.initial_motor_state = self.initial_posture(description)
         self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]))

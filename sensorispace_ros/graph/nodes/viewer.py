@@ -51,7 +51,8 @@ class ViewerNode(GraphNode):
         world = build_world(self.cfg)
         self.scene = scene.Scene(world.receptors, self.cfg["world"]["retina"]["half_width"],
                                  ray_length=self.cfg["world"]["grid_half_width"])
-        self.scene.set_motor_state(world.m0)
+        self.undrawable = 0
+        self.draw(self.scene.set_motor_state, world.m0)
         self.columns = {topic: self.columns_of(topic) for topic in (
             "/agent/compensations", "/agent/stage_counters",
             "/representation/embedding", "/viewer/representation_2d")}
@@ -68,7 +69,6 @@ class ViewerNode(GraphNode):
         self.equality_rows = 0
         self.scene_changed = True
         self.activity_sent: tuple | None = None
-        self.undrawable = 0
         contracts.create_subscription(self, "/environment/lights", self.on_lights, raw=True)
         for topic in self.latest:
             self.create_subscription(contracts.contract(topic).msg_type, topic,
