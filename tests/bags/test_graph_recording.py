@@ -118,6 +118,27 @@ def test_graph_recording_drops_nothing(recorded_tiny_run):
     assert np.isfinite(data["povs"]).all()
 
 
+def test_the_recorded_tables_have_the_columns_the_body_describes(recorded_tiny_run):
+    """The live graph against its description: the paper's body is joint1..joint4
+    in rad with 6 receptors, so m0..m3, s0..s5 and joint1..joint4 on the wire."""
+    from sensorispace_ros import contracts, messages
+    from sensorispace_ros.core.body_description import BodyDescription
+
+    bag = recorded_tiny_run
+    (description,) = {messages.description_from_msg(m)
+                      for _, _, _, m in read_bag_messages(bag, ["/body/description"])}
+    assert description == BodyDescription.revolute(4, 6)
+    for topic in ("/body/motor_command", "/body/sensation", "/agent/points_of_view",
+                  "/agent/compensation_records"):
+        expected = list(contracts.contract(topic).columns_for(description))
+        fields = {tuple(f.name for f in m.fields)
+                  for _, _, _, m in read_bag_messages(bag, [topic])}
+        assert fields == {tuple(expected)}, topic
+    assert expected[4:] == ["m0", "m1", "m2", "m3", "a0", "a1", "a2", "a3"]
+    names = {tuple(m.name) for _, _, _, m in read_bag_messages(bag, ["/body/joint_states"])}
+    assert names == {("joint1", "joint2", "joint3", "joint4")}
+
+
 def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_run, tmp_path):
     from sensorispace_ros.graph.nodes.representation import RESULT_FILE
 
