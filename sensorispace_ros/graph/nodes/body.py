@@ -33,9 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import tracing
-from sensorispace_ros.core.body import SimulatedBody, simulate
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, GraphNode, build_world, run_node
 from sensorispace_ros.state.resting_state import RestingStateFile
 
@@ -45,9 +43,8 @@ class BodyNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("body", **kwargs)
         world = build_world(self.cfg)
-        self.body = SimulatedBody(world.receptors, None, world.m0.copy())
-        self.description = (getattr(self.body, "description", None)
-                            or BodyDescription.revolute(self.body.n_motors, self.body.n_sensors))
+        self.body = world.body()
+        self.description = self.body.description
         self.resting_file = None
         # After a restart: commands wait until the lights history (transient_local,
         # re-delivered interleaved with commands) is back at the change applied
@@ -122,15 +119,13 @@ class BodyNode(GraphNode):
             self.answer(held.matrix, held.frame_id, held.stamp_ns)
 
     def publish_passive(self, frame_id: str, stamp_ns: int) -> None:
-        """What the resting eye sees after a change. Not a query of the agent's: computed
-        for the single resting pose exactly as the offline driver does
-        (core.naive.run._passive_sensation), so both runs see the same bits;
-        by ``core.body.simulate`` (those bits, 2 instead of 54 us: the agent waits
-        for this on every change)."""
+        """What the resting eye sees after a change. Not a query of the agent's:
+        ``SimulatedBody.sense_at_rest``, as the offline driver computes it
+        (core.naive.run._passive_sensation), by the compiled kernel (2 instead
+        of 54 us: the agent waits for this on every change)."""
         rest = self.body.motor_state
-        sensation, pose = simulate(rest[None], self.body.lights_world,
-                                   self.body.receptor_positions, self.body.kernel)
-        self.publish_answer(sensation, pose, rest, frame_id, stamp_ns)
+        sensation, pose = self.body.sense_at_rest()
+        self.publish_answer(sensation[None], pose[None], rest, frame_id, stamp_ns)
 
     def on_command(self, msg) -> None:
         tracing.stamp("body.command")
