@@ -183,3 +183,93 @@ def test_sampler_rejects_bad_parameters(kwargs, name):
 def test_sampler_rejects_bad_motor_states():
     with pytest.raises(ValueError, match="motor_states"):
         pov.sample_points_of_view(np.zeros((3, 3)))
+
+
+# --- any body ------------------------------------------------------------------
+
+from sensorispace_ros.core.arm import PAPER_ARM, Arm  # noqa: E402
+from sensorispace_ros.core.paper import chain_walk  # noqa: E402
+from tests.core.paper_bodies import BODIES, random_states  # noqa: E402
+
+
+@pytest.fixture(scope="module", params=sorted(BODIES))
+def body_povs(request):
+    body_arm = BODIES[request.param]
+    motor = random_states(body_arm, 6, seed=11)
+    return body_arm, motor, pov.sample_points_of_view(motor, n_samples=40, n_samples_2d=150,
+                                                      body_arm=body_arm)
+
+
+def test_every_sample_of_every_body_has_its_pose(body_povs):
+    body_arm, motor, sampled = body_povs
+    rows = 150 if body_arm.pov_dim == 2 else 40
+    assert sampled.samples.shape == (len(motor), rows, body_arm.n_joints)
+    np.testing.assert_array_equal(sampled.samples[:, 0], motor)
+    pose = body_arm.forward(motor)
+    error = body_arm.pose_error(body_arm.forward(sampled.samples), pose[:, None, :])
+    assert error.max() < 1e-9
+    assert sampled.max_pose_drift < 1e-9
+
+
+def test_points_of_view_are_more_than_their_start(body_povs):
+    """A 1-D or 2-D POV spreads over its fibre; a 0-D one holds both elbows."""
+    body_arm, motor, sampled = body_povs
+    for samples, valid in zip(sampled.samples, sampled.valid):
+        distinct = np.unique(samples, axis=0)
+        if body_arm.pov_dim == 0:
+            assert len(distinct) == 2
+            assert np.sum(np.all(samples == samples[0], axis=1)) == len(samples) // 2
+        elif valid:
+            assert len(distinct) == len(samples)
+            spread = pov.periodic_distance(body_arm.to_radians(samples),
+                                           body_arm.to_radians(samples[0]))
+            assert spread.max() > 0.5
+
+
+def test_motor_units_change_no_point_of_view():
+    degrees = BODIES["degrees"]
+    motor = random_states(degrees, 5, seed=12)
+    in_degrees = pov.sample_points_of_view(motor, n_samples=30, body_arm=degrees)
+    in_radians = pov.sample_points_of_view(np.deg2rad(motor), n_samples=30)
+    np.testing.assert_array_equal(in_degrees.samples[:, 0], motor)
+    np.testing.assert_allclose(in_degrees.samples, np.rad2deg(in_radians.samples), atol=1e-9)
+    assert in_degrees.reason == in_radians.reason
+
+
+def test_the_chain_step_is_the_paper_arms_closed_form_step():
+    """The general step on the paper arm's geometry gives the fast path's numbers."""
+    rng = np.random.default_rng(13)
+    motor = rng.uniform(-np.pi, np.pi, size=(40, 4))
+    target = arm.forward(motor + rng.normal(scale=1e-3, size=motor.shape))
+    fast = pov._corrected_kernel_step(motor.T.copy(), target.T.copy())
+    general = chain_walk.kernel_step(PAPER_ARM)(motor.T.copy(), target.T.copy())
+    np.testing.assert_allclose(general[0], fast[0], atol=1e-12)
+    np.testing.assert_allclose(general[1], fast[1], atol=1e-12)
+
+
+def test_the_chain_step_of_a_level_eye_follows_its_kernel():
+    body_arm = BODIES["level-eye"]
+    motor = random_states(body_arm, 30, seed=14)
+    target = body_arm.forward(motor)
+    corrected, kernel = chain_walk.kernel_step(body_arm)(motor.T.copy(), target.T.copy())
+    jac = body_arm.jacobian(motor)[:, :2, :]
+    np.testing.assert_allclose(np.einsum("pij,jp->pi", jac, kernel), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(kernel, axis=0), 1.0)
+    np.testing.assert_allclose(corrected, motor.T, atol=1e-14)       # already on the pose
+
+
+def test_the_general_walk_traces_the_paper_arms_loops():
+    start = np.array([motor_reaching(r, 0.4, -0.3) for r in (1.5, 2.5)])
+    fast = pov.sample_points_of_view(start, n_samples=50)
+    target = arm.forward(start)
+    walk = pov._walk_kernels(start, target, step=1e-3, min_steps=50, close_tol=1e-2,
+                             max_steps=200_000, record_every=5, progress=None,
+                             kernel_step=chain_walk.kernel_step(PAPER_ARM))
+    samples, _, reason = pov._resample_walks(walk, 50, 5)
+    assert reason == fast.reason == ["ok", "ok"]
+    np.testing.assert_allclose(samples, fast.samples, atol=1e-5)   # before projection
+
+
+def test_points_of_view_of_three_dimensions_are_refused():
+    with pytest.raises(ValueError, match="dimension 3"):
+        pov.sample_points_of_view(np.zeros((1, 6)), body_arm=Arm((1.0,) * 5, "joint", "rad"))

@@ -1,21 +1,33 @@
 """Points of view (POVs): the motor states that share one sensor pose
 (paper Sec. 3.1, "Estimating the agent's points of view").
 
-A POV is the 1-D fibre f^-1(f(m)) of the forward model f: R^4 -> R^3. It is
-a closed loop in the motor torus and is represented by ``N`` motor states
-spread evenly along it. Motor angles stay *unwrapped* (continuous along the
-loop); compare them with the periodic motor metric.
+A POV is the fibre f^-1(f(m)) of the forward model. On the paper arm
+(f: R^4 -> R^3) it is a closed 1-D loop in the motor torus, represented by
+``N`` motor states spread evenly along it. Motor angles stay *unwrapped*
+(continuous along the loop); compare them with the periodic motor metric.
+
+Any body (``core.arm.Arm``) by the dimension of its fibres: 1 walks the
+Jacobian kernel (the paper arm by its closed-form step, others by
+``chain_walk``); 0 keeps the motor state and the pose's other solutions
+(``fibres.discrete_fibre``), repeated to ``N`` rows; 2 samples the surface
+evenly (``surfaces``). Other motor units are sampled in radians and
+converted back.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from sensorispace_ros.core import arm
+from sensorispace_ros.core.arm import PAPER_ARM, Arm
+from sensorispace_ros.core.paper import chain_walk
+from sensorispace_ros.core.paper.fibres import discrete_fibre
+from sensorispace_ros.core.paper.surfaces import sample_surface
 from sensorispace_ros.core.motor_loops import loop_winding  # noqa: F401  (re-exported: part of this API)
 
 TWO_PI = 2.0 * np.pi
+N_SAMPLES_2D = 1600
 
 
 def resample_closed_path(path: np.ndarray, n_samples: int = 100) -> np.ndarray:
@@ -88,17 +100,20 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
                           n_samples: int = 100, min_steps: int = 50,
                           close_tol: float = 1e-2, max_steps: int = 200_000,
                           newton_tol: float = 1e-12, record_every: int = 5,
-                          progress=None) -> PointsOfViewResult:
-    """Sample the POV of every motor state by walking the Jacobian kernel
-    (paper Sec. 4.1, "Estimating the agent's points of view").
+                          progress=None, body_arm: Arm = PAPER_ARM,
+                          n_samples_2d: int = N_SAMPLES_2D) -> PointsOfViewResult:
+    """Sample the POV of every motor state of ``body_arm`` (the paper arm by
+    default) by walking the Jacobian kernel (paper Sec. 4.1, "Estimating the
+    agent's points of view"), or, for fibres of dimension 0 and 2, as the
+    module docstring says (``n_samples_2d`` samples on a surface).
 
     From ``m_i`` the walk repeats ``m <- m + gamma * step * k / |k|`` with
-    ``k`` the kernel of ``J_f(m)`` (signed 3x3 minors) and ``gamma = +-1``
+    ``k`` the kernel of ``J_f(m)`` (signed maximal minors) and ``gamma = +-1``
     keeping the direction, until at least ``min_steps`` steps were taken and
     the periodic motor distance to ``m_i`` is below ``close_tol`` (paper:
-    eps = 1e-3, 50 steps, 1e-2). All POVs walk together as one ``(P, 4)``
-    batch. The loop is then resampled at ``n_samples`` points equally spaced
-    in arc length, each projected back onto ``f(m) = f(m_i)``.
+    eps = 1e-3, 50 steps, 1e-2; radians). All POVs walk together as one
+    ``(P, J)`` batch. The loop is then resampled at ``n_samples`` points
+    equally spaced in arc length, each projected back onto ``f(m) = f(m_i)``.
 
     ``record_every``: the walk path is kept every that many steps (plus the
     closing state) to bound memory (hundreds of loops of ~10^4 steps); the chords
@@ -106,23 +121,77 @@ def sample_points_of_view(motor_states: np.ndarray, *, step: float = 1e-3,
     curvature), which the final projection removes.
     ``progress(done, total)`` is called as POVs close.
     """
+    if body_arm.unit != "rad":
+        return _in_motor_unit(motor_states, body_arm, step=step, n_samples=n_samples,
+                              min_steps=min_steps, close_tol=close_tol, max_steps=max_steps,
+                              newton_tol=newton_tol, record_every=record_every,
+                              progress=progress, n_samples_2d=n_samples_2d)
     start = np.array(motor_states, dtype=float, copy=True)
     _check_walk(start, step=step, n_samples=n_samples, min_steps=min_steps,
-                close_tol=close_tol, max_steps=max_steps, record_every=record_every)
-    target = arm.forward(start)
+                close_tol=close_tol, max_steps=max_steps, record_every=record_every,
+                joints=body_arm.n_joints)
+    if body_arm.pov_dim != 1:
+        return _sampled_fibres(start, body_arm, n_samples=n_samples, n_samples_2d=n_samples_2d,
+                               newton_tol=newton_tol, progress=progress)
+    target = body_arm.forward(start)
+    kernel_step = _corrected_kernel_step if body_arm.is_paper else chain_walk.kernel_step(body_arm)
     walk = _walk_kernels(start, target, step=step, min_steps=min_steps, close_tol=close_tol,
-                         max_steps=max_steps, record_every=record_every, progress=progress)
+                         max_steps=max_steps, record_every=record_every, progress=progress,
+                         kernel_step=kernel_step)
     samples, winding, reason = _resample_walks(walk, n_samples, record_every)
-    samples, drift = project_onto_pose(samples, target, tol=newton_tol)
+    samples, drift = project_onto_pose(samples, target, tol=newton_tol, body_arm=body_arm)
     return PointsOfViewResult(samples=samples, valid=np.array([r == VALID for r in reason]),
                               reason=reason, steps=walk.steps,
                               max_pose_drift=float(drift.max()) if drift.size else 0.0,
                               winding=winding)
 
 
-def _check_walk(start, *, step, n_samples, min_steps, close_tol, max_steps, record_every):
-    if start.ndim != 2 or start.shape[1] != arm.N_JOINTS:
-        raise ValueError(f"motor_states must have shape (P, {arm.N_JOINTS}), got {start.shape}")
+def _in_motor_unit(motor_states, body_arm: Arm, **options) -> PointsOfViewResult:
+    """``sample_points_of_view`` of an arm in another unit than radians: the
+    same arm in radians samples, the samples are converted back (the first
+    of each is its motor state as given)."""
+    motor_states = np.asarray(motor_states, dtype=float)
+    radian_arm = Arm(body_arm.segments, body_arm.eye, "rad")
+    sampled = sample_points_of_view(body_arm.to_radians(motor_states), body_arm=radian_arm,
+                                    **options)
+    samples = body_arm.from_radians(sampled.samples)
+    samples[:, 0] = motor_states
+    return replace(sampled, samples=samples)
+
+
+def _sampled_fibres(start, body_arm: Arm, *, n_samples, n_samples_2d, newton_tol, progress):
+    """POVs of dimension 0 (every solution of the pose, each repeated in a
+    block of rows, ``n_samples`` in all) or 2 (``n_samples_2d`` samples of the
+    surface); all valid, ``steps`` counts the distinct samples."""
+    dim = body_arm.pov_dim
+    if dim not in (0, 2):
+        raise ValueError(f"points of view of dimension {dim} are not sampled "
+                         f"(0, 1 and 2 are): {body_arm}")
+    rows = int(n_samples) if dim == 0 else int(n_samples_2d)
+    if rows < 1:
+        raise ValueError(f"n_samples_2d must be a positive integer, got {n_samples_2d}")
+    samples = np.empty((len(start), rows, start.shape[1]))
+    distinct = np.zeros(len(start), dtype=int)
+    for p, motor in enumerate(start):
+        found = (discrete_fibre(body_arm, motor) if dim == 0
+                 else sample_surface(body_arm, motor, rows))
+        samples[p] = found[np.arange(rows) * len(found) // rows]
+        distinct[p] = len(np.unique(found, axis=0))
+        if progress is not None and ((p + 1) % 50 == 0 or p + 1 == len(start)):
+            progress(p + 1, len(start))
+    samples, drift = project_onto_pose(samples, body_arm.forward(start), tol=newton_tol,
+                                       body_arm=body_arm)
+    samples[:, 0] = start
+    return PointsOfViewResult(samples=samples, valid=np.ones(len(start), dtype=bool),
+                              reason=[VALID] * len(start), steps=distinct,
+                              max_pose_drift=float(drift.max()) if drift.size else 0.0,
+                              winding=np.zeros(start.shape, dtype=int))
+
+
+def _check_walk(start, *, step, n_samples, min_steps, close_tol, max_steps, record_every,
+                joints=arm.N_JOINTS):
+    if start.ndim != 2 or start.shape[1] != joints:
+        raise ValueError(f"motor_states must have shape (P, {joints}), got {start.shape}")
     if not np.all(np.isfinite(start)):
         raise ValueError("motor_states contains non-finite values")
     if not step > 0:
@@ -156,9 +225,12 @@ class _KernelWalks:
 
 
 def _walk_kernels(start, target, *, step, min_steps, close_tol, max_steps, record_every,
-                  progress) -> _KernelWalks:
+                  progress, kernel_step=None) -> _KernelWalks:
     """Walk every POV's kernel from ``start`` until its loop closes (at least
-    ``min_steps`` steps, back within ``close_tol``) or ``max_steps``."""
+    ``min_steps`` steps, back within ``close_tol``) or ``max_steps``.
+    ``kernel_step(m, pose_target)``: the corrected step and the unit kernel
+    (the paper arm's ``_corrected_kernel_step`` by default)."""
+    kernel_step = _corrected_kernel_step if kernel_step is None else kernel_step
     n_pov = len(start)
     steps = np.zeros(n_pov, dtype=int)
     closed = np.zeros(n_pov, dtype=bool)
@@ -168,21 +240,21 @@ def _walk_kernels(start, target, *, step, min_steps, close_tol, max_steps, recor
     record_index = [np.arange(n_pov)]
     record_state = [start.copy()]
 
-    # Working set of the POVs still walking, joint-major ``(4, n)`` so every
+    # Working set of the POVs still walking, joint-major ``(J, n)`` so every
     # operation of the step is elementwise on contiguous rows; POVs leave it
     # as their loop closes.
     ids = np.arange(n_pov)
     m = start.T.copy()
     m_start = start.T.copy()
     pose_target = target.T.copy()
-    _, direction = _corrected_kernel_step(m, pose_target)
+    _, direction = kernel_step(m, pose_target)
     left_start = np.zeros(n_pov, dtype=bool)        # went farther than close_tol once
     lapped = np.zeros(n_pov, dtype=bool)            # came back once (lap_end is set)
     for n in range(1, max_steps + 1):
         if len(ids) == 0:
             break
         # Paper Eq. (kernel walk): m <- m + gamma * eps * k / |k| ...
-        m, new_direction = _corrected_kernel_step(m + step * direction, pose_target)
+        m, new_direction = kernel_step(m + step * direction, pose_target)
         # ... with gamma = +-1 keeping the direction along the loop.
         backwards = np.einsum("ij,ij->j", new_direction, direction) < 0.0
         if backwards.any():
@@ -218,10 +290,10 @@ def _walk_kernels(start, target, *, step, min_steps, close_tol, max_steps, recor
 
 def _resample_walks(walk: _KernelWalks, n_samples, record_every):
     """Each POV's walked loop (its first lap) resampled at ``n_samples``
-    points; returns ``(samples (P, n_samples, 4), winding (P, 4), reason)``."""
-    n_pov = len(walk.start)
-    samples = np.empty((n_pov, int(n_samples), arm.N_JOINTS))
-    winding = np.zeros((n_pov, arm.N_JOINTS), dtype=int)
+    points; returns ``(samples (P, n_samples, J), winding (P, J), reason)``."""
+    n_pov, joints = walk.start.shape
+    samples = np.empty((n_pov, int(n_samples), joints))
+    winding = np.zeros((n_pov, joints), dtype=int)
     reason = []
     record_index = walk.record_index
     order = np.argsort(record_index, kind="stable")     # per POV, in walk order
@@ -251,41 +323,21 @@ def _resample_walks(walk: _KernelWalks, n_samples, record_every):
 
 
 def project_onto_pose(motor: np.ndarray, target_pose: np.ndarray, *, tol: float = 1e-12,
-                      max_iter: int = 50):
+                      max_iter: int = 50, body_arm: Arm = PAPER_ARM):
     """Newton-project motor states onto ``f(m) = target_pose``.
 
-    ``motor`` ``(P, S, 4)``, ``target_pose`` ``(P, 3)``. Each iteration takes
+    ``motor`` ``(P, S, J)``, ``target_pose`` ``(P, 3)``. Each iteration takes
     the least-norm correction ``-J^+ r``, so points move across the fibre,
     not along it. Returns the projected states and each one's final pose
-    error ``(P, S)``.
+    error ``(P, S)`` (``chain_walk.project_onto_pose``).
     """
-    motor = np.array(motor, dtype=float, copy=True)
-    target = np.broadcast_to(np.asarray(target_pose, float)[:, None, :], motor.shape[:-1] + (3,))
-    for _ in range(max_iter):
-        residual = _pose_residual(arm.forward(motor), target)
-        error = np.linalg.norm(residual, axis=-1)
-        if error.max(initial=0.0) <= tol:
-            break
-        motor -= _least_norm_solve(arm.jacobian(motor), residual)
-    return motor, arm.pose_error(arm.forward(motor), target)
+    return chain_walk.project_onto_pose(motor, target_pose, body_arm, tol=tol,
+                                        max_iter=max_iter)
 
 
 def periodic_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Paper's motor metric: sqrt(sum_k arccos(cos(a_k - b_k))^2)."""
     return np.linalg.norm(np.abs(arm.wrap_angle(np.asarray(a) - np.asarray(b))), axis=-1)
-
-
-def _pose_residual(pose: np.ndarray, target: np.ndarray) -> np.ndarray:
-    diff = pose - target
-    diff[..., 2] = arm.wrap_angle(diff[..., 2])
-    return diff
-
-
-def _least_norm_solve(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
-    """``J^+ r = J^T (J J^T)^-1 r`` for full-row-rank ``(..., 3, 4)`` Jacobians."""
-    gram = jac @ np.swapaxes(jac, -1, -2)
-    coeff = np.linalg.solve(gram, residual[..., None])
-    return (np.swapaxes(jac, -1, -2) @ coeff)[..., 0]
 
 
 def _periodic_sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
