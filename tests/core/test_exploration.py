@@ -194,3 +194,76 @@ def test_paper_params_are_the_papers():
     assert PAPER_PARAMS["m0"] == (0.1, -1.5, 2.2, -3.0)
     assert PAPER_PARAMS["grid_count"] == 62 and PAPER_PARAMS["grid_half_width"] == 6.0
     assert PAPER_PARAMS["redistribution_probability"] == 0.1
+
+
+# --- any body ------------------------------------------------------------------
+
+from sensorispace_ros.core.paper.exploration import in_working_region, is_split  # noqa: E402
+from sensorispace_ros.core.paper.fibres import fibre_is_split  # noqa: E402
+from tests.core.paper_bodies import BODIES, catalogue_m0, random_states  # noqa: E402
+
+
+def body_world(name, grid_count=16):
+    body_arm = BODIES[name]
+    try:
+        m0 = catalogue_m0(name)
+    except FileNotFoundError:
+        m0 = random_states(body_arm, 1, seed=31)[0]
+    return build_world(0, {"grid_count": grid_count, "segments": body_arm.segments,
+                           "eye": body_arm.eye, "motor_unit": body_arm.unit,
+                           "m0": tuple(m0)})
+
+
+@pytest.fixture(scope="module", params=sorted(BODIES))
+def body_run(request):
+    w = body_world(request.param)
+    return w, explore_paper(m0=w.m0, grid=w.grid, events=w.events,
+                            initial_center=w.initial_center, body_arm=w.arm)
+
+
+def targets_of(w):
+    pose0 = w.arm.forward(w.m0)
+    xy = pose0[:2] + w.grid - w.initial_center
+    return np.column_stack([xy, np.full(len(xy), pose0[2])])
+
+
+def test_every_reachable_position_is_compensated_or_split(body_run):
+    w, result = body_run
+    targets = targets_of(w)
+    reachable = np.flatnonzero(w.arm.reachable(targets[:, :2], float(targets[0, 2])))
+    assert len(reachable) > 20
+    split = [g for g in reachable if w.arm.pov_dim == 1
+             and fibre_is_split(w.arm, targets[g])]
+    assert set(result.grid_index[1:].tolist()) == set(reachable.tolist()) - set(split)
+    assert result.failures_by_reason["split_point_of_view"] == len(split)
+    assert len(result.missed_in_ring) == 0
+
+
+def test_compensations_of_every_body_follow_the_object(body_run):
+    w, result = body_run
+    np.testing.assert_allclose(result.true_poses, w.arm.forward(result.motor_states))
+    expected = targets_of(w)[result.grid_index[1:]]
+    error = w.arm.pose_error(result.true_poses[1:], expected)
+    if w.arm.eye == "level":
+        error = np.linalg.norm(result.true_poses[1:, :2] - expected[:, :2], axis=1)
+    assert error.max() < 1e-5
+
+
+@pytest.mark.parametrize("name", ["five-joint", "level-eye", "link-eye-1d"])
+def test_skipping_certain_failures_changes_no_outcome_on_other_bodies(name):
+    w = body_world(name, grid_count=12)
+    runs = [explore_paper(m0=w.m0, grid=w.grid, events=w.events,
+                          initial_center=w.initial_center, body_arm=w.arm,
+                          skip_certain_failures=skip) for skip in (True, False)]
+    np.testing.assert_array_equal(runs[0].grid_index, runs[1].grid_index)
+    np.testing.assert_allclose(runs[0].motor_states, runs[1].motor_states, atol=1e-12)
+    assert runs[0].failures_by_reason == runs[1].failures_by_reason
+
+
+def test_the_paper_arm_keeps_its_literal_rules():
+    from sensorispace_ros.core.arm import PAPER_ARM
+    for radius, split, working in ((0.99, True, False), (1.0, False, True), (3.0, False, True),
+                                   (3.01, False, False)):
+        pose = np.array([radius * np.cos(2.0), radius * np.sin(2.0), 0.3])
+        assert is_split(PAPER_ARM, pose) == split
+        assert in_working_region(PAPER_ARM, pose) == working

@@ -7,8 +7,12 @@ one batch (``points_of_view.sample_points_of_view`` walks them together):
 
     world = build_world(seed, params)
     result = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
-                           initial_center=world.initial_center)
-    povs = sample_points_of_view(result.motor_states)
+                           initial_center=world.initial_center, body_arm=world.arm)
+    povs = sample_points_of_view(result.motor_states, body_arm=world.arm)
+
+Any body (``core.arm.Arm``): the paper arm keeps the paper's literal tests
+(``|tip| < 1`` is a split POV, ``1 <= |tip| <= 3`` the working ring); another
+arm uses the geometry they come from (``fibres.fibre_is_split``, its reach).
 """
 from __future__ import annotations
 
@@ -18,8 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sensorispace_ros.core import arm, retina, world as world_mod
+from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.body import SimulatedBody
 from sensorispace_ros.core.paper.compensation import compensate_pose
+from sensorispace_ros.core.paper.fibres import fibre_is_split
 from sensorispace_ros.core.sensor_code import SensorCode
 from sensorispace_ros.core.seeding import rng_for
 
@@ -49,7 +55,7 @@ PAPER_PARAMS = {
 
 # Reasons an environmental change is not compensated.
 NOT_CONVERGED = "not_converged"          # Nelder-Mead error above threshold
-SPLIT_POINT_OF_VIEW = "split_point_of_view"  # |tip| < 1: the POV walk cannot sample it
+SPLIT_POINT_OF_VIEW = "split_point_of_view"  # a 1-D fibre in two pieces: the walk covers one
 STATE_CHANGE = "state_change"            # the light set did not move rigidly
 
 
@@ -150,7 +156,7 @@ class ExplorationResult:
     compensated: int
     state_changes_compensated: int
     failures_by_reason: dict
-    missed_in_ring: np.ndarray       # ground truth: grid indices with 1 <= |target tip| <= 3 not compensated
+    missed_in_ring: np.ndarray       # ground truth: grid indices with a reachable, whole target not compensated
     timings_s: dict = field(default_factory=dict)
 
 
@@ -168,7 +174,8 @@ def rigid_translation_fit(lights_before: np.ndarray, lights_after: np.ndarray):
 
 def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: float = 1e-3,
                   rigid_tol: float = 1e-9, compensation_options: dict | None = None,
-                  skip_certain_failures: bool = True, progress=None) -> ExplorationResult:
+                  skip_certain_failures: bool = True, progress=None,
+                  body_arm: Arm = PAPER_ARM) -> ExplorationResult:
     """Walk the event list and compensate every change the analytic shortcut can.
 
     Translation: the target pose is the pose at the *last successful*
@@ -186,31 +193,29 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     the change is declared non-compensable. (The paper's formula, with a
     null displacement, would "compensate" it trivially.)
 
-    Compensations whose POV is split (``|tip| < 1``, paper Fig. 5b) are
-    discarded and the arm stays put, as the paper ignores them.
+    Compensations whose 1-D POV is split (two loops, paper Fig. 5b: the
+    kernel walk covers one) are discarded and the arm stays put, as the
+    paper ignores them. 0-D and 2-D POVs are sampled whole, split or not.
 
-    ``skip_certain_failures``: a target farther than ``threshold`` beyond
-    the arm's reach (3) cannot be compensated by any motor state (the pose
-    error is at least ``|target_xy| - 3``), and one with ``|target_xy| < 1 -
-    threshold`` can only be reached with a split POV; both are decided
-    without running Nelder-Mead. The outcome is identical (tests compare it
-    with ``False``); ~80 % of the paper grid lies beyond reach, so this saves
-    most of the search time.
+    ``skip_certain_failures``: a target farther than ``threshold`` from the
+    tip's workspace (the annulus ``inner_reach <= |xy| <= reach``) cannot be
+    compensated by any motor state (the pose error is at least the distance
+    of its position to that annulus, whatever the eye's orientation), and on
+    the paper arm one with ``|target_xy| < 1 - threshold`` can only be
+    reached with a split POV; all are decided without running Nelder-Mead.
+    The outcome is identical (tests compare it with ``False``); ~80 % of the
+    paper grid lies beyond reach, so this saves most of the search time.
     ``grid`` is the object's grid (checked against the events' grid
     indices). ``progress(done, total)`` is called every 100 events.
     """
-    m0 = _checked_exploration(m0, grid, events, threshold, rigid_tol)
-    options = dict(compensation_options or {})
+    m0 = _checked_exploration(m0, grid, events, threshold, rigid_tol, body_arm)
     started = time.perf_counter()
-
-    motor = m0.copy()
-    pose0 = arm.forward(m0)
-    anchor_pose = pose0.copy()
-    anchor_center = np.asarray(initial_center, dtype=float)
+    pose0 = body_arm.forward(m0)
+    tally = _Tally(states=[m0.copy()], event_ids=[-1], poses=[pose0], grid_ids=[-1],
+                   body_arm=body_arm, threshold=threshold,
+                   options=dict(compensation_options or {}))
+    anchor_pose, anchor_center = pose0.copy(), np.asarray(initial_center, dtype=float)
     lights = anchor_center + events[0].offsets if events else None
-    tally = _Tally(states=[m0.copy()], event_ids=[-1], poses=[pose0], grid_ids=[-1])
-    reach = float(sum(arm.SEGMENT_LENGTHS))
-
     for k, event in enumerate(events):
         new_lights = event.lights
         _, residual = rigid_translation_fit(lights, new_lights)
@@ -223,20 +228,8 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
         tally.state_changes_compensated += is_redistribution
         center = event.center
         target = anchor_pose + np.array([*(center - anchor_center), 0.0])
-        target_reach = np.hypot(target[0], target[1])
-        certain = _certain_failure(target_reach, reach, threshold)
-        if skip_certain_failures and certain is not None:
-            tally.failures[certain] += 1
-            continue
-        candidate, pose, success = tally.compensate(motor, target, target_reach, event,
-                                                    threshold=threshold, options=options)
-        if success:
-            motor = candidate
-            anchor_pose, anchor_center = pose, center.copy()
-            tally.states.append(candidate)
-            tally.event_ids.append(event.index)
-            tally.poses.append(pose)
-            tally.grid_ids.append(event.grid_index)
+        if tally.follow(target, event, skip_certain_failures):
+            anchor_pose, anchor_center = tally.poses[-1], center.copy()
         if progress is not None and (k + 1) % 100 == 0:
             progress(k + 1, len(events))
     if progress is not None:
@@ -244,11 +237,11 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     return tally.result(len(events), time.perf_counter() - started)
 
 
-def _checked_exploration(m0, grid, events, threshold, rigid_tol) -> np.ndarray:
+def _checked_exploration(m0, grid, events, threshold, rigid_tol, body_arm) -> np.ndarray:
     """``m0`` as a float array, after checking ``explore_paper``'s arguments."""
     m0 = np.asarray(m0, dtype=float)
-    if m0.shape != (arm.N_JOINTS,):
-        raise ValueError(f"m0 must have {arm.N_JOINTS} joint angles, got {m0}")
+    if m0.shape != (body_arm.n_joints,):
+        raise ValueError(f"m0 must have {body_arm.n_joints} joint angles, got {m0}")
     grid = np.asarray(grid, dtype=float)
     if grid.ndim != 2 or grid.shape[1] != 2:
         raise ValueError(f"grid must have shape (G, 2), got {grid.shape}")
@@ -263,14 +256,36 @@ def _checked_exploration(m0, grid, events, threshold, rigid_tol) -> np.ndarray:
     return m0
 
 
-def _certain_failure(target_reach, reach, threshold) -> str | None:
+def _certain_failure(target_reach, body_arm: Arm, threshold) -> str | None:
     """Why a target at ``target_reach`` from the base cannot be compensated
     whatever the search does (None: it may be)."""
-    if target_reach > reach + threshold:
+    if body_arm.is_paper:
+        reach = float(sum(arm.SEGMENT_LENGTHS))
+        if target_reach > reach + threshold:
+            return NOT_CONVERGED
+        if target_reach < 1.0 - threshold:
+            return SPLIT_POINT_OF_VIEW
+        return None
+    if target_reach > body_arm.reach + threshold or target_reach < body_arm.inner_reach - threshold:
         return NOT_CONVERGED
-    if target_reach < 1.0 - threshold:
-        return SPLIT_POINT_OF_VIEW
     return None
+
+
+def is_split(body_arm: Arm, pose: np.ndarray) -> bool:
+    """Whether the POV of ``pose`` is one the paper strategy drops: a 1-D
+    fibre in two pieces (the paper arm: ``|tip| < 1``, literally)."""
+    if body_arm.is_paper:
+        return bool(np.hypot(pose[0], pose[1]) < 1.0)
+    return body_arm.pov_dim == 1 and bool(fibre_is_split(body_arm, pose))
+
+
+def in_working_region(body_arm: Arm, target: np.ndarray) -> bool:
+    """Ground truth: the target pose is reachable with a POV that is kept
+    (the paper arm: ``1 <= |tip| <= 3``)."""
+    if body_arm.is_paper:
+        return bool(1.0 <= np.hypot(target[0], target[1]) <= 3.0)
+    return bool(body_arm.reachable(target[:2], float(target[2]))) and not is_split(body_arm,
+                                                                                   target)
 
 
 @dataclass
@@ -284,6 +299,9 @@ class _Tally:
     event_ids: list
     poses: list
     grid_ids: list
+    body_arm: Arm
+    threshold: float
+    options: dict
     failures: dict = field(default_factory=lambda: {NOT_CONVERGED: 0, SPLIT_POINT_OF_VIEW: 0,
                                                     STATE_CHANGE: 0})
     state_changes: int = 0
@@ -292,16 +310,33 @@ class _Tally:
     compensation_time: float = 0.0
     n_calls: int = 0
 
-    def compensate(self, motor, target, target_reach, event, *, threshold, options):
+    def follow(self, target, event, skip_certain_failures) -> bool:
+        """Compensate the translation to ``target`` from the current state;
+        True (and the state recorded) on success."""
+        target_reach = np.hypot(target[0], target[1])
+        certain = _certain_failure(target_reach, self.body_arm, self.threshold)
+        if skip_certain_failures and certain is not None:
+            self.failures[certain] += 1
+            return False
+        candidate, pose, success = self.compensate(self.states[-1], target, event)
+        if success:
+            self.states.append(candidate)
+            self.event_ids.append(event.index)
+            self.poses.append(pose)
+            self.grid_ids.append(event.grid_index)
+        return success
+
+    def compensate(self, motor, target, event):
         """Nelder-Mead from ``motor`` toward ``target``; a solution whose POV
         is split counts as a failure. Returns ``(candidate, its pose,
         success)``."""
         t0 = time.perf_counter()
-        candidate, _, success = compensate_pose(motor, target, threshold=threshold, **options)
+        candidate, _, success = compensate_pose(motor, target, threshold=self.threshold,
+                                                body_arm=self.body_arm, **self.options)
         self.compensation_time += time.perf_counter() - t0
         self.n_calls += 1
-        pose = arm.forward(candidate)
-        if success and np.hypot(pose[0], pose[1]) < 1.0:
+        pose = self.body_arm.forward(candidate)
+        if success and is_split(self.body_arm, pose):
             # The kernel walk traces only one of the two loops of such a POV
             # (points_of_view flags it "split" from its winding; tests check
             # both criteria agree), so the paper ignores these positions.
@@ -309,7 +344,7 @@ class _Tally:
             success = False
         elif not success:
             self.failures[NOT_CONVERGED] += 1
-            if 1.0 <= target_reach <= 3.0:
+            if in_working_region(self.body_arm, target):
                 self.missed_in_ring.append(event.grid_index)
         return candidate, pose, success
 
