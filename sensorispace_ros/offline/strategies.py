@@ -62,8 +62,10 @@ def world_params(cfg: dict) -> dict:
 
 
 def pov_params(cfg: dict) -> dict:
+    """``core.paper.points_of_view.sample_points_of_view`` options from the configuration."""
     pov = cfg["pov"]
     return {"step": pov["step"], "n_samples": pov["n_samples"],
+            "n_samples_2d": pov["n_samples_2d"],
             "min_steps": pov["min_steps"], "close_tol": pov["close_tol"]}
 
 
@@ -76,7 +78,8 @@ def run_strategy(cfg: dict, strategy: str, seed: int, progress=None) -> Strategy
 
 
 def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
-    """Simulations 1 and 2 with the paper's analytic shortcuts."""
+    """Simulations 1 and 2 with the paper's analytic shortcuts, on the
+    configuration's body (``arm.*``): POVs in its motor unit."""
     from sensorispace_ros.core.paper.equality_sets import equality_sets_from_poses
     from sensorispace_ros.core.paper.exploration import build_world, explore_paper
 
@@ -87,9 +90,10 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
             m0=world.m0, grid=world.grid, events=world.events,
             initial_center=world.initial_center, threshold=cfg["compensation"]["threshold"],
             compensation_options={"initial_simplex_size": cfg["compensation"]["initial_simplex"]},
-            progress=progress)
+            progress=progress, body_arm=world.arm)
     with timed_stage(progress, "points_of_view", timings):
-        sampled = _sample_points_of_view(explored.motor_states, cfg, progress)
+        sampled = _sample_points_of_view(explored.motor_states, cfg, progress,
+                                         body_arm=world.arm)
     valid = np.asarray(sampled.valid, dtype=bool)
     povs = sampled.samples[valid]
     true_poses = explored.true_poses[valid]
@@ -101,13 +105,14 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     return StrategyOutput(povs=povs, pairs=np.asarray(pairs, dtype=int),
                           set_ids=np.asarray(set_ids, dtype=int),
                           true_positions=true_poses[:, :2].copy(),
-                          metrics=_paper_metrics(explored, sampled, valid, povs, true_poses),
+                          metrics=_paper_metrics(explored, sampled, valid, povs, true_poses,
+                                                 world.arm),
                           arrays=_paper_arrays(world, explored, valid, true_poses),
                           timings_s=timings)
 
 
 def _paper_metrics(explored, sampled, valid: np.ndarray, povs: np.ndarray,
-                   true_poses: np.ndarray) -> dict:
+                   true_poses: np.ndarray, body_arm) -> dict:
     metrics = {
         "exploration.events": explored.events,
         "exploration.state_changes": explored.state_changes,
@@ -116,7 +121,7 @@ def _paper_metrics(explored, sampled, valid: np.ndarray, povs: np.ndarray,
         "exploration.missed_in_ring": len(explored.missed_in_ring),
         "pov.count": int(valid.sum()),
         "pov.invalid": int((~valid).sum()),
-        "pov.max_pose_drift": pose_drift(povs, true_poses),
+        "pov.max_pose_drift": pose_drift(povs, true_poses, body_arm),
         "pov.steps_median": float(np.median(sampled.steps[valid])) if valid.any() else 0.0,
     }
     for reason, count in sorted(explored.failures_by_reason.items()):
@@ -139,29 +144,33 @@ def _paper_arrays(world, explored, valid: np.ndarray, true_poses: np.ndarray) ->
 
 
 def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
-                           processes: int | None = None):
-    """``sample_points_of_view`` of every motor state, in two forked
-    processes (halves of the batch) when ``can_fork``.
+                           processes: int | None = None, body_arm=None):
+    """``sample_points_of_view`` of every motor state of ``body_arm`` (the
+    paper arm by default), in two forked processes (halves of the batch)
+    when ``can_fork``.
 
-    Every operation of the walk is per POV, so the halves give the same bits
-    as one batch (tests check it); each half walks until its longest loop
-    closes.
+    Every operation of the samplers is per POV, so the halves give the same
+    bits as one batch (tests check it); each half walks until its longest
+    loop closes.
     """
     from sensorispace_ros.core.paper.points_of_view import (PointsOfViewResult,
         sample_points_of_view)
 
+    from sensorispace_ros.core.arm import PAPER_ARM
+
+    options = {**pov_params(cfg), "body_arm": PAPER_ARM if body_arm is None else body_arm}
     if processes is None:
         processes = min(2, os.cpu_count() or 1) if can_fork() else 1
     motor_states = np.asarray(motor_states, dtype=float)
     if processes < 2 or len(motor_states) < 64:
-        return sample_points_of_view(motor_states, progress=progress, **pov_params(cfg))
+        return sample_points_of_view(motor_states, progress=progress, **options)
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     chunks = np.array_split(motor_states, processes)
     with ProcessPoolExecutor(max_workers=processes,
                              mp_context=multiprocessing.get_context("fork")) as pool:
-        futures = [pool.submit(sample_points_of_view, chunk, **pov_params(cfg))
+        futures = [pool.submit(sample_points_of_view, chunk, **options)
                    for chunk in chunks]
         parts = []
         for future in futures:
