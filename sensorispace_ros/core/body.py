@@ -29,6 +29,7 @@ import numpy as np
 from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.arm import LEVEL_DIRECTION as _LEVEL_DIRECTION
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.core.sensor_code import SensorCode
 
 try:
@@ -276,13 +277,15 @@ class SimulatedBody:
 class SensingOnly:
     """Expose only ``sense`` and the vector sizes of a body: what a naive agent may touch."""
 
-    __slots__ = ("_sense", "_move", "n_motors", "n_sensors")
+    __slots__ = ("_sense", "_move", "n_motors", "n_sensors", "description")
 
     def __init__(self, body: SensingBody):
         self._sense = body.sense
         self._move = getattr(body, "move", None)
         self.n_motors = int(body.n_motors)
         self.n_sensors = int(body.n_sensors)
+        self.description = (getattr(body, "description", None)
+                            or BodyDescription.revolute(self.n_motors, self.n_sensors))
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         return self._sense(motor_states)

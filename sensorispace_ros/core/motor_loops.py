@@ -23,3 +23,22 @@ def loop_winding(path: np.ndarray) -> np.ndarray:
     if path.ndim != 2 or len(path) < 2:
         raise ValueError(f"path must have shape (n >= 2, joints), got {path.shape}")
     return np.rint((path[-1] - path[0]) / TWO_PI).astype(int)
+
+
+def closure_gap_ratio(path: np.ndarray) -> float:
+    """How far an unwrapped motor path ``(n, J)`` that was walked round a
+    loop ends from its start, relative to the path's own length:
+    ``|path[-1] - path[0]| / sum of its chords``.
+
+    A walk that closed in the motor space ends about one step from its
+    start (a small ratio). One whose ends met only in the torus, a period
+    apart in some coordinates, ends a whole period away: its ratio is of
+    the order of one (a period over a loop at least a period long). The
+    rule names no joint: it is the distance between two points.
+    """
+    path = np.asarray(path, dtype=float)
+    if path.ndim != 2 or len(path) < 2:
+        raise ValueError(f"path must have shape (n >= 2, joints), got {path.shape}")
+    length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
+    gap = float(np.linalg.norm(path[-1] - path[0]))
+    return gap / length if length > 0 else np.inf

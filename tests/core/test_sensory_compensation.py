@@ -1,4 +1,5 @@
 """Naive compensation: Levenberg-Marquardt on sensory error, with the rank test."""
+import functools
 import types
 
 import numpy as np
@@ -7,8 +8,13 @@ import pytest
 from sensorispace_ros.core import arm
 from sensorispace_ros.core.body import SimulatedBody
 from sensorispace_ros.core.paper.exploration import build_world
-from sensorispace_ros.core.naive.compensation import compensate
+from sensorispace_ros.core.arm import PAPER_ARM
+from sensorispace_ros.core.naive import compensation
 from sensorispace_ros.core.world import draw_light_offsets
+
+
+# The paper arm's pose rank (ground truth; the agent measures it, structure.py).
+compensate = functools.partial(compensation.compensate, rank=PAPER_ARM.pose_rank)
 
 
 @pytest.fixture(scope="module")

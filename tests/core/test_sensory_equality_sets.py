@@ -1,4 +1,6 @@
 """Equality sets from sensation matching (simulation 2 without ground truth)."""
+import functools
+
 import numpy as np
 import pytest
 
@@ -6,9 +8,14 @@ from sensorispace_ros.core import arm
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.paper.exploration import build_world
 from sensorispace_ros.core.paper.points_of_view import project_onto_pose
-from sensorispace_ros.core.naive.equality_sets import (EqualitySetCollection, EqualitySetSweep,
-    match_sensations, merge_equality_sets)
+from sensorispace_ros.core.arm import PAPER_ARM
+from sensorispace_ros.core.naive import equality_sets
+from sensorispace_ros.core.naive.equality_sets import (EqualitySetCollection, match_sensations,
+    merge_equality_sets)
 from sensorispace_ros.core.world import draw_light_offsets
+
+# The paper arm's pose rank (ground truth; the agent measures it, structure.py).
+EqualitySetSweep = functools.partial(equality_sets.EqualitySetSweep, rank=PAPER_ARM.pose_rank)
 
 
 def test_match_sensations_requires_closeness_and_uniqueness():

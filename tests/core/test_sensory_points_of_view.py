@@ -1,4 +1,5 @@
 """Naive POVs: walked through ``sense`` only, checked against the analytic walk."""
+import functools
 import types
 import warnings
 
@@ -11,8 +12,14 @@ from sensorispace_ros.core.paper.exploration import build_world
 from sensorispace_ros.core.hausdorff import hausdorff_pair
 from sensorispace_ros.core.paper.points_of_view import (loop_winding, resample_closed_path,
     sample_points_of_view)
+from sensorispace_ros.core.arm import PAPER_ARM
+from sensorispace_ros.core.naive import points_of_view
 from sensorispace_ros.core.naive.points_of_view import (NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID,
-    has_full_pose_rank, resample_loop_spline, sample_sensory_points_of_view, sensory_jacobian)
+    has_full_pose_rank, resample_loop_spline, sensory_jacobian)
+
+# The paper arm's pose rank (ground truth; the agent measures it, structure.py).
+sample_sensory_points_of_view = functools.partial(points_of_view.sample_sensory_points_of_view,
+                                                  rank=PAPER_ARM.pose_rank)
 
 
 @pytest.fixture(scope="module")
@@ -195,8 +202,9 @@ def test_sensory_jacobian_matches_the_chain_rule(world):
                         - retina.sensation(pose - h, world.initial_lights, world.receptors))
                        / 2e-6 for h in 1e-6 * np.eye(3)], axis=1)
     np.testing.assert_allclose(jac[0], d_pose @ arm.jacobian(world.m0), atol=1e-4)
-    assert has_full_pose_rank(jac)[0]
-    assert not has_full_pose_rank(np.zeros((1, 6, 4)))[0]
+    assert has_full_pose_rank(jac, PAPER_ARM.pose_rank)[0]
+    assert not has_full_pose_rank(np.zeros((1, 6, 4)), PAPER_ARM.pose_rank)[0]
+    assert not has_full_pose_rank(jac, PAPER_ARM.pose_rank + 1)[0]   # the null direction
 
 
 @pytest.mark.parametrize("name, value", [("initial_step", 0.0), ("predictor_tol", -1.0),

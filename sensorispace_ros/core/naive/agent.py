@@ -21,7 +21,7 @@ event it sweeps the known POVs again (one ``sense`` call) and
 
 * matches old sweeps with the new one: POV j' now sensing what POV j sensed
   at snapshot time means pose(j') - pose(j) is the object's displacement
-  since then. One such match (unique, rank 3) *confirms* the snapshot: no
+  since then. One such match (unique, full pose rank) *confirms* the snapshot: no
   redistribution since. The matched changes of a snapshot form an equality
   set (simulation 2), and a known POV that matches an anchor compensates it
   without any search;
@@ -41,32 +41,41 @@ accepted POV is a spatial relative of the start's (the set {M*}_0). A
 compensating state sensing what a known POV senses is that POV (dedupe).
 The passive sensation handed to ``react`` is checked but not needed: the
 sweep senses the resting POV again.
+
+Before anything else ``start`` measures the body's structure (``structure``):
+the pose rank, the POV dimension and the sensory gain every sensation
+tolerance is scaled by. The agent works in phases (each joint's period, as
+the body's description states it, is 2 pi); what it reports is in the
+body's own units.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.core.naive.anchors import (Snapshot, anchor_requests,
     full_rank_matches)
-from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetCollection, EqualitySetSweep, check_pose_rank, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.points_of_view import (SPLIT, PovStore, jacobian_stencil,
-    sample_sensory_points_of_view)
+from sensorispace_ros.core.naive.points_of_view import PovStore, jacobian_stencil
 from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
-from sensorispace_ros.core.naive.sense_memory import CountingBody
+from sensorispace_ros.core.naive.searching import SearchAndSample
+from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
+from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances, measure_structure
 
 EXPLORING = "exploring"
 
 
-class NaiveAgent:
+class NaiveAgent(SearchAndSample):
     """Event-driven naive explorer (see the module docstring).
 
     ``body`` needs ``sense(motor_states (B, M)) -> (B, S)``, ``n_motors`` and
-    ``n_sensors``; ``sense`` is called from the thread that calls ``start``/
+    ``n_sensors``, and may state its joints' periods in ``description``
+    (a ``BodyDescription``; without one every joint is a hinge in radians);
+    ``sense`` is called from the thread that calls ``start``/
     ``react`` and may be a round trip to another process. Every ``start``/
     ``react`` ends with a one-row command: the arm rests at
     ``rest_motor_state``. The policy draws no random numbers: the same
@@ -83,8 +92,19 @@ class NaiveAgent:
                 raise ValueError(f"body: must expose a positive integer {name}, got {value!r}")
         if not callable(getattr(body, "sense", None)):
             raise ValueError("body: must expose sense(motor_states)")
-        self._body = CountingBody(body, bool(self.params.remember_sensations))
+        description = getattr(body, "description", None)
+        if description is None:
+            description = BodyDescription.revolute(int(body.n_motors), int(body.n_sensors))
+        if not isinstance(description, BodyDescription) or \
+                description.n_motors != int(body.n_motors):
+            raise ValueError(f"body: description must be a BodyDescription of {body.n_motors} "
+                             f"joints, got {description!r}")
+        self.description = description
+        self._phase = MotorPhase(description.periods)
+        self._body = CountingBody(body, bool(self.params.remember_sensations), self._phase)
         self.n_motors = self._body.n_motors
+        self.structure: BodyStructure | None = None     # measured by start()
+        self._tol: Tolerances | None = None
         self._store = PovStore(self.params.n_samples, self.n_motors)
         # One motor state of every POV whose walk came back split (remember_split_povs).
         self._split_states = np.zeros((0, self.n_motors))
@@ -107,14 +127,15 @@ class NaiveAgent:
 
     @property
     def points_of_view(self) -> np.ndarray:
-        """``(P, N, M)`` samples of every POV found so far (a copy)."""
-        return self._store.samples.copy()
+        """``(P, N, M)`` samples of every POV found so far (a copy, in the
+        body's units)."""
+        return self._to_body(self._store.samples)
 
     @property
     def split_motor_states(self) -> np.ndarray:
         """``(Q, M)`` one motor state of every POV whose walk came back split
-        (``remember_split_povs``; a copy)."""
-        return self._split_states.copy()
+        (``remember_split_povs``; a copy, in the body's units)."""
+        return self._to_body(self._split_states)
 
     @property
     def compensated(self) -> int:
@@ -122,8 +143,15 @@ class NaiveAgent:
         return self.events_compensated
 
     @property
+    def n_samples(self) -> int:
+        """Samples kept per POV: ``n_samples``, or ``n_samples_surface`` when
+        the POVs are surfaces (``start`` measures which)."""
+        surface = self.structure is not None and self.structure.pov_dim == 2
+        return self.params.n_samples_surface if surface else self.params.n_samples
+
+    @property
     def rest_motor_state(self) -> np.ndarray | None:
-        return None if self._rest is None else self._rest.copy()
+        return None if self._rest is None else self._to_body(self._rest)
 
     @property
     def queries_total(self) -> int:
@@ -184,6 +212,7 @@ class NaiveAgent:
         agent = cls(body, attributes["params"])
         sweep = attributes.pop("_sweep", None)
         vars(agent).update(attributes)
+        agent._body.phase = agent._phase
         for name, value in state["counters"].items():
             setattr(agent._body, name, dict(value))
         if sweep is not None:
@@ -200,9 +229,17 @@ class NaiveAgent:
         if m0.shape != (self.n_motors,) or not np.all(np.isfinite(m0)):
             raise ValueError(f"initial_motor_state: must be {self.n_motors} finite numbers, "
                              f"got {initial_motor_state!r}")
+        m0 = self._phase.to_phase(m0).copy()
         self._event = 0
         self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
+        p = self.params
+        self._body.stage = "rank"
+        self.structure = measure_structure(self._body, m0, fd_step=p.fd_step,
+                                           probes=p.structure_probes,
+                                           radius=p.structure_radius, min_gap=p.rank_min_gap)
+        self._tol = Tolerances.of(p, self.structure)
+        self._store = PovStore(self.n_samples, self.n_motors)
         new, sensations = self._sample_povs(m0[None])
         self._rest = m0.copy()
         self._rest_pov = new[0] if new else -1
@@ -214,8 +251,8 @@ class NaiveAgent:
                                 RANK_FULL if new else RANK_UNKNOWN)]
         self._body.pause()
         new = np.asarray(new, dtype=int)
-        return Reaction(event=0, compensated=False, rest_motor_state=m0.copy(),
-                        new_pov_ids=new, new_povs=self._store.samples[new].copy(),
+        return Reaction(event=0, compensated=False, rest_motor_state=self._to_body(m0),
+                        new_pov_ids=new, new_povs=self._to_body(self._store.samples[new]),
                         queries=self._body.total_rows - before_rows,
                         calls=self._body.total_calls - before_calls)
 
@@ -248,7 +285,7 @@ class NaiveAgent:
         presend``) answers it with the change, saving a round trip."""
         if self._event < 0 or self.phase != EXPLORING or self._store.count == 0:
             return None
-        return self._sweep_rows().copy()
+        return self._to_body(self._sweep_rows())
 
     def begin_equality_pass(self) -> None:
         """Switch to simulation 2: from now on ``react`` only sweeps the known
@@ -261,9 +298,11 @@ class NaiveAgent:
         self._body.forget()
         self._body.stage = "equality_pass"
         self._sweep = EqualitySetSweep(
-            self._body, self._store.samples, fd_step=self.params.fd_step,
-            rank_ratio=self.params.rank_ratio, min_singular=self.params.min_singular,
-            match_tol=self.params.match_tol, separation=self.params.match_separation)
+            self._body, self._store.samples, rank=self.structure.pose_rank,
+            fd_step=self.params.fd_step, rank_ratio=self.params.rank_ratio,
+            min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
+            match_tol=self._tol.match,
+            separation=self._tol.separation)
         self._sweep.sets = self._sets
         self._sweep.observe()       # the sweep "before" the first change
         self._body.stage = "rest"
@@ -278,9 +317,10 @@ class NaiveAgent:
         self._sweep.observe()
         self._body.stage = "rest"
         self._body.rest(self._rest)
-        return Reaction(event=self._event, compensated=False, rest_motor_state=self._rest.copy(),
+        return Reaction(event=self._event, compensated=False,
+                        rest_motor_state=self._to_body(self._rest),
                         new_pov_ids=np.zeros(0, dtype=int),
-                        new_povs=np.zeros((0, self.params.n_samples, self.n_motors)),
+                        new_povs=np.zeros((0, self.n_samples, self.n_motors)),
                         equality_rows=self._sets.rows_since(n_before))
 
     def _react_exploring(self) -> Reaction:
@@ -322,8 +362,9 @@ class NaiveAgent:
                                   self._rest_pov, int(rest_rank)))
 
         new_idx = np.asarray(new_povs, dtype=int)
-        return Reaction(event=t, compensated=bool(records), rest_motor_state=self._rest.copy(),
-                        new_pov_ids=new_idx, new_povs=self._store.samples[new_idx].copy(),
+        return Reaction(event=t, compensated=bool(records),
+                        rest_motor_state=self._to_body(self._rest), new_pov_ids=new_idx,
+                        new_povs=self._to_body(self._store.samples[new_idx]),
                         compensations=records, equality_rows=self._sets.rows_since(sets_before))
 
     def _match_snapshots(self, current, tree):
@@ -334,7 +375,7 @@ class NaiveAgent:
         match senses the same relative pose in the same light layout)."""
         p = self.params
         rank_now = np.full(len(current), RANK_UNKNOWN)
-        match = dict(match_tol=p.match_tol, separation=p.match_separation, tree=tree)
+        match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree)
         matches = []
         for snap in self._pool:
             before, after = match_sensations(snap.sensations, current, **match)
@@ -378,8 +419,10 @@ class NaiveAgent:
             self._body.stage = "rank"
             with self._body.lookahead(jacobian_stencil(starts, p.fd_step)):
                 full, _ = check_pose_rank(self._body, self._store.samples[unknown, 0],
-                                          fd_step=p.fd_step, rank_ratio=p.rank_ratio,
-                                          min_singular=p.min_singular)
+                                          rank=self.structure.pose_rank, fd_step=p.fd_step,
+                                          rank_ratio=p.rank_ratio,
+                                          min_singular=self._tol.min_singular,
+                                          pattern_ratio=p.pattern_ratio)
             rank_now[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
         return full_rank_matches(matches, rank_now)
 
@@ -426,10 +469,10 @@ class NaiveAgent:
                 (pov, motor), searched = found_rest[k], True
             else:
                 continue
-            records.append(CompensationRecord(event=t, anchor_event=snap.event,
-                                              anchor_motor_state=snap.rest_motor_state.copy(),
-                                              motor_state=motor.copy(), pov=int(pov),
-                                              searched=searched))
+            records.append(CompensationRecord(
+                event=t, anchor_event=snap.event,
+                anchor_motor_state=self._to_body(snap.rest_motor_state),
+                motor_state=self._to_body(motor), pov=int(pov), searched=searched))
             if rest_choice is None and pov >= 0:
                 rest_choice = (motor, int(pov))
         for i, r in enumerate(requests):
@@ -437,8 +480,8 @@ class NaiveAgent:
                 pov, motor = found[i]
                 records.append(CompensationRecord(
                     event=t, anchor_event=self._pool[r.snapshot].event,
-                    anchor_motor_state=r.anchor_motor_state.copy(), motor_state=motor.copy(),
-                    pov=int(pov), searched=True))
+                    anchor_motor_state=self._to_body(r.anchor_motor_state),
+                    motor_state=self._to_body(motor), pov=int(pov), searched=True))
         return records, rest_choice
 
     def _rest_after(self, rest_choice, rank_now):
@@ -451,8 +494,11 @@ class NaiveAgent:
         rest_rank = rank_now[self._rest_pov] if self._rest_pov >= 0 else RANK_UNKNOWN
         if rest_rank == RANK_UNKNOWN:
             self._body.stage = "rank"
-            full, _ = check_pose_rank(self._body, self._rest[None], fd_step=p.fd_step,
-                                      rank_ratio=p.rank_ratio, min_singular=p.min_singular)
+            full, _ = check_pose_rank(self._body, self._rest[None],
+                                      rank=self.structure.pose_rank, fd_step=p.fd_step,
+                                      rank_ratio=p.rank_ratio,
+                                      min_singular=self._tol.min_singular,
+                                      pattern_ratio=p.pattern_ratio)
             rest_rank = RANK_FULL if full[0] else RANK_DEFICIENT
             if self._rest_pov >= 0:
                 rank_now[self._rest_pov] = rest_rank
@@ -508,126 +554,6 @@ class NaiveAgent:
         share = min(1.0, self._frontier_success / 0.2)
         return max(1, int(np.ceil(self.params.frontier_attempts * share)))
 
-    def _search(self, requests, current, tree, split_now):
-        """LM toward every requested anchor (identical targets searched once)
-        from the request's own start, the resting state and the remembered
-        states that sense most like the target; sample the POVs of accepted
-        solutions that are not known POVs. ``split_now``: sensations of the
-        remembered split POVs in this environment; a solution sensing one of
-        them is on that loop, already walked and found split: not walked
-        again (its POV is -1, as after a split walk).
-
-        Returns ``{request index: (pov or -1, motor state)}`` for accepted
-        compensations, the new POV indices and their sensations.
-        """
-        p = self.params
-        if not requests:
-            return {}, [], []
-        group, unique_targets, owner, starts = self._search_plan(requests, current)
-        n_groups = len(unique_targets)
-        self._body.stage = "compensation"
-        search = compensate(self._body, unique_targets[owner], starts,
-                            fd_step=p.fd_step, max_iterations=p.lm_max_iterations,
-                            error_tol=p.lm_error_tol, motor_tol=p.lm_motor_tol,
-                            rank_ratio=p.rank_ratio, max_step=p.lm_max_step,
-                            initial_damping=p.lm_initial_damping,
-                            stall_iterations=p.lm_stall_iterations)
-        solution: dict[int, np.ndarray] = {}
-        for g in range(n_groups):
-            ok = np.flatnonzero((owner == g) & search.accepted)
-            if len(ok):
-                solution[g] = search.motor_states[ok[np.argmin(search.sensory_error[ok])]]
-        pov_of_group: dict[int, int] = {}
-        # A solution sensing what a known POV senses now is that POV (the
-        # solution has full rank, so the sensation pins the pose).
-        fresh = []
-        split_tree = cKDTree(split_now) if len(split_now) else None
-        for g in sorted(solution):
-            if tree is not None:
-                distance, index = tree.query(unique_targets[g], k=1)
-                if distance <= p.match_tol:
-                    pov_of_group[g] = int(index)
-                    continue
-            if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] \
-                    <= p.match_tol:
-                pov_of_group[g] = -1
-                self.split_walks_skipped += 1
-                continue
-            fresh.append(g)
-        new_povs, new_sensations = [], []
-        if fresh:
-            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
-                                                 keep_invalid=True)
-            for g, pov, sensation in zip(fresh, povs, sensations):
-                pov_of_group[g] = pov
-                if pov >= 0:
-                    new_povs.append(pov)
-                    new_sensations.append(sensation)
-        found = {i: (pov_of_group[group[i]], solution[group[i]])
-                 for i in range(len(requests)) if group[i] in solution}
-        return found, new_povs, new_sensations
-
-    def _search_plan(self, requests, current):
-        """The searches for ``requests`` (not empty): identical targets are
-        searched once, from the request's own start, the resting state and the
-        known POVs that sense most like the target now. Returns ``(group of
-        each request, unique targets (G, S), owner group of each search (K,),
-        starts (K, M))``."""
-        p = self.params
-        targets = np.stack([r.target for r in requests])
-        group = _group_rows(targets, p.match_tol)
-        n_groups = int(group.max()) + 1
-        first = [int(np.flatnonzero(group == g)[0]) for g in range(n_groups)]
-        unique_targets = targets[first]
-        starts, owner = [], []
-        for g, target in enumerate(unique_targets):
-            # The agent's memory of this arrangement is the known POVs it just
-            # sensed: start from those that sense most like the target.
-            chosen = [self._rest]
-            if requests[first[g]].start is not None:
-                chosen.append(requests[first[g]].start)
-            if len(current):
-                nearest = np.argsort(np.linalg.norm(current - target, axis=1))[:p.lm_restarts]
-                chosen.extend(self._store.samples[nearest, 0])
-            starts.extend(chosen)
-            owner.extend([g] * len(chosen))
-        return group, unique_targets, np.asarray(owner), np.asarray(starts, dtype=float)
-
-    def _sample_povs(self, motor_states: np.ndarray, keep_invalid: bool = False):
-        """Walk the POVs of ``motor_states`` (one batch) and store the valid
-        ones. Returns their indices and sensations; with ``keep_invalid``,
-        one entry per state (-1 / None for an invalid POV)."""
-        p = self.params
-        self._body.stage = "pov"
-        walk = sample_sensory_points_of_view(
-            self._body, motor_states, n_samples=p.n_samples, fd_step=p.fd_step,
-            initial_step=p.pov_initial_step, min_step=p.pov_min_step, max_step=p.pov_max_step,
-            predictor_tol=p.pov_predictor_tol, rank_ratio=p.rank_ratio,
-            max_queries=p.pov_max_queries, polish_iterations=p.pov_polish_iterations)
-        indices, sensations = [], []
-        for i in range(len(motor_states)):
-            if walk.valid[i]:
-                indices.append(self._store.append(walk.samples[i]))
-                self.pov_queries.append(int(walk.queries[i]))
-                self.pov_events.append(self._event)
-                sensations.append(walk.target_sensations[i])
-            else:
-                if walk.reason[i] == SPLIT and p.remember_split_povs:
-                    self._split_states = np.vstack([self._split_states, motor_states[i]])
-                if keep_invalid:
-                    indices.append(-1)
-                    sensations.append(None)
-        return indices, sensations
-
-
-def _group_rows(rows: np.ndarray, tol: float) -> np.ndarray:
-    """Label rows so that rows within ``tol`` of each other share a label."""
-    labels = np.full(len(rows), -1)
-    n = 0
-    for i in range(len(rows)):
-        if labels[i] >= 0:
-            continue
-        same = (labels < 0) & (np.linalg.norm(rows - rows[i], axis=1) <= tol)
-        labels[same] = n
-        n += 1
-    return labels
+    def _to_body(self, phases: np.ndarray) -> np.ndarray:
+        """A copy of ``phases`` in the body's motor units."""
+        return np.array(self._phase.to_body(phases), dtype=float, copy=True)

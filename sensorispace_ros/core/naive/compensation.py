@@ -15,9 +15,16 @@ ROS body per search instead of one for the whole batch.
 
 A search is accepted only if the sensory error is tiny, the Gauss-Newton step
 that would remove it is tiny in motor space, AND the sensory Jacobian at the
-solution has rank 3 (third singular value not negligible against the
-first). Without the rank test a blank or one-light sensation is
-"compensated" anywhere: its level set is 2- or 3-dimensional.
+solution has the body's pose rank ``r`` as the agent measured it
+(``structure``): its ``r``-th singular value is not negligible against the
+first, for the Jacobian and for its gain-free part
+(``jacobians.gain_free_jacobian``). Without the rank test a blank or one-light sensation is
+"compensated" anywhere: its level set is larger than a point of view.
+Motor states are phases. The sensory error is judged against the sensory
+gain *at the solution* (the largest singular value of its Jacobian):
+``error_tol`` is a motor-equivalent amount, so no tolerance is in the units
+of the receptors and a code that is steep in one place and flat in another
+gets the same test everywhere.
 """
 from __future__ import annotations
 
@@ -25,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensorispace_ros.core.naive.points_of_view import minimum_norm_correction, sensory_jacobian
+from sensorispace_ros.core.naive.jacobians import (has_full_pose_rank, minimum_norm_correction,
+    sensory_jacobian)
 
 
 @dataclass
@@ -33,15 +41,17 @@ class CompensationSearch:
     """Outcome of a batch of LM searches, one row per (target, start) search.
 
     ``motor_states`` final states ``(K, M)``; ``sensory_error`` final
-    ``|sense(m) - s_target|``; ``motor_residual`` norm of the Gauss-Newton
-    step that would remove that error (rad); ``rank_ratio`` third over first
-    singular value of the sensory Jacobian at the final state; ``accepted``
+    ``|sense(m) - s_target|``; ``gain`` the largest singular value of the
+    sensory Jacobian there; ``motor_residual`` norm of the Gauss-Newton
+    step that would remove that error; ``rank_ratio`` the ``rank``-th over
+    the first singular value of the sensory Jacobian at the final state; ``accepted``
     the three tests together; ``queries[k]`` motor states probed by search
     ``k``; ``iterations[k]``; ``calls`` ``sense`` calls of the whole batch.
     """
 
     motor_states: np.ndarray
     sensory_error: np.ndarray
+    gain: np.ndarray
     motor_residual: np.ndarray
     rank_ratio: np.ndarray
     accepted: np.ndarray
@@ -50,7 +60,8 @@ class CompensationSearch:
     calls: int
 
 
-def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
+def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank: int,
+               min_singular: float = 0.0, pattern_ratio: float = 1e-6,
                fd_step: float = 1e-6, max_iterations: int = 40,
                error_tol: float = 1e-10, motor_tol: float = 1e-8,
                rank_ratio: float = 1e-3, max_step: float = 0.5,
@@ -60,47 +71,47 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
     """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
     from ``starts[k]`` for every search ``k`` at once.
 
-    ``target_sensations`` ``(K, S)``, ``starts`` ``(K, M)``. Each iteration
+    ``target_sensations`` ``(K, S)``, ``starts`` ``(K, M)``. The rank test
+    is ``jacobians.has_full_pose_rank`` (``rank_ratio``, ``min_singular`` in
+    sensation units, ``pattern_ratio`` for the gain-free part). Each iteration
     solves ``(J^T J + lambda I) dm = -J^T r`` (Levenberg's isotropic damping:
-    the step stays small along the level set's null direction instead of
-    wandering along it), caps ``|dm|`` at ``max_step`` rad, and probes the
-    trial state with its stencil in the batch's one ``sense`` call. A better
-    trial is kept and ``lambda`` shrinks; a worse one is dropped and
-    ``lambda`` grows (``lambda`` is relative to the mean squared singular
-    value of ``J``). A search stops when accepted (``sensory_error <=
-    error_tol`` and ``motor_residual <= motor_tol``), after ``max_iterations``,
-    or when its error has not fallen below ``stall_factor`` times its value
-    ``stall_iterations`` iterations earlier (a local minimum: the target is
-    not reachable from there).
+    the step stays small along the level set's null directions), caps
+    ``|dm|`` at ``max_step`` (phase), and probes the trial state with its
+    stencil in the batch's one ``sense`` call. A better trial is kept and
+    ``lambda`` (relative to the mean squared singular value of ``J``)
+    shrinks; a worse one is dropped and ``lambda`` grows. A search stops
+    when accepted (``sensory_error <= error_tol * gain`` and
+    ``motor_residual <= motor_tol``), after ``max_iterations``, or when its
+    error has not fallen below ``stall_factor`` times its value
+    ``stall_iterations`` iterations earlier (a local minimum).
 
-    Two more stops save ``sense`` calls (each a round trip to the body) without
-    changing which targets are found (see docs/benchmarks.md):
+    Two more stops save ``sense`` calls without changing which targets are
+    found (see docs/benchmarks.md):
 
     * at a stationary point: when the part of the residual in the range of
       ``J`` is below ``stationary_ratio`` times the residual, the linearised
       model can remove at most ``1 - sqrt(1 - ratio^2)`` (2 % at 0.2) of the
-      error; at a local minimum with a nonzero residual (a target that is
-      not reachable from there) it tends to 0 while the stall test would
-      still wait ``stall_iterations`` iterations. ``0`` disables it.
-    * ``stop_found_targets``: searches whose target rows are equal (restarts
-      toward one target) stop as soon as one of them is accepted: an
-      accepted state has a rank-3 sensory Jacobian, so the target sensation
-      pins the eye's pose and another restart could only find that pose
-      again.
+      error (at a local minimum it tends to 0). ``0`` disables it.
+    * ``stop_found_targets``: searches toward one target stop as soon as one
+      of them is accepted: the target sensation pins the sensor's
+      configuration, so another restart could only find it again (on the
+      same POV; for a 0-D POV, another of its isolated solutions: pass False
+      to collect those).
     """
     targets, point = _checked_searches(
-        body, target_sensations, starts, fd_step=fd_step, max_iterations=max_iterations,
-        error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio, max_step=max_step,
-        initial_damping=initial_damping, stall_iterations=stall_iterations,
-        stall_factor=stall_factor, stationary_ratio=stationary_ratio)
+        body, target_sensations, starts, rank=rank, fd_step=fd_step,
+        max_iterations=max_iterations, error_tol=error_tol, motor_tol=motor_tol,
+        rank_ratio=rank_ratio, max_step=max_step, initial_damping=initial_damping,
+        stall_iterations=stall_iterations, stall_factor=stall_factor,
+        stationary_ratio=stationary_ratio)
+    accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=motor_tol,
+                  rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
     n_search = len(point)
     rows_per_state = point.shape[1] + 1
     queries = np.zeros(n_search, dtype=int)
     iterations = np.zeros(n_search, dtype=int)
-    if n_search == 0:
-        empty = np.zeros(0)
-        return CompensationSearch(point, empty, empty, empty, np.zeros(0, bool),
-                                  queries, iterations, 0)
+    if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
+        return _none_accepted(point)
 
     sensation, jac, _ = sensory_jacobian(body, point, fd_step)
     calls = 1
@@ -113,10 +124,9 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
     _, target_id = np.unique(targets, axis=0, return_inverse=True)
     target_id = target_id.reshape(-1)
     for iteration in range(1, max_iterations + 1):
-        active &= ~_stopping(jac, residual, error, history, iteration, target_id,
-                             error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio,
-                             stall_iterations=stall_iterations, stall_factor=stall_factor,
-                             stationary_ratio=stationary_ratio,
+        active &= ~_stopping(jac, residual + targets, residual, error, history, iteration,
+                             target_id, accept, stall_iterations=stall_iterations,
+                             stall_factor=stall_factor, stationary_ratio=stationary_ratio,
                              stop_found_targets=stop_found_targets)
         if not active.any():
             break
@@ -128,17 +138,27 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *,
         iterations[idx] += 1
         history.append(error.copy())
 
-    return _outcome(point, jac, residual, error, queries, iterations, calls,
-                    error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio)
+    return _outcome(point, jac, residual + targets, residual, error, queries, iterations, calls,
+                    **accept)
 
 
-def _checked_searches(body, target_sensations, starts, **parameters):
+def _none_accepted(point) -> CompensationSearch:
+    """The outcome of searches that were not run: none accepted, nothing sensed."""
+    n_search, nothing = len(point), np.zeros(len(point))
+    return CompensationSearch(point, np.full(n_search, np.inf), nothing, np.full(n_search, np.inf),
+                              nothing.copy(), np.zeros(n_search, bool),
+                              np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int), 0)
+
+
+def _checked_searches(body, target_sensations, starts, rank, **parameters):
     """``(targets (K, S), starts (K, M))`` as float arrays (the starts a
-    copy, the searches' working states), after checking their shapes and
-    ``parameters``."""
+    copy, the searches' working states), after checking their shapes,
+    ``rank`` and ``parameters``."""
     targets = np.asarray(target_sensations, dtype=float)
     point = np.array(starts, dtype=float, copy=True)
     n_motors = int(body.n_motors)
+    if int(rank) != rank or not 0 <= rank <= n_motors:
+        raise ValueError(f"rank must be an integer in [0, {n_motors}], got {rank}")
     if point.ndim != 2 or point.shape[1] != n_motors:
         raise ValueError(f"starts must have shape (K, {n_motors}), got {point.shape}")
     if targets.ndim != 2 or len(targets) != len(point):
@@ -148,36 +168,42 @@ def _checked_searches(body, target_sensations, starts, **parameters):
     return targets, point
 
 
-def _outcome(point, jac, residual, error, queries, iterations, calls, *, error_tol, motor_tol,
-             rank_ratio) -> CompensationSearch:
+def _outcome(point, jac, sensation, residual, error, queries, iterations, calls, *, rank,
+             error_tol, motor_tol, rank_ratio, min_singular,
+             pattern_ratio) -> CompensationSearch:
     """The searches' final states, with the three acceptance tests."""
     singular = np.linalg.svd(jac, compute_uv=False)
-    ratio = singular[:, 2] / np.maximum(singular[:, 0], 1e-300)
-    motor_residual = _step_norm(jac, residual)
-    accepted = (error <= error_tol) & (motor_residual <= motor_tol) & (ratio >= rank_ratio)
-    return CompensationSearch(motor_states=point, sensory_error=error,
+    ratio = singular[:, rank - 1] / np.maximum(singular[:, 0], 1e-300)
+    motor_residual = _step_norm(jac, residual, rank)
+    accepted = ((error <= error_tol * singular[:, 0]) & (motor_residual <= motor_tol)
+                & has_full_pose_rank(jac, rank, rank_ratio, min_singular, sensation,
+                                     pattern_ratio))
+    return CompensationSearch(motor_states=point, sensory_error=error, gain=singular[:, 0],
                               motor_residual=motor_residual, rank_ratio=ratio,
                               accepted=accepted, queries=queries, iterations=iterations,
                               calls=calls)
 
 
-def _stopping(jac, residual, error, history, iteration, target_id, *, error_tol, motor_tol,
-              rank_ratio, stall_iterations, stall_factor, stationary_ratio,
+def _stopping(jac, sensation, residual, error, history, iteration, target_id, accept, *,
+              stall_iterations, stall_factor, stationary_ratio,
               stop_found_targets) -> np.ndarray:
     """Searches that stop before this iteration (``compensate``'s stops):
     converged, stalled, at a stationary point, or restarts toward a target
-    another search already found."""
-    done = _converged(jac, residual, error, error_tol, motor_tol)
+    another search already found. ``accept``: the acceptance thresholds."""
+    rank, error_tol = accept["rank"], accept["error_tol"]
+    done = _converged(jac, residual, error, error_tol, accept["motor_tol"], rank)
     stop = done.copy()
     if iteration > stall_iterations:
         stop |= error > stall_factor * history[-1 - stall_iterations]
     if stationary_ratio > 0 or stop_found_targets:
         u, singular, _ = np.linalg.svd(jac, full_matrices=False)
     if stationary_ratio > 0:
-        in_range = np.linalg.norm(np.einsum("bsk,bs->bk", u[:, :, :3], residual), axis=1)
-        stop |= (in_range < stationary_ratio * error) & (error > error_tol)
+        in_range = np.linalg.norm(np.einsum("bsk,bs->bk", u[:, :, :rank], residual), axis=1)
+        stop |= (in_range < stationary_ratio * error) & (error > error_tol * singular[:, 0])
     if stop_found_targets and done.any():
-        found = done & (singular[:, 2] >= rank_ratio * singular[:, 0])
+        found = done & has_full_pose_rank(jac, rank, accept["rank_ratio"],
+                                          accept["min_singular"], sensation,
+                                          accept["pattern_ratio"])
         stop |= np.isin(target_id, target_id[found])
     return stop
 
@@ -214,18 +240,18 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     damping[worse] = damping[worse] * 4.0
 
 
-def _converged(jac, residual, error, error_tol, motor_tol):
-    converged = error <= error_tol
+def _converged(jac, residual, error, error_tol, motor_tol, rank):
+    converged = error <= error_tol * np.linalg.norm(jac, ord=2, axis=(1, 2))
     if converged.any():
         idx = np.flatnonzero(converged)
-        gn = _step_norm(jac[idx], residual[idx])
+        gn = _step_norm(jac[idx], residual[idx], rank)
         converged[idx] = gn <= motor_tol
     return converged
 
 
-def _step_norm(jac, residual):
+def _step_norm(jac, residual, rank):
     """Norm of the Gauss-Newton step; infinite for a blank (J = 0) sensation."""
-    step = minimum_norm_correction(jac, residual)
+    step = minimum_norm_correction(jac, residual, rank)
     with np.errstate(over="ignore", invalid="ignore"):
         norm = np.sqrt(np.sum(step * step, axis=1))
     return np.where(np.isfinite(norm), norm, np.inf)

@@ -12,8 +12,11 @@ object as it saw the unmoved one from j, i.e. pose(j') - pose(j) is the
 object's displacement, the same for every matched pair of that change.
 
 A match is trusted only if it is unique (no other POV's sensation near
-either side) and the sensation pins the eye's pose: the sensory Jacobian at
-j' has rank 3 (a blank or one-light sensation matches many poses). The rank
+either side) and the sensation pins the sensor's configuration: the sensory
+Jacobian at j' has the body's pose rank as the agent measured it
+(``structure``; a blank or one-light sensation matches many poses). The
+tolerances are in the units of the sensations: the agent passes
+motor-equivalent amounts times its measured gain (``structure.Tolerances``). The rank
 at j' after the change equals the rank at j before it (same relative pose,
 same light layout), so a rank found once is carried along the matches
 instead of being measured again.
@@ -23,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sensorispace_ros.core.naive.points_of_view import has_full_pose_rank, sensory_jacobian
+from sensorispace_ros.core.naive.jacobians import has_full_pose_rank, sensory_jacobian
 
 RANK_UNKNOWN = -1
 RANK_DEFICIENT = 0
@@ -69,15 +72,18 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
     return ref_idx[single], cur_idx[single]
 
 
-def check_pose_rank(body, motor_states: np.ndarray, *, fd_step: float = 1e-6,
-                    rank_ratio: float = 1e-3, min_singular: float = 1e-4):
-    """Rank test of the sensory Jacobian at ``motor_states`` (one ``sense``
-    call, ``M + 1`` rows each). Returns ``(full_rank (B,) bool, rows)``."""
+def check_pose_rank(body, motor_states: np.ndarray, *, rank: int, fd_step: float = 1e-6,
+                    rank_ratio: float = 1e-3, min_singular: float = 0.0,
+                    pattern_ratio: float = 1e-6):
+    """Rank test of the sensory Jacobian at ``motor_states`` against the pose
+    rank ``rank`` (one ``sense`` call, ``M + 1`` rows each). Returns
+    ``(full_rank (B,) bool, rows)``."""
     motor_states = np.asarray(motor_states, dtype=float)
     if len(motor_states) == 0:
         return np.zeros(0, dtype=bool), 0
-    _, jac, rows = sensory_jacobian(body, motor_states, fd_step)
-    return has_full_pose_rank(jac, rank_ratio, min_singular), rows
+    sensations, jac, rows = sensory_jacobian(body, motor_states, fd_step)
+    return has_full_pose_rank(jac, rank, rank_ratio, min_singular, sensations,
+                              pattern_ratio), rows
 
 
 class EqualitySetCollection:
@@ -176,16 +182,19 @@ class EqualitySetSweep:
     ``sense`` calls.
     """
 
-    def __init__(self, body, points_of_view: np.ndarray, *, fd_step: float = 1e-6,
-                 rank_ratio: float = 1e-3, min_singular: float = 1e-4,
-                 match_tol: float = 1e-6, separation: float = 1e-4, min_pairs: int = 2):
+    def __init__(self, body, points_of_view: np.ndarray, *, rank: int, fd_step: float = 1e-6,
+                 rank_ratio: float = 1e-3, min_singular: float = 0.0,
+                 pattern_ratio: float = 1e-6, match_tol: float = 1e-6,
+                 separation: float = 1e-4, min_pairs: int = 2):
         povs = np.asarray(points_of_view, dtype=float)
         if povs.ndim != 3 or povs.shape[2] != int(body.n_motors):
             raise ValueError(f"points_of_view must have shape (P, N, {body.n_motors}), "
                              f"got {povs.shape}")
         self.body = body
+        self.rank = int(rank)
         self.probe_states = povs[:, 0, :].copy()
         self.fd_step, self.rank_ratio, self.min_singular = fd_step, rank_ratio, min_singular
+        self.pattern_ratio = pattern_ratio
         self.match_tol, self.separation = match_tol, separation
         self.sets = EqualitySetCollection(min_pairs)
         self.rows = 0
@@ -226,16 +235,17 @@ def carry_rank(sweep, before, after, rank_before, rank_after):
     The rank is carried from the matched row of the earlier sweep when it is
     known there, otherwise measured at the later row's probe state (one
     ``sense`` call for all of them); ``rank_after`` is filled in place.
-    ``sweep`` supplies ``body``, ``probe_states``, the rank thresholds and
+    ``sweep`` supplies ``body``, ``probe_states``, the rank and its thresholds and
     the ``rows``/``calls`` counters.
     """
     known = rank_before[before]
     rank_after[after] = known
     unknown = after[known == RANK_UNKNOWN]
     if len(unknown):
-        full, rows = check_pose_rank(sweep.body, sweep.probe_states[unknown],
+        full, rows = check_pose_rank(sweep.body, sweep.probe_states[unknown], rank=sweep.rank,
                                      fd_step=sweep.fd_step, rank_ratio=sweep.rank_ratio,
-                                     min_singular=sweep.min_singular)
+                                     min_singular=sweep.min_singular,
+                                     pattern_ratio=sweep.pattern_ratio)
         sweep.rows += rows
         sweep.calls += 1
         rank_after[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)

@@ -4,7 +4,7 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -76,7 +76,8 @@ class NaiveAgentRecords:
     ``CompensationRecord`` fields; ``compensation_queries`` the rows of all
     compensated events except their POV walks (summed over the
     ``compensated`` events); ``queries_by_stage`` / ``calls_by_stage``
-    stage -> count (stages of ``STAGES``).
+    stage -> count (stages of ``STAGES``); ``pose_rank``, ``pov_dim`` and
+    ``rank_gap`` the agent's measure of its body (-1, -1, 0 before ``start``).
     """
 
     povs: np.ndarray
@@ -95,6 +96,9 @@ class NaiveAgentRecords:
     calls_total: int
     queries_by_stage: dict
     calls_by_stage: dict
+    pose_rank: int = -1
+    pov_dim: int = -1
+    rank_gap: float = 0.0
 
     @classmethod
     def from_agent(cls, agent: NaiveAgent) -> "NaiveAgentRecords":
@@ -117,7 +121,8 @@ class NaiveAgentRecords:
             compensated=int(agent.compensated),
             compensation_queries=int(sum(agent.compensation_queries)),
             queries_total=int(agent.queries_total), calls_total=int(agent.calls_total),
-            queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage)
+            queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage,
+            **_structure_fields(agent))
 
     def to_arrays(self) -> dict:
         """Flat ``{name: array}`` (``np.savez``); stage counts as
@@ -141,8 +146,21 @@ class NaiveAgentRecords:
                 prefix = f"{item.name}."
                 values[item.name] = {key[len(prefix):]: int(arrays[key]) for key in arrays
                                      if key.startswith(prefix)}
+            elif item.name not in arrays and item.default is not MISSING:
+                continue                # written before the field existed: its default
             elif item.type == "int":
                 values[item.name] = int(arrays[item.name])
+            elif item.type == "float":
+                values[item.name] = float(arrays[item.name])
             else:
                 values[item.name] = np.asarray(arrays[item.name])
         return cls(**values)
+
+
+def _structure_fields(agent) -> dict:
+    """``pose_rank``, ``pov_dim``, ``rank_gap`` of a started agent (else none)."""
+    structure = agent.structure
+    if structure is None:
+        return {}
+    return {"pose_rank": int(structure.pose_rank), "pov_dim": int(structure.pov_dim),
+            "rank_gap": float(structure.rank_gap)}

@@ -40,9 +40,11 @@ class NaiveExploration:
 
 @dataclass
 class NaiveRunResult:
-    """What one naive run produced: ``povs`` ``(P, N, 4)`` the agent's POVs,
+    """What one naive run produced: ``povs`` ``(P, N, M)`` the agent's POVs,
     ``pairs``/``set_ids`` its equality sets, ``metrics`` its own timings
-    (``naive.timings_s.*``, ``naive.seconds_by_stage.*``), ``timings_s`` per
+    (``naive.timings_s.*``, ``naive.seconds_by_stage.*``) and its measure of
+    itself (``naive.pose_rank``, ``naive.pov_dim``, ``naive.rank_gap``, ...:
+    ``structure.BodyStructure.metrics``), ``timings_s`` per
     stage, and the ``exploration`` (with the agent) for the evaluator."""
 
     povs: np.ndarray
@@ -112,6 +114,8 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
     metrics = {f"naive.timings_s.{k}": float(v) for k, v in timings.items()}
     metrics.update({f"naive.seconds_by_stage.{k}": float(v)
                     for k, v in agent.seconds_by_stage.items()})
+    if agent.structure is not None:
+        metrics.update(agent.structure.metrics())
     return NaiveRunResult(povs=agent.points_of_view, pairs=pairs, set_ids=set_ids,
                           metrics=metrics, timings_s=timings, exploration=explored)
 

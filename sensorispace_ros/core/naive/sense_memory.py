@@ -8,6 +8,11 @@ stage of the agent, answers a call whose states were all sensed since the
 last change from ``SensedSinceChange`` (no round trip), and can carry the
 rows the agent expects to ask for next with the call it sends now
 (``lookahead``). None of this changes a result: only fewer calls are sent.
+
+The agent's motor coordinates are *phases*: each joint's value scaled so that
+its period (as the body's description states it) is 2 pi. ``MotorPhase``
+converts; ``CountingBody`` sends the body its own units. With periods of 2 pi
+(radians) both conversions return their input unchanged.
 """
 from __future__ import annotations
 
@@ -75,14 +80,37 @@ class SensedSinceChange:
         self.count = end
 
 
+class MotorPhase:
+    """Body units <-> phases (a joint's period maps to 2 pi), per joint."""
+
+    def __init__(self, periods):
+        periods = np.asarray(periods, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(periods)) or np.any(periods <= 0):
+            raise ValueError(f"periods: must be finite and > 0, got {periods}")
+        self.periods = periods
+        self.identity = bool(np.all(periods == 2.0 * np.pi))
+        self._to_phase = 2.0 * np.pi / periods
+        self._to_body = periods / (2.0 * np.pi)
+
+    def to_phase(self, motor: np.ndarray) -> np.ndarray:
+        motor = np.asarray(motor, dtype=float)
+        return motor if self.identity else motor * self._to_phase
+
+    def to_body(self, phase: np.ndarray) -> np.ndarray:
+        phase = np.asarray(phase, dtype=float)
+        return phase if self.identity else phase * self._to_body
+
+
 class CountingBody:
     """Counts rows, calls and wall time per stage of the agent; exposes only
     what the body exposes. A stage lasts from its ``stage = name`` to the
     next one (or to ``pause()``). With ``remember``, a call whose motor
     states were all sensed since the last ``forget()`` is answered from
-    ``SensedSinceChange`` (counted in ``remembered``, not in ``calls``)."""
+    ``SensedSinceChange`` (counted in ``remembered``, not in ``calls``).
+    Rows in and out are phases (``phase``, identity by default); the body is
+    sent its own units."""
 
-    def __init__(self, body, remember: bool = True):
+    def __init__(self, body, remember: bool = True, phase: MotorPhase | None = None):
         self._body = body
         self.n_motors = int(body.n_motors)
         self.n_sensors = int(body.n_sensors)
@@ -95,6 +123,7 @@ class CountingBody:
         self.remembered: dict[str, int] = {}
         self._sensed = SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
         self._lookahead: np.ndarray | None = None
+        self.phase = phase if phase is not None else MotorPhase([2.0 * np.pi] * self.n_motors)
 
     @property
     def stage(self) -> str | None:
@@ -154,7 +183,7 @@ class CountingBody:
         if known is None:
             return self._command(row)[0]
         self._count(1)
-        self._move(row)
+        self._move(self.phase.to_body(row))
         return known[0].copy()
 
     def _command(self, motor_states: np.ndarray) -> np.ndarray:
@@ -163,7 +192,7 @@ class CountingBody:
             motor_states = np.concatenate([motor_states, self._lookahead])
             self._lookahead = None
         self._count(len(motor_states))
-        answer = np.asarray(self._body.sense(motor_states), dtype=float)
+        answer = np.asarray(self._body.sense(self.phase.to_body(motor_states)), dtype=float)
         if answer.shape != (len(motor_states), self.n_sensors):
             raise ValueError(f"body.sense returned shape {answer.shape}, expected "
                              f"({len(motor_states)}, {self.n_sensors})")

@@ -1,0 +1,113 @@
+"""Sensory Jacobians by finite differences through ``sense``, their rank
+test and the minimum-norm Gauss-Newton step: what every naive sampler and
+search builds on. Motor states are phases (``sense_memory.MotorPhase``); the
+rank is the body's pose rank as the agent measured it
+(``structure.measure_structure``), never a constant.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# Outcomes of a POV sampler (``SensoryPointsOfView.reason``).
+VALID = "ok"
+SPLIT = "split"                 # the loop came back to its start only a period away
+NOT_CLOSED = "not_closed"       # budget spent before the walk closed or covered its POV
+RANK_DEFICIENT = "rank_deficient"  # the sensation does not pin the sensor's configuration
+UNSUPPORTED = "unsupported"     # a POV dimension no sampler here covers
+
+
+def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
+    """Sensations and forward-difference sensory Jacobians of many motor states
+    in ONE ``sense`` call.
+
+    ``motor_states`` ``(B, M)``. Returns ``(sensations (B, S), jacobians
+    (B, S, M), rows)`` where ``rows = B * (M + 1)`` is the number of motor
+    states probed. Rows are ordered state by state (the state, then its
+    ``M`` displaced copies), so the arm ends at the last state's stencil.
+    """
+    motor_states = np.asarray(motor_states, dtype=float)
+    n_batch, n_motors = motor_states.shape
+    answer = np.asarray(body.sense(jacobian_stencil(motor_states, fd_step)), dtype=float)
+    answer = answer.reshape(n_batch, n_motors + 1, -1)
+    sensations = answer[:, 0, :]
+    jacobians = np.swapaxes(answer[:, 1:, :] - sensations[:, None, :], 1, 2) / fd_step
+    return sensations, jacobians, n_batch * (n_motors + 1)
+
+
+def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:
+    """The rows ``sensory_jacobian`` senses for ``motor_states`` ``(B, M)``:
+    ``(B * (M + 1), M)``, each state then its ``M`` displaced copies."""
+    motor_states = np.asarray(motor_states, dtype=float)
+    n_batch, n_motors = motor_states.shape
+    stencil = np.repeat(motor_states[:, None, :], n_motors + 1, axis=1)
+    stencil[:, 1:, :] += fd_step * np.eye(n_motors)
+    return stencil.reshape(-1, n_motors)
+
+
+def jacobian_svd(jacobians: np.ndarray):
+    """SVD pieces of sensory Jacobians ``(B, S, M)``: singular values
+    ``(B, min(S, M))`` and right singular vectors ``(B, M, M)`` (rows)."""
+    _, singular, right = np.linalg.svd(jacobians)
+    return singular, right
+
+
+def has_full_pose_rank(jacobians: np.ndarray, rank: int, rank_ratio: float = 1e-3,
+                       min_singular: float = 0.0, sensations: np.ndarray | None = None,
+                       pattern_ratio: float = 1e-6) -> np.ndarray:
+    """True where a sensory Jacobian ``(B, S, M)`` has the body's pose rank
+    ``rank`` (``structure.measure_structure``): its ``rank``-th singular
+    value is at least ``rank_ratio`` times the first and at least
+    ``min_singular``. The sensation then pins the sensor's configuration
+    locally; a blank (J = 0) or one-light sensation does not.
+
+    With ``sensations`` ``(B, S)`` (the sensations there) the
+    ``gain_free_jacobian`` must pass the ratio test too, at ``pattern_ratio``:
+    a sensation must pin the configuration by its pattern, not only by its
+    overall gain. A pattern that cannot vary in ``rank`` directions has a
+    ratio at the finite-difference noise (~1e-10 here); patterns that can,
+    1e-4 and more."""
+    jacobians = np.asarray(jacobians, dtype=float)
+    full = _rank_test(jacobians, rank, rank_ratio, min_singular)
+    if sensations is not None:
+        full &= _rank_test(gain_free_jacobian(jacobians, sensations), rank, pattern_ratio, 0.0)
+    return full
+
+
+def gain_free_jacobian(jacobians: np.ndarray, sensations: np.ndarray) -> np.ndarray:
+    """``d(s / |s|) / dm = (I - u u^T) J / |s|`` with ``u = s / |s|``: how the
+    sensation's direction changes, without the change of its overall gain.
+
+    A sensation seen from one light source of a set of alike ones (a light
+    among identical lights) pins where that source is, not which source it
+    is: its overall gain and its pattern both depend on the one source, and
+    another source seen from the same relative place gives the very same
+    sensation. Its pattern alone varies in fewer directions than the pose
+    rank; a sensation of several sources varies in more."""
+    sensations = np.asarray(sensations, dtype=float)
+    norm = np.linalg.norm(sensations, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = np.where(norm[:, None] > 0, sensations / norm[:, None], 0.0)
+        along = np.einsum("bs,bsm->bm", unit, jacobians)
+        projected = jacobians - unit[:, :, None] * along[:, None, :]
+        return np.where(norm[:, None, None] > 0, projected / norm[:, None, None], 0.0)
+
+
+def _rank_test(jacobians, rank, rank_ratio, min_singular):
+    singular = np.linalg.svd(jacobians, compute_uv=False)
+    if rank < 1 or rank > singular.shape[1]:
+        return np.zeros(len(singular), dtype=bool)
+    weakest = singular[:, rank - 1]
+    return (weakest >= rank_ratio * singular[:, 0]) & (weakest >= min_singular) & (weakest > 0.0)
+
+
+def minimum_norm_correction(jacobians: np.ndarray, residuals: np.ndarray,
+                            rank: int) -> np.ndarray:
+    """Gauss-Newton step ``-J_r^+ r`` with ``J`` truncated to its ``rank``
+    largest singular values: the correction moves across the level set,
+    never along it (the discarded directions are the POV's tangents)."""
+    u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
+    # A blank sensation has J = 0 (or a singular value of ~1e-300): its
+    # "correction" is infinite, never small.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        coeff = np.einsum("bsk,bs->bk", u[:, :, :rank], residuals) / singular[:, :rank]
+        return -np.einsum("bk,bkm->bm", coeff, right[:, :rank, :])

@@ -1,0 +1,187 @@
+"""The naive agent's searches and POV sampling (``NaiveAgent`` inherits them).
+
+``_search`` runs the batched Levenberg-Marquardt searches toward this
+event's anchors and samples the POVs of the new solutions; ``_sample_povs``
+walks (or covers) POVs of the dimension the agent measured and stores the
+whole ones. For 0-D POVs the searches toward one target keep going after the
+first acceptance, and every distinct solution they find belongs to that
+target's POV. Tolerances on sensations are the agent's ``Tolerances``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sensorispace_ros.core.naive.compensation import compensate
+from sensorispace_ros.core.naive.jacobians import SPLIT
+from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
+    sample_sensory_points_of_view)
+
+
+class SearchAndSample:
+    """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
+    ``_body``, ``_store``, ``_rest``, ``_split_states`` and counters."""
+
+    def _search(self, requests, current, tree, split_now):
+        """LM toward every requested anchor (identical targets searched once)
+        from the request's own start, the resting state and the remembered
+        states that sense most like the target; sample the POVs of accepted
+        solutions that are not known POVs. ``split_now``: sensations of the
+        remembered split POVs in this environment; a solution sensing one of
+        them is on that loop, already walked and found split: not walked
+        again (its POV is -1, as after a split walk).
+
+        Returns ``{request index: (pov or -1, motor state)}`` for accepted
+        compensations, the new POV indices and their sensations.
+        """
+        if not requests:
+            return {}, [], []
+        group, unique_targets, owner, starts = self._search_plan(requests, current)
+        solution, others, gain = self._run_searches(unique_targets, owner, starts)
+        pov_of_group: dict[int, int] = {}
+        # A solution sensing what a known POV senses now is that POV (the
+        # solution has full rank, so the sensation pins the pose). "The same"
+        # is judged by the sensory gain at the solution: a motor-equivalent
+        # distance of match_tol.
+        fresh = []
+        split_tree = cKDTree(split_now) if len(split_now) else None
+        for g in sorted(solution):
+            same = self.params.match_tol * gain[g]
+            if tree is not None:
+                distance, index = tree.query(unique_targets[g], k=1)
+                if distance <= same:
+                    pov_of_group[g] = int(index)
+                    continue
+            if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] <= same:
+                pov_of_group[g] = -1
+                self.split_walks_skipped += 1
+                continue
+            fresh.append(g)
+        new_povs, new_sensations = [], []
+        if fresh:
+            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
+                                                 keep_invalid=True,
+                                                 others=[others[g] for g in fresh])
+            for g, pov, sensation in zip(fresh, povs, sensations):
+                pov_of_group[g] = pov
+                if pov >= 0:
+                    new_povs.append(pov)
+                    new_sensations.append(sensation)
+        found = {i: (pov_of_group[group[i]], solution[group[i]])
+                 for i in range(len(requests)) if group[i] in solution}
+        return found, new_povs, new_sensations
+
+    def _run_searches(self, unique_targets, owner, starts):
+        """The batched searches. Returns ``{group: best accepted state}``,
+        ``{group: other distinct accepted states (K, M)}`` (empty unless the
+        POVs are 0-D, where each is another solution of the same sensation)
+        and ``{group: sensory gain at the best state}``."""
+        p = self.params
+        isolated = self.structure.pov_dim == 0
+        self._body.stage = "compensation"
+        search = compensate(self._body, unique_targets[owner], starts,
+                            rank=self.structure.pose_rank,
+                            min_singular=self._tol.min_singular,
+                            pattern_ratio=p.pattern_ratio, fd_step=p.fd_step,
+                            max_iterations=p.lm_max_iterations, error_tol=p.lm_error_tol,
+                            motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio,
+                            max_step=p.lm_max_step, initial_damping=p.lm_initial_damping,
+                            stall_iterations=p.lm_stall_iterations,
+                            stop_found_targets=not isolated)
+        solution: dict[int, np.ndarray] = {}
+        others: dict[int, np.ndarray] = {}
+        gain: dict[int, float] = {}
+        for g in range(len(unique_targets)):
+            ok = np.flatnonzero((owner == g) & search.accepted)
+            if not len(ok):
+                continue
+            ok = ok[np.argsort(search.sensory_error[ok], kind="stable")]
+            solution[g] = search.motor_states[ok[0]]
+            gain[g] = float(search.gain[ok[0]])
+            others[g] = _distinct(search.motor_states[ok], p.pov_min_step)[1:] if isolated \
+                else np.zeros((0, self.n_motors))
+        return solution, others, gain
+
+    def _search_plan(self, requests, current):
+        """The searches for ``requests`` (not empty): identical targets are
+        searched once, from the request's own start, the resting state and the
+        known POVs that sense most like the target now. Returns ``(group of
+        each request, unique targets (G, S), owner group of each search (K,),
+        starts (K, M))``."""
+        p = self.params
+        targets = np.stack([r.target for r in requests])
+        group = _group_rows(targets, self._tol.match)
+        n_groups = int(group.max()) + 1
+        first = [int(np.flatnonzero(group == g)[0]) for g in range(n_groups)]
+        unique_targets = targets[first]
+        starts, owner = [], []
+        for g, target in enumerate(unique_targets):
+            # The agent's memory of this arrangement is the known POVs it just
+            # sensed: start from those that sense most like the target.
+            chosen = [self._rest]
+            if requests[first[g]].start is not None:
+                chosen.append(requests[first[g]].start)
+            if len(current):
+                nearest = np.argsort(np.linalg.norm(current - target, axis=1))[:p.lm_restarts]
+                chosen.extend(self._store.samples[nearest, 0])
+            starts.extend(chosen)
+            owner.extend([g] * len(chosen))
+        return group, unique_targets, np.asarray(owner), np.asarray(starts, dtype=float)
+
+    def _sample_povs(self, motor_states: np.ndarray, keep_invalid: bool = False, others=None):
+        """Sample the POVs of ``motor_states`` (one batch) and store the valid
+        ones. Returns their indices and sensations; with ``keep_invalid``,
+        one entry per state (-1 / None for an invalid POV). ``others[i]``:
+        further solutions of state ``i``'s sensation (0-D POVs)."""
+        p = self.params
+        self._body.stage = "pov"
+        walk = sample_sensory_points_of_view(
+            self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
+            fd_step=p.fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
+            max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
+            rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
+            polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
+            surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
+            min_singular=self._tol.min_singular,
+            pattern_ratio=p.pattern_ratio)
+        indices, sensations = [], []
+        for i in range(len(motor_states)):
+            if walk.valid[i]:
+                samples = walk.samples[i]
+                if others is not None and len(others[i]):
+                    samples = isolated_samples(np.vstack([motor_states[i:i + 1], others[i]]),
+                                               self.n_samples)
+                indices.append(self._store.append(samples))
+                self.pov_queries.append(int(walk.queries[i]))
+                self.pov_events.append(self._event)
+                sensations.append(walk.target_sensations[i])
+            else:
+                if walk.reason[i] == SPLIT and p.remember_split_povs:
+                    self._split_states = np.vstack([self._split_states, motor_states[i]])
+                if keep_invalid:
+                    indices.append(-1)
+                    sensations.append(None)
+        return indices, sensations
+
+
+def _distinct(states: np.ndarray, tol: float) -> np.ndarray:
+    """The rows of ``states`` farther than ``tol`` (in the torus of phases)
+    from every earlier kept row, in order."""
+    kept = []
+    for row in states:
+        if all(np.linalg.norm((row - k + np.pi) % (2 * np.pi) - np.pi) > tol for k in kept):
+            kept.append(row)
+    return np.asarray(kept).reshape(-1, states.shape[1])
+
+
+def _group_rows(rows: np.ndarray, tol: float) -> np.ndarray:
+    """Label rows so that rows within ``tol`` of each other share a label."""
+    labels = np.full(len(rows), -1)
+    n = 0
+    for i in range(len(rows)):
+        if labels[i] >= 0:
+            continue
+        same = (labels < 0) & (np.linalg.norm(rows - rows[i], axis=1) <= tol)
+        labels[same] = n
+        n += 1
+    return labels

@@ -1,0 +1,171 @@
+"""What the naive agent measures of its own body before it explores.
+
+The agent knows its motor values, each joint's period and the sensations
+``sense`` returns; nothing about space. The rank ``r`` of the sensory
+Jacobian ``J_s = dsense/dm`` at a generic motor state is the number of
+degrees of freedom of the sensor's configuration that the sensation sees
+(the pose rank), and ``M - r`` is the dimension of a point of view (POV),
+the level set ``{m : sense(m) = s}``. Both are measured here, once, at the
+start state and a few states around it, in one ``sense`` call.
+
+Decision rule (scale-free). At each probe state the Jacobian is estimated by
+central differences at two steps ``h`` and ``2h`` (phases, so ``h`` is a
+fixed fraction of each joint's period). Their difference is the
+finite-difference noise floor ``f``. The singular values, each raised to at
+least ``f``, followed by ``f`` itself, are cut at their largest ratio between
+neighbours: the rank is the number of values above the cut, and that ratio
+is the probe's gap. A probe whose largest ratio is below ``min_gap`` sees
+nothing it could resolve (a blank sensation) and does not vote. The pose
+rank is the rank most probes vote for (ties: the larger), ``rank_gap`` the
+smallest gap among those probes. Scaling every sensation by a constant
+scales the singular values and the floor alike: nothing changes.
+
+The same measurement gives the agent's sensory *gain*: the median largest
+singular value (sensation per phase radian). Tolerances on sensations are
+motor-equivalent amounts times a gain: the one measured at the state in
+question where a Jacobian is at hand, this one elsewhere (``Tolerances``),
+so no tolerance is in the units of the receptors.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Fixed directions of the probe states around the start (any body's motor
+# space): a golden-ratio sequence of cosines, normalised per state.
+_GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
+
+
+@dataclass(frozen=True)
+class BodyStructure:
+    """The agent's measurement of itself (``measure_structure``).
+
+    ``pose_rank`` the rank of the sensory Jacobian, ``pov_dim`` the dimension
+    of a POV (joints minus rank), ``rank_gap`` the smallest singular-value
+    ratio at the cut among the probes that agree, ``gain`` the median
+    largest singular value (sensation per phase radian), ``floor`` the
+    median finite-difference noise floor (same unit), ``votes`` how many of
+    ``probes`` probe states agree."""
+
+    n_motors: int
+    pose_rank: int
+    rank_gap: float
+    gain: float
+    floor: float
+    votes: int
+    probes: int
+
+    @property
+    def pov_dim(self) -> int:
+        return self.n_motors - self.pose_rank
+
+    def metrics(self) -> dict:
+        """``naive.*`` numbers of the structure estimate."""
+        return {"naive.pose_rank": int(self.pose_rank), "naive.pov_dim": int(self.pov_dim),
+                "naive.rank_gap": float(self.rank_gap), "naive.sensory_gain": float(self.gain),
+                "naive.fd_noise_floor": float(self.floor),
+                "naive.rank_votes": int(self.votes), "naive.rank_probes": int(self.probes)}
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Sensation tolerances of one agent where no Jacobian is at hand (sweep
+    matching, grouping targets, the smallest singular value), in the units
+    of its sensations: the parameters' motor-equivalent amounts times its
+    measured gain. Where a Jacobian is at hand (a search's solution) the
+    agent scales by the gain there instead."""
+
+    match: float
+    separation: float
+    min_singular: float
+
+    @classmethod
+    def of(cls, params, structure: BodyStructure) -> "Tolerances":
+        # A body that showed nothing (rank 0) has no gain; no sensation of it
+        # passes a rank test, so any positive scale will do.
+        gain = structure.gain if structure.gain > 0 else 1.0
+        return cls(match=params.match_tol * gain, separation=params.match_separation * gain,
+                   min_singular=params.min_singular * gain)
+
+
+def probe_states(center: np.ndarray, count: int, radius: float) -> np.ndarray:
+    """``(count, M)``: ``center`` and ``count - 1`` states ``radius`` (phase
+    radians) away from it in fixed directions."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    k = np.arange(1, count)[:, None]
+    j = np.arange(1, len(center) + 1)[None, :]
+    direction = np.cos(2.0 * np.pi * ((k * j * _GOLDEN) % 1.0))
+    direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-300)
+    return np.vstack([center[None], center + radius * direction])
+
+
+def central_stencil(states: np.ndarray, step: float) -> np.ndarray:
+    """Rows sensed per state: the state, then ``+-h`` and ``+-2h`` along each
+    joint, ``(B * (1 + 4M), M)``."""
+    states = np.asarray(states, dtype=float)
+    n_motors = states.shape[1]
+    eye = np.eye(n_motors)
+    offsets = np.concatenate([np.zeros((1, n_motors)), step * eye, -step * eye,
+                              2 * step * eye, -2 * step * eye])
+    return (states[:, None, :] + offsets[None]).reshape(-1, n_motors)
+
+
+def gap_rank(singular: np.ndarray, floor: np.ndarray):
+    """Rank and gap of each row of singular values ``(B, k)`` (descending)
+    against its noise floor ``(B,)``: the largest ratio between neighbours
+    of ``max(sigma, floor)`` followed by ``floor``. Returns ``(rank (B,),
+    gap (B,))``; a row of values all at the floor has gap 1."""
+    floor = np.maximum(np.asarray(floor, dtype=float), 1e-300)
+    values = np.concatenate([np.maximum(singular, floor[:, None]), floor[:, None]], axis=1)
+    log_gap = np.log(values[:, :-1]) - np.log(values[:, 1:])
+    cut = np.argmax(log_gap, axis=1)
+    return cut + 1, np.exp(log_gap[np.arange(len(values)), cut])
+
+
+def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: float):
+    """Central-difference Jacobians ``(B, S, M)`` at step ``h`` and their noise
+    floors ``(B,)`` from the rows of ``central_stencil``."""
+    rows = np.asarray(sensed, dtype=float).reshape(n_states, 1 + 4 * n_motors, -1)
+    plus, minus = rows[:, 1:1 + n_motors], rows[:, 1 + n_motors:1 + 2 * n_motors]
+    plus2, minus2 = rows[:, 1 + 2 * n_motors:1 + 3 * n_motors], rows[:, 1 + 3 * n_motors:]
+    jac = np.swapaxes(plus - minus, 1, 2) / (2.0 * step)
+    jac2 = np.swapaxes(plus2 - minus2, 1, 2) / (4.0 * step)
+    truncation = np.linalg.norm(jac - jac2, ord=2, axis=(1, 2))
+    rounding = np.finfo(float).eps * np.max(np.abs(rows), axis=(1, 2)) / step
+    return jac, np.maximum(truncation, rounding)
+
+
+def structure_from_probes(singular: np.ndarray, floor: np.ndarray, n_motors: int,
+                          min_gap: float) -> BodyStructure:
+    """The vote of ``gap_rank`` over probe states (see the module docstring)."""
+    rank, gap = gap_rank(singular, floor)
+    decided = gap >= min_gap
+    if not decided.any():
+        return BodyStructure(n_motors, 0, float(np.max(gap, initial=1.0)), 0.0,
+                             float(np.median(floor)), 0, len(rank))
+    counts = np.bincount(rank[decided], minlength=n_motors + 1)
+    pose_rank = int(np.flatnonzero(counts == counts.max())[-1])
+    agree = decided & (rank == pose_rank)
+    return BodyStructure(n_motors, pose_rank, float(np.min(gap[agree])),
+                         float(np.median(singular[decided, 0])), float(np.median(floor[decided])),
+                         int(agree.sum()), len(rank))
+
+
+def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int = 8,
+                      radius: float = 0.1, min_gap: float = 100.0) -> BodyStructure:
+    """Pose rank, POV dimension and sensory gain of ``body`` around
+    ``center`` (phases), from ``probes`` states in ONE ``sense`` call of
+    ``probes * (1 + 4M)`` rows."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    n_motors = len(center)
+    if int(probes) != probes or probes < 1:
+        raise ValueError(f"probes must be an integer >= 1, got {probes}")
+    for name, value in (("fd_step", fd_step), ("radius", radius), ("min_gap", min_gap)):
+        if not np.isfinite(value) or value <= 0:
+            raise ValueError(f"{name} must be a finite number > 0, got {value}")
+    states = probe_states(center, int(probes), radius)
+    sensed = body.sense(central_stencil(states, fd_step))
+    jac, floor = jacobians_and_floor(sensed, len(states), n_motors, fd_step)
+    singular = np.linalg.svd(jac, compute_uv=False)
+    return structure_from_probes(singular, floor, n_motors, min_gap)
