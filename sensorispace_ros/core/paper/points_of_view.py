@@ -84,8 +84,10 @@ class PointsOfViewResult:
     walk cannot sample whole (``reason[p]`` says why: ``"split"`` when the
     fibre is two disjoint loops, paper Fig. 5b; ``"not_closed"`` when the walk
     did not come back within ``max_steps``). ``steps[p]`` counts kernel steps
-    until the loop closed; ``max_pose_drift`` is the largest pose error of
-    any sample with respect to its POV's starting pose.
+    until the loop closed (0-D and 2-D POVs, which are not walked: their
+    distinct samples); ``max_pose_drift`` is the largest pose error of any
+    sample with respect to its POV's starting pose. Samples are in the arm's
+    motor unit.
     """
 
     samples: np.ndarray

@@ -2,9 +2,9 @@
 joint): an even sampling of the fibre's surface.
 
 The surface is sampled densely first, then thinned. Any two free links can
-parametrise it: on a ``grid x grid`` lattice of their absolute angles the
-other two links close the polygon by the two-link solution (two elbow
-branches). A chart stretches where its two solved links come near collinear
+parametrise it: on a ``grid x grid`` lattice of their absolute angles,
+each spanning the range that link takes on this fibre, the other two links
+close the polygon by the two-link solution (two elbow branches). A chart stretches where its two solved links come near collinear
 (its fold, where the surface turns back over the lattice); a point is kept
 from the chart whose solved links are farthest from collinear there, so the
 six charts share the surface out between them, each where it is regular,
