@@ -36,7 +36,11 @@ def test_defaults_are_the_papers_values():
     assert cfg["world"]["lights"]["count"] == 10
     assert cfg["world"]["retina"]["receptors"] == 6
     assert cfg["arm"]["initial_motor_state"] == [0.1, -1.5, 2.2, -3.0]
-    assert cfg["pov"] == {"n_samples": 100, "step": 1e-3, "min_steps": 50, "close_tol": 1e-2}
+    assert cfg["arm"]["segments"] == [1.0, 1.0, 1.0] and cfg["arm"]["eye"] == "joint"
+    assert cfg["arm"]["motor_unit"] == "rad" and cfg["world"]["retina"]["code"] == "identity"
+    # n_samples_2d is for bodies with 2-D points of view, which the paper has not.
+    paper_pov = {key: value for key, value in cfg["pov"].items() if key != "n_samples_2d"}
+    assert paper_pov == {"n_samples": 100, "step": 1e-3, "min_steps": 50, "close_tol": 1e-2}
     assert cfg["compensation"]["threshold"] == 1e-3
     assert cfg["representation"]["regularization"]["iterations"] == 10
     assert cfg["representation"]["reaching"]["max_degree"] == 50

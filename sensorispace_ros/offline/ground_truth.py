@@ -69,7 +69,7 @@ def paper_compensated_positions(world) -> np.ndarray:
     from sensorispace_ros.core.paper.exploration import explore_paper
 
     explored = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
-                             initial_center=world.initial_center)
+                             initial_center=world.initial_center, body_arm=world.arm)
     return explored.true_poses[:, :2].copy()
 
 
