@@ -280,7 +280,8 @@ class LoopWalk:
                 samples[p] = resample_loop_spline(np.asarray(paths[p]), n_samples)
         return samples
 
-    def project(self, samples: np.ndarray, polish_iterations: int) -> float:
+    def project(self, samples: np.ndarray, polish_iterations: int,
+                sample_tol: float = np.inf) -> float:
         """Project the valid POVs' samples (in place) back onto the level set
         with ``polish_iterations`` Gauss-Newton steps each; returns the
         largest sensory error before the last step (0 without steps).
@@ -288,11 +289,14 @@ class LoopWalk:
         The Jacobian is the one of the nearest knot (at most half a knot
         interval away): its error only slows the convergence of a
         correction that is already tiny (spline between polished knots), so
-        it costs one row per sample instead of M + 1."""
+        it costs one row per sample instead of M + 1. Samples whose last
+        correction is still above ``sample_tol`` (where the spline strays
+        from a sharply bent loop) get steps with their own Jacobian
+        (``_repair``)."""
         n_pov, n_samples, n_motors = samples.shape
         max_residual = 0.0
         good = np.flatnonzero([r == VALID for r in self.reason])
-        if len(good):
+        if len(good) and polish_iterations:
             flat = samples[good, 1:].reshape(-1, n_motors)
             flat_target = np.repeat(self.target[good], n_samples - 1, axis=0)
             nearest_jac = np.concatenate([
@@ -305,9 +309,34 @@ class LoopWalk:
                 self.queries[good] += n_samples - 1
                 residual = sensation - flat_target
                 max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
-                flat = flat + minimum_norm_correction(nearest_jac, residual, self.rank)
+                step = minimum_norm_correction(nearest_jac, residual, self.rank)
+                flat = flat + step
+            with np.errstate(invalid="ignore"):
+                stray = ~(np.linalg.norm(step, axis=1) <= sample_tol)
+            if stray.any():
+                self._repair(flat, flat_target, stray, np.repeat(good, n_samples - 1),
+                             sample_tol)
             samples[good, 1:] = flat.reshape(len(good), n_samples - 1, n_motors)
         return max_residual
+
+    def _repair(self, flat, target, stray, owner, sample_tol, rounds: int = 3) -> None:
+        """Gauss-Newton steps with fresh Jacobians (one call each) on the
+        ``stray`` rows of ``flat`` (in place) until each step is within
+        ``sample_tol``; a POV with a row that does not get there in
+        ``rounds`` steps is not kept (``NOT_CLOSED``)."""
+        rows = np.flatnonzero(stray)
+        for _ in range(rounds):
+            sensation, jac, n_rows = sensory_jacobian(self.body, flat[rows], self.fd_step)
+            self.calls += 1
+            np.add.at(self.queries, owner[rows], n_rows // len(rows))
+            step = minimum_norm_correction(jac, sensation - target[rows], self.rank)
+            flat[rows] += step
+            with np.errstate(invalid="ignore"):
+                rows = rows[~(np.linalg.norm(step, axis=1) <= sample_tol)]
+            if not len(rows):
+                return
+        for p in np.unique(owner[rows]):
+            self.reason[p] = NOT_CLOSED
 
 
 def resample_loop_spline(path: np.ndarray, n_samples: int = 100) -> np.ndarray:

@@ -38,6 +38,7 @@ class NaiveParams:
     pov_max_queries: int = _default("pov_max_queries")
     pov_polish_iterations: int = _default("pov_polish_iterations")
     pov_closure_tol: float = _default("pov_closure_tol")
+    pov_sample_tol: float = _default("pov_sample_tol")
     pov_surface_step: float = _default("pov_surface_step")
     pov_surface_max_queries: int = _default("pov_surface_max_queries")
     lm_max_iterations: int = _default("lm_max_iterations")

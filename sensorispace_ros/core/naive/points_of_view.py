@@ -83,7 +83,8 @@ def sample_sensory_points_of_view(
         fd_step: float = 1e-6, initial_step: float = 0.05, min_step: float = 1e-3,
         max_step: float = 0.15, predictor_tol: float = 2e-3, rank_ratio: float = 1e-3,
         max_queries: int = 5000, polish_iterations: int = 2, min_loop_length: float = 0.3,
-        knots_per_step: int = 4, closure_tol: float = 0.1, surface_step: float = 0.15,
+        knots_per_step: int = 4, closure_tol: float = 0.1, sample_tol: float = 1e-6,
+        surface_step: float = 0.15,
         surface_max_queries: int = 400_000, min_singular: float = 0.0,
         pattern_ratio: float = 1e-6) -> SensoryPointsOfView:
     """Sample the POV of every motor state in ``motor_states`` ``(P, M)``
@@ -101,7 +102,8 @@ def sample_sensory_points_of_view(
     loop closes when the two fronts, after ``min_loop_length`` of arc
     together, face each other within about one knot interval in the torus;
     it is kept if it also closes in the unwrapped motor space (``closure_tol``,
-    relative to its length), else it is ``SPLIT``. ``max_queries``: rows per
+    relative to its length), else it is ``SPLIT``, and if every sample comes
+    back onto the level set within ``sample_tol``. ``max_queries``: rows per
     POV. 2-D (``surface``): a front of knots ``surface_step`` apart grows
     over the surface until it has covered it (``surface_max_queries`` rows
     at most). 0-D: the start itself.
@@ -124,7 +126,8 @@ def sample_sensory_points_of_view(
                            rank_ratio=rank_ratio, max_queries=max_queries,
                            polish_iterations=polish_iterations,
                            min_loop_length=min_loop_length, knots_per_step=knots_per_step,
-                           closure_tol=closure_tol, surface_step=surface_step,
+                           closure_tol=closure_tol, sample_tol=sample_tol,
+                           surface_step=surface_step,
                            surface_max_queries=surface_max_queries)
     dim = n_motors - int(rank)
     if len(start) == 0 or rank == 0 or dim > 2:
@@ -148,7 +151,7 @@ def sample_sensory_points_of_view(
     while len(walk.active):
         walk.advance()
     samples = walk.resample(n_samples)
-    max_residual = walk.project(samples, polish_iterations)
+    max_residual = walk.project(samples, polish_iterations, sample_tol)
     reason = walk.reason
     return SensoryPointsOfView(samples=samples, valid=np.array([r == VALID for r in reason]),
                                reason=reason, queries=walk.queries, steps=walk.steps,
@@ -190,6 +193,8 @@ def _check_walk_parameters(**values) -> None:
     for name in positive:
         if not np.isfinite(values[name]) or values[name] <= 0:
             raise ValueError(f"{name} must be a finite number > 0, got {values[name]}")
+    if not values["sample_tol"] > 0:        # inf: no sample is repaired
+        raise ValueError(f"sample_tol must be > 0, got {values['sample_tol']}")
     if not values["min_step"] <= values["initial_step"] <= values["max_step"]:
         raise ValueError("initial_step must lie in [min_step, max_step], got "
                          f"{values['initial_step']} not in [{values['min_step']}, "

@@ -141,6 +141,7 @@ class SearchAndSample:
             max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
             rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
             polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
+            sample_tol=p.pov_sample_tol,
             surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
             min_singular=self._tol.min_singular,
             pattern_ratio=p.pattern_ratio)
