@@ -25,7 +25,7 @@ from sensorispace_ros import config as config_mod
 from sensorispace_ros.core import arm
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
-from sensorispace_ros.core.naive.records import NaiveAgentRecords
+from sensorispace_ros.core.naive.records import STRUCTURE_FIELDS, NaiveAgentRecords
 from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.offline.ground_truth import (NaiveGroundTruth, body_truth,
                                                    ground_truth_from_motor,
@@ -430,6 +430,7 @@ def evaluate_naive_records(records: NaiveAgentRecords, truth: NaiveGroundTruth
         **_compensation_numbers(records, truth),
         **_coverage_numbers(true_poses, truth),
         **_set_numbers(true_poses, records.pairs, records.set_ids),
+        **_structure_numbers(records),
     }
     metrics["exploration.state_changes_compensated"] = metrics["naive.state_changes_accepted"]
     # The object's grid position when each POV was found (event 0: the start).
@@ -461,6 +462,13 @@ def _query_numbers(records: NaiveAgentRecords) -> dict:
     for stage in NAIVE_STAGES:
         numbers[f"naive.calls_by_stage.{stage}"] = int(records.calls_by_stage.get(stage, 0))
     return numbers
+
+
+def _structure_numbers(records: NaiveAgentRecords) -> dict:
+    """``naive.pose_rank``, ``naive.pov_dim``, ... : what the agent measured of its body."""
+    if records.pose_rank < 0:
+        return {}
+    return {f"naive.{name}": getattr(records, name) for name in STRUCTURE_FIELDS}
 
 
 def _compensation_numbers(records: NaiveAgentRecords, truth: NaiveGroundTruth) -> dict:

@@ -211,7 +211,7 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
     """The agent's records of the run (``core.naive.records.NaiveAgentRecords``),
     or None when the bag lacks them (recorded before they were published, or the
     run did not end). ``description``: the body's (``body_description`` by default)."""
-    from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords
+    from sensorispace_ros.core.naive.records import STAGES, STRUCTURE_FIELDS, NaiveAgentRecords
 
     info = bag_info(bag_dir)
     if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
@@ -244,7 +244,9 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
         compensation_queries=int(counters["compensation_queries"][0]),
         queries_total=int(totals["queries"]), calls_total=int(totals["calls"]),
         queries_by_stage={stage: int(counters[f"queries_{stage}"][0]) for stage in STAGES},
-        calls_by_stage={stage: int(counters[f"calls_{stage}"][0]) for stage in STAGES})
+        calls_by_stage={stage: int(counters[f"calls_{stage}"][0]) for stage in STAGES},
+        **{name: counters[name][0].item() for name in STRUCTURE_FIELDS
+           if name in counters.dtype.names})
 
 
 def recorded_changes(change_events: dict) -> dict[int, tuple]:

@@ -76,8 +76,10 @@ class NaiveAgentRecords:
     ``CompensationRecord`` fields; ``compensation_queries`` the rows of all
     compensated events except their POV walks (summed over the
     ``compensated`` events); ``queries_by_stage`` / ``calls_by_stage``
-    stage -> count (stages of ``STAGES``); ``pose_rank``, ``pov_dim`` and
-    ``rank_gap`` the agent's measure of its body (-1, -1, 0 before ``start``).
+    stage -> count (stages of ``STAGES``); ``pose_rank``, ``pov_dim``,
+    ``rank_gap``, ``sensory_gain``, ``fd_noise_floor``, ``rank_votes`` and
+    ``rank_probes`` the agent's measure of its body (``STRUCTURE_FIELDS``;
+    ``pose_rank`` -1 before ``start``).
     """
 
     povs: np.ndarray
@@ -99,6 +101,10 @@ class NaiveAgentRecords:
     pose_rank: int = -1
     pov_dim: int = -1
     rank_gap: float = 0.0
+    sensory_gain: float = 0.0
+    fd_noise_floor: float = 0.0
+    rank_votes: int = 0
+    rank_probes: int = 0
 
     @classmethod
     def from_agent(cls, agent: NaiveAgent) -> "NaiveAgentRecords":
@@ -122,7 +128,7 @@ class NaiveAgentRecords:
             compensation_queries=int(sum(agent.compensation_queries)),
             queries_total=int(agent.queries_total), calls_total=int(agent.calls_total),
             queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage,
-            **_structure_fields(agent))
+            **structure_fields(agent))
 
     def to_arrays(self) -> dict:
         """Flat ``{name: array}`` (``np.savez``); stage counts as
@@ -157,10 +163,15 @@ class NaiveAgentRecords:
         return cls(**values)
 
 
-def _structure_fields(agent) -> dict:
-    """``pose_rank``, ``pov_dim``, ``rank_gap`` of a started agent (else none)."""
+# The agent's measure of its body, as its records and metrics (naive.<field>) name it.
+STRUCTURE_FIELDS = ("pose_rank", "pov_dim", "rank_gap", "sensory_gain", "fd_noise_floor",
+                    "rank_votes", "rank_probes")
+
+
+def structure_fields(agent) -> dict:
+    """``STRUCTURE_FIELDS`` of a started agent (else none: the records' defaults)."""
     structure = agent.structure
     if structure is None:
         return {}
-    return {"pose_rank": int(structure.pose_rank), "pov_dim": int(structure.pov_dim),
-            "rank_gap": float(structure.rank_gap)}
+    measured = structure.metrics()
+    return {name: measured[f"naive.{name}"] for name in STRUCTURE_FIELDS}

@@ -82,7 +82,8 @@ from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, SNAPSHOT_FILE, A
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
-from sensorispace_ros.core.naive.records import NaiveAgentRecords
+from sensorispace_ros.core.naive.records import (STRUCTURE_FIELDS, NaiveAgentRecords,
+                                                 structure_fields)
 from sensorispace_ros.graph.framework import GraphNode, frame, run_node
 
 
@@ -494,6 +495,8 @@ class AgentNode(GraphNode):
         for stage in NAIVE_STAGES:
             counters[f"queries_{stage}"] = queries.get(stage, 0)
             counters[f"calls_{stage}"] = calls.get(stage, 0)
+        defaults = {name: getattr(NaiveAgentRecords, name) for name in STRUCTURE_FIELDS}
+        counters.update({**defaults, **structure_fields(self.agent)})
         unknown = (set(queries) | set(calls)) - set(NAIVE_STAGES)
         if unknown:
             self.get_logger().error(f"stages {sorted(unknown)} have no /agent/stage_counters column")
