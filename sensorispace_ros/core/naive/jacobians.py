@@ -111,3 +111,24 @@ def minimum_norm_correction(jacobians: np.ndarray, residuals: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         coeff = np.einsum("bsk,bs->bk", u[:, :, :rank], residuals) / singular[:, :rank]
         return -np.einsum("bk,bkm->bm", coeff, right[:, :rank, :])
+
+
+def repair_rows(body, flat: np.ndarray, target: np.ndarray, rows: np.ndarray, *, rank: int,
+                fd_step: float, tol: float, rounds: int = 3):
+    """Gauss-Newton steps with fresh Jacobians (one ``sense`` call each) on
+    the ``rows`` of ``flat`` (in place) until each row's step is within
+    ``tol`` (phase). Returns ``(calls, rows sensed per repaired row (list,
+    one per call, of the rows then sensed), the rows that never got
+    there)``."""
+    calls, sensed = 0, []
+    for _ in range(rounds):
+        if not len(rows):
+            break
+        sensation, jac, _ = sensory_jacobian(body, flat[rows], fd_step)
+        calls += 1
+        sensed.append(rows.copy())
+        step = minimum_norm_correction(jac, sensation - target[rows], rank)
+        flat[rows] += step
+        with np.errstate(invalid="ignore"):
+            rows = rows[~(np.linalg.norm(step, axis=1) <= tol)]
+    return calls, sensed, rows

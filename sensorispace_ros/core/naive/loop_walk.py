@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline
 
 from sensorispace_ros.core.motor_loops import closure_gap_ratio, loop_winding
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID,
-    has_full_pose_rank, jacobian_svd, minimum_norm_correction, sensory_jacobian)
+    has_full_pose_rank, jacobian_svd, minimum_norm_correction, repair_rows, sensory_jacobian)
 
 TWO_PI = 2.0 * np.pi
 
@@ -324,18 +324,13 @@ class LoopWalk:
         ``stray`` rows of ``flat`` (in place) until each step is within
         ``sample_tol``; a POV with a row that does not get there in
         ``rounds`` steps is not kept (``NOT_CLOSED``)."""
-        rows = np.flatnonzero(stray)
-        for _ in range(rounds):
-            sensation, jac, n_rows = sensory_jacobian(self.body, flat[rows], self.fd_step)
-            self.calls += 1
-            np.add.at(self.queries, owner[rows], n_rows // len(rows))
-            step = minimum_norm_correction(jac, sensation - target[rows], self.rank)
-            flat[rows] += step
-            with np.errstate(invalid="ignore"):
-                rows = rows[~(np.linalg.norm(step, axis=1) <= sample_tol)]
-            if not len(rows):
-                return
-        for p in np.unique(owner[rows]):
+        calls, sensed, failed = repair_rows(self.body, flat, target, np.flatnonzero(stray),
+                                            rank=self.rank, fd_step=self.fd_step,
+                                            tol=sample_tol, rounds=rounds)
+        self.calls += calls
+        for rows in sensed:
+            np.add.at(self.queries, owner[rows], self.rows_per_state)
+        for p in np.unique(owner[failed]):
             self.reason[p] = NOT_CLOSED
 
 

@@ -142,7 +142,7 @@ def sample_sensory_points_of_view(
             body, start, rank=rank, n_samples=n_samples, fd_step=fd_step, step=surface_step,
             predictor_tol=predictor_tol, rank_ratio=rank_ratio, min_singular=min_singular,
             pattern_ratio=pattern_ratio, max_queries=surface_max_queries,
-            polish_iterations=polish_iterations)
+            polish_iterations=polish_iterations, sample_tol=sample_tol)
     walk = LoopWalk(body, start, rank=rank, fd_step=fd_step, min_step=min_step,
                     max_step=max_step, predictor_tol=predictor_tol, max_queries=max_queries,
                     min_loop_length=min_loop_length, knots_per_step=knots_per_step,

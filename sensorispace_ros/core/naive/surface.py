@@ -31,7 +31,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, VALID,
-    has_full_pose_rank, jacobian_stencil, minimum_norm_correction, sensory_jacobian)
+    has_full_pose_rank, jacobian_stencil, minimum_norm_correction, repair_rows, sensory_jacobian)
 
 TWO_PI = 2.0 * np.pi
 DIRECTIONS = 6          # proposals per front knot, evenly round its tangent plane
@@ -41,7 +41,8 @@ HALVINGS = 3            # a failed direction is retried at 1/2, 1/4, 1/8 of the 
 
 
 def cover_surfaces(body, start, *, rank, n_samples, fd_step, step, predictor_tol,
-                   rank_ratio, min_singular, pattern_ratio, max_queries, polish_iterations):
+                   rank_ratio, min_singular, pattern_ratio, max_queries, polish_iterations,
+                   sample_tol=np.inf):
     """``SensoryPointsOfView`` of 2-D POVs (see the module docstring);
     ``predictor_tol`` is unused (the correction bound is relative to ``step``)."""
     from sensorispace_ros.core.naive.points_of_view import SensoryPointsOfView
@@ -54,7 +55,7 @@ def cover_surfaces(body, start, *, rank, n_samples, fd_step, step, predictor_tol
     cover.begin()
     while cover.active:
         cover.grow()
-    max_residual = cover.polish(polish_iterations)
+    max_residual = cover.polish(polish_iterations, sample_tol)
     samples = cover.samples(n_samples)
     reason = cover.reason
     return SensoryPointsOfView(samples=samples, valid=np.array([r == VALID for r in reason]),
@@ -179,11 +180,13 @@ class _Cover:
                 np.asarray(level, dtype=int),
                 np.asarray(proposal, dtype=float).reshape(-1, n_motors))
 
-    def polish(self, iterations: int) -> float:
+    def polish(self, iterations: int, sample_tol: float = np.inf) -> float:
         """Gauss-Newton steps on every knot of the covered POVs (the first
         knot, the POV's own state, stays): the first with a fresh Jacobian
-        (its stencil in the same call), the others with that one. Returns
-        the largest sensory error before the last step."""
+        (its stencil in the same call), the others with that one; knots whose
+        last step is above ``sample_tol`` get fresh ones
+        (``jacobians.repair_rows``), and a POV whose knots do not come back
+        is not kept. Returns the largest sensory error before the last step."""
         good = [p for p in range(len(self.start)) if self.reason[p] == VALID]
         max_residual = 0.0
         counts = [len(self.knots[p]) - 1 for p in good]
@@ -202,10 +205,23 @@ class _Cover:
                 self.queries[p] += rows // len(flat) * c
             residual = sensation - target
             max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
-            flat = flat + minimum_norm_correction(jac, residual, self.rank)
+            step = minimum_norm_correction(jac, residual, self.rank)
+            flat = flat + step
+        with np.errstate(invalid="ignore"):
+            stray = np.flatnonzero(~(np.linalg.norm(step, axis=1) <= sample_tol))
+        self._repair(flat, target, stray, np.repeat(good, counts), sample_tol)
         for p, chunk in zip(good, np.split(flat, np.cumsum(counts)[:-1])):
             self.knots[p] = np.vstack([self.knots[p][:1], chunk])
         return max_residual
+
+    def _repair(self, flat, target, stray, owner, sample_tol) -> None:
+        calls, sensed, failed = repair_rows(self.body, flat, target, stray, rank=self.rank,
+                                            fd_step=self.fd_step, tol=sample_tol)
+        self.calls += calls
+        for rows in sensed:
+            np.add.at(self.queries, owner[rows], self.start.shape[1] + 1)
+        for p in np.unique(owner[failed]):
+            self.reason[p] = NOT_CLOSED
 
     def samples(self, n_samples: int) -> np.ndarray:
         """``(P, n_samples, M)``: every covered POV's knots thinned to
