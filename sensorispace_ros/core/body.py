@@ -136,7 +136,10 @@ def _simulate_chain_rows(angles, lengths, eye, lights, receptors, sensations, po
 
 
 def _sense_row(x, y, alpha, lights, receptors, out, n_lights, n_receptors):
-    """The retina of one pose into ``out`` (R,), as ``_simulate_rows`` does."""
+    """The retina of one pose into ``out`` (R,), as ``_simulate_rows`` does.
+    ``_simulate_rows`` keeps these lines written out rather than calling this:
+    the call, even inlined, makes the paper body's batches measurably slower
+    (``bench/body_kernel --against`` a checkout that calls it)."""
     cos_a = math.cos(alpha)
     sin_a = math.sin(alpha)
     for r in range(n_receptors):
