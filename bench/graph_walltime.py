@@ -45,13 +45,12 @@ def offline_child(config_path: str) -> int:
     started = time.perf_counter()
     from sensorispace_ros import config
     from sensorispace_ros.offline.representation import build_representation
-    from sensorispace_ros.offline.strategies import world_params
-    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import explore_naive
     imported = time.perf_counter()
     cfg = config.load_config(config_path)
-    world = build_world(cfg["seed"], world_params(cfg))
+    world = run_world(cfg)
     explored = explore_naive(world, NaiveParams(**cfg["naive"]))
     agent = explored.agent
     pairs, set_ids = agent.equality_sets()

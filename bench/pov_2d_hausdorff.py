@@ -38,7 +38,7 @@ from sensorispace_ros.core.hausdorff import hausdorff_matrix  # noqa: E402
 from sensorispace_ros.core.paper.exploration import build_world, explore_paper  # noqa: E402
 from sensorispace_ros.core.paper.points_of_view import sample_points_of_view  # noqa: E402
 from sensorispace_ros.core.paper.surfaces import sample_surface, surface_candidates  # noqa: E402
-from sensorispace_ros.offline.strategies import world_params  # noqa: E402
+from sensorispace_ros.core.run_world import world_params  # noqa: E402
 
 OFFSETS = {"1 step x": (1, 0), "1 step y": (0, 1), "2 steps": (2, 1), "5 steps": (5, 0)}
 REFERENCE_GRID = 384

@@ -1,8 +1,8 @@
 """The executables of the graph: one thin rclpy node per module.
 
 What they share lives here: reading the run configuration from ROS
-parameters (``--ros-args --params-file config/paper.yaml``), the protocol
-frame ids of msg_schemas/topics.yaml, logging-and-dropping of malformed
+parameters (``--ros-args --params-file config/paper.yaml``), the run's world
+(``core.run_world``) and frame ids (``protocol``), logging-and-dropping of malformed
 messages, the body description a node sizes itself from (the latched
 /body/description: messages sized by the body wait for it), and a
 ``main`` that exits cleanly on SIGTERM / Ctrl-C and stops with the
@@ -23,6 +23,8 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 
 from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.core.run_world import run_world as build_world  # noqa: F401 (the nodes' name)
+from sensorispace_ros.protocol import MAX_FRAME_NUMBER, frame, parse_frame  # noqa: F401
 from sensorispace_ros.graph import tracing
 
 # Parameters of the graph itself (not of the science): config.GRAPH_SCHEMA.
@@ -43,29 +45,6 @@ RESTART_EXIT_CODE = 75
 DESCRIPTION_TOPIC = "/body/description"
 # Messages kept while a node waits for the body description; more are dropped.
 MAX_WAITING = 10_000
-
-
-def frame(kind: str, number: int) -> str:
-    """Protocol frame id: ``change/<k>``, ``end/<k>``, ``cmd/<n>``, ``next/<k>`` (topics.yaml)."""
-    return f"{kind}/{int(number)}"
-
-
-MAX_FRAME_NUMBER = 2 ** 63 - 1
-
-
-def parse_frame(frame_id: str) -> tuple[str, int] | None:
-    kind, _, number = frame_id.partition("/")
-    # ASCII digits only: str.isdigit() is also true for "²" (int() raises, which
-    # killed a node on a fuzzed frame id) and for "٣" (int() reads 3).
-    if kind not in ("change", "end", "cmd", "next") or not (number.isascii() and number.isdigit()):
-        return None
-    # Numbers count changes and commands and travel as int64/uint64 elsewhere: a longer
-    # one (the fuzzer's "cmd/" + 400 nines) is no frame id; the body answered it, and
-    # the third such command in a row made it exit as if its answers were lost. The
-    # length goes first: int() raises on a string of more than 4,300 digits.
-    if len(number) > 19 or int(number) > MAX_FRAME_NUMBER:
-        return None
-    return kind, int(number)
 
 
 class GraphNode(Node):
@@ -348,10 +327,3 @@ def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
-
-
-def build_world(cfg: dict):
-    """The run's world (ground truth) from the validated configuration."""
-    from sensorispace_ros.core.paper import exploration
-    from sensorispace_ros.offline.strategies import world_params
-    return exploration.build_world(cfg["seed"], world_params(cfg))

@@ -258,7 +258,7 @@ def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root,
     """Load the configuration, name the run, make its log directory and remove what
     an earlier run of the same name persisted (a fresh run must not resume it)."""
     from sensorispace_ros import config
-    from sensorispace_ros.graph.framework import build_world
+    from sensorispace_ros.core.run_world import run_world
 
     config_path = Path(config_path) if config_path else default_config()
     cfg = config.load_config(config_path)
@@ -266,7 +266,7 @@ def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root,
     domain_id = free_domain_id() if domain_id is None else int(domain_id)
     plan = RunPlan(cfg, config_path, run, Path(results_root) / run, Path(bags_root) / run,
                    domain_id, graph_environment(domain_id), record,
-                   total_changes=len(build_world(cfg).events) + 1, view_port=int(view_port))
+                   total_changes=len(run_world(cfg).events) + 1, view_port=int(view_port))
     plan.log_dir.mkdir(parents=True, exist_ok=True)
     shutil.rmtree(plan.checkpoint_dir, ignore_errors=True)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = plan.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]

@@ -21,6 +21,8 @@ CHAIN_WORKER_MODULES = ("numpy", "scipy.linalg", "scipy.spatial.distance", "skle
                         "sensorispace_ros.core.cca", "sensorispace_ros.core.regularize",
                         "sensorispace_ros.offline.representation")
 CHAIN_START_METHODS = ("forkserver", "spawn")
+# One worker per embedding chain (offline.representation.DIMENSIONS: 2-D and 3-D).
+CHAIN_WORKERS = 2
 
 
 def can_fork() -> bool:
@@ -54,8 +56,6 @@ def start_chain_pool(start_method: str = "forkserver") -> ProcessPoolExecutor:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    from sensorispace_ros.offline.representation import DIMENSIONS
-
     if start_method not in CHAIN_START_METHODS:
         raise ValueError(f"start_method must be one of {', '.join(CHAIN_START_METHODS)}, "
                          f"got {start_method!r}")
@@ -64,11 +64,11 @@ def start_chain_pool(start_method: str = "forkserver") -> ProcessPoolExecutor:
         # Only read when this process starts its forkserver; without it the
         # forkserver would import the caller's __main__ (here: rclpy).
         context.set_forkserver_preload(list(CHAIN_WORKER_MODULES))
-    pool = ProcessPoolExecutor(max_workers=len(DIMENSIONS), mp_context=context,
+    pool = ProcessPoolExecutor(max_workers=CHAIN_WORKERS, mp_context=context,
                                initializer=_chain_worker_started)
     try:
         # Submitted together, the warm-ups find no idle worker: one worker each.
-        for future in [pool.submit(_warm_chain_worker) for _ in DIMENSIONS]:
+        for future in [pool.submit(_warm_chain_worker) for _ in range(CHAIN_WORKERS)]:
             future.result()
     except BaseException:
         stop_chain_pool(pool)

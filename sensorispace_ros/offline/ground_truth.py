@@ -13,6 +13,7 @@ from typing import Mapping
 import numpy as np
 
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
+from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 
@@ -85,10 +86,7 @@ def compensable_grid(world) -> np.ndarray:
 def body_truth(cfg: dict) -> dict:
     """``body.*`` of a configuration: joints, the eye pose's rank, the
     points of view's dimension, receptors and the compensable grid positions."""
-    from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.offline.strategies import world_params
-
-    world = build_world(int(cfg["seed"]), world_params(cfg))
+    world = run_world(cfg)
     return {"body.joints": world.arm.n_joints, "body.pose_rank": world.arm.pose_rank,
             "body.pov_dim": world.arm.pov_dim, "body.receptors": int(len(world.receptors)),
             "body.compensable_positions": int(len(compensable_grid(world)))}
@@ -122,11 +120,8 @@ def naive_truth_of_changes(cfg: dict, n_changes: int, poses: np.ndarray,
     ``/environment/event``), the seeded schedule of the world rebuilt from
     the configuration for the others, the initial centre and the coverage
     denominator. ``poses`` ``(P, 3)``: the sensor pose of each POV."""
-    from sensorispace_ros.core.paper.exploration import build_world
-    from sensorispace_ros.offline.strategies import world_params
-
     recorded = recorded or {}
-    world = build_world(int(cfg["seed"]), world_params(cfg))
+    world = run_world(cfg)
     if n_changes > len(world.events):
         raise ValueError(f"the run ended after {n_changes} changes; its configuration "
                          f"schedules {len(world.events)}")

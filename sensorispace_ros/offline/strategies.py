@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.offline.chain_pool import can_fork
 from sensorispace_ros.offline.timing import timed_stage
 
@@ -38,29 +39,6 @@ class StrategyOutput:
     timings_s: dict
 
 
-def world_params(cfg: dict) -> dict:
-    """``core.paper.exploration.build_world`` parameters from the configuration."""
-    world, lights, retina = cfg["world"], cfg["world"]["lights"], cfg["world"]["retina"]
-    return {
-        "m0": tuple(cfg["arm"]["initial_motor_state"]),
-        "grid_half_width": world["grid_half_width"],
-        "grid_count": world["grid_count"],
-        "n_lights": lights["count"],
-        "light_radius_min": lights["radius_min"],
-        "light_radius_max": lights["radius_max"],
-        "n_receptors": retina["receptors"],
-        "retina_half_width": retina["half_width"],
-        "min_lights_in_view": lights["min_in_view"],
-        "redistribution_probability": world["redistribution_probability"],
-        "order": world["schedule"],
-        "segments": tuple(cfg["arm"]["segments"]),
-        "eye": cfg["arm"]["eye"],
-        "motor_unit": cfg["arm"]["motor_unit"],
-        "code": retina["code"],
-        "code_value": retina["code_value"],
-    }
-
-
 def pov_params(cfg: dict) -> dict:
     """``core.paper.points_of_view.sample_points_of_view`` options from the configuration."""
     pov = cfg["pov"]
@@ -81,11 +59,11 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 with the paper's analytic shortcuts, on the
     configuration's body (``arm.*``): POVs in its motor unit."""
     from sensorispace_ros.core.paper.equality_sets import equality_sets_from_poses
-    from sensorispace_ros.core.paper.exploration import build_world, explore_paper
+    from sensorispace_ros.core.paper.exploration import explore_paper
 
     timings: dict = {}
     with timed_stage(progress, "exploration", timings):
-        world = build_world(seed, world_params(cfg))
+        world = run_world(cfg, seed)
         explored = explore_paper(
             m0=world.m0, grid=world.grid, events=world.events,
             initial_center=world.initial_center, threshold=cfg["compensation"]["threshold"],
@@ -192,10 +170,9 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     ``naive_ground_truth``: not a stage of the agent)."""
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
-    from sensorispace_ros.core.paper.exploration import build_world
     from sensorispace_ros.offline.evaluation import evaluate_naive_run
 
-    world = build_world(seed, world_params(cfg))
+    world = run_world(cfg, seed)
     params = NaiveParams(**cfg["naive"])
     start = time.perf_counter()
     result = run_naive(world, params, progress=progress)

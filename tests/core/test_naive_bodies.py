@@ -17,7 +17,7 @@ from sensorispace_ros.core.naive.run import explore_naive
 from sensorispace_ros.core.naive.surface import farthest_points
 from sensorispace_ros.core.paper.exploration import build_world
 from sensorispace_ros.core.world import REDISTRIBUTION
-from sensorispace_ros.offline.strategies import world_params
+from sensorispace_ros.core.run_world import world_params
 
 BODIES = Path(__file__).resolve().parents[2] / "config" / "bodies"
 

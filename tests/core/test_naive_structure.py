@@ -13,15 +13,14 @@ from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.sense_memory import MotorPhase
 from sensorispace_ros.core.naive.structure import (gap_rank, measure_structure,
     structure_from_probes)
-from sensorispace_ros.core.paper.exploration import build_world
-from sensorispace_ros.offline.strategies import world_params
+from sensorispace_ros.core.run_world import run_world
 
 BODIES = sorted((Path(__file__).resolve().parents[2] / "config" / "bodies").glob("*.yaml"))
 
 
 def _world(path, seed=0):
     cfg = config.load_config(path)
-    return build_world(seed, world_params(cfg))
+    return run_world(cfg, seed)
 
 
 def _phase_body(simulator, scale=1.0):

@@ -87,3 +87,7 @@ def test_processes_and_executor_together_are_rejected():
         build_representation(povs, pairs, set_ids, cfg, 0, processes=1, executor=object())
     with pytest.raises(ValueError, match="start_method"):
         chain_pool.start_chain_pool("fork")
+
+
+def test_the_chain_pool_has_one_worker_per_embedding_chain():
+    assert chain_pool.CHAIN_WORKERS == len(DIMENSIONS)

@@ -379,12 +379,11 @@ def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
 
 @pytest.fixture(scope="module")
 def offline():
-    from sensorispace_ros.offline import strategies
-    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
     cfg = config.load_config(SMOKE)
-    world = build_world(cfg["seed"], strategies.world_params(cfg))
+    world = run_world(cfg)
     return run_naive(world, NaiveParams(**cfg["naive"]))
 
 

@@ -17,7 +17,6 @@ from std_msgs.msg import UInt64
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import in_process
-from sensorispace_ros.offline import strategies
 from sensorispace_ros.offline.representation import DIMENSIONS, build_representation
 
 from .conftest import SMOKE
@@ -37,10 +36,10 @@ def smoke_cfg():
 
 def _offline_run(cfg, description):
     """The offline naive run and its representation (of the POVs as angles)."""
-    from sensorispace_ros.core.paper.exploration import build_world
+    from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
-    world = build_world(cfg["seed"], strategies.world_params(cfg))
+    world = run_world(cfg)
     produced = run_naive(world, NaiveParams(**cfg["naive"]))
     representation = build_representation(
         description.to_radians(produced.povs), produced.pairs, produced.set_ids, cfg,

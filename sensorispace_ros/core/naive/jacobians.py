@@ -6,6 +6,8 @@ rank is the body's pose rank as the agent measured it
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 # Outcomes of a POV sampler (``SensoryPointsOfView.reason``).
@@ -14,6 +16,33 @@ SPLIT = "split"                 # the loop came back to its start only a period 
 NOT_CLOSED = "not_closed"       # budget spent before the walk closed or covered its POV
 RANK_DEFICIENT = "rank_deficient"  # the sensation does not pin the sensor's configuration
 UNSUPPORTED = "unsupported"     # a POV dimension no sampler here covers
+
+
+
+@dataclass
+class SensoryPointsOfView:
+    """POVs sampled through the body, one row per starting motor state.
+
+    ``samples[p]`` ``(n_samples, M)``: unwrapped motor states spread evenly
+    over the POV (equally spaced in arc length along a loop),
+    ``samples[p, 0]`` the start. ``valid[p]`` False when the sampler could
+    not sample the whole POV (``reason[p]``: ``"split"``, ``"not_closed"``,
+    ``"rank_deficient"``, ``"unsupported"``). ``queries[p]``: motor states
+    probed for POV ``p``; ``calls``: ``sense`` calls of the whole batch.
+    ``steps[p]``: knots of the walk (corrected predictions kept, both
+    fronts); ``max_residual``: largest
+    sensory error ``|sense(sample) - sense(start)|`` of a valid POV's final
+    samples; ``target_sensations[p]`` the start's sensation.
+    """
+
+    samples: np.ndarray
+    valid: np.ndarray
+    reason: list
+    queries: np.ndarray
+    steps: np.ndarray
+    calls: int
+    max_residual: float
+    target_sensations: np.ndarray
 
 
 def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):

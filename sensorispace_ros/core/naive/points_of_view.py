@@ -20,40 +20,12 @@ joint's period is 2 pi).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, SPLIT,  # noqa: F401
-    UNSUPPORTED, VALID, has_full_pose_rank, jacobian_stencil, jacobian_svd,
+    UNSUPPORTED, VALID, SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, jacobian_svd,
     minimum_norm_correction, sensory_jacobian)
 from sensorispace_ros.core.naive.loop_walk import LoopWalk, resample_loop_spline  # noqa: F401
-
-
-@dataclass
-class SensoryPointsOfView:
-    """POVs sampled through the body, one row per starting motor state.
-
-    ``samples[p]`` ``(n_samples, M)``: unwrapped motor states spread evenly
-    over the POV (equally spaced in arc length along a loop),
-    ``samples[p, 0]`` the start. ``valid[p]`` False when the sampler could
-    not sample the whole POV (``reason[p]``: ``"split"``, ``"not_closed"``,
-    ``"rank_deficient"``, ``"unsupported"``). ``queries[p]``: motor states
-    probed for POV ``p``; ``calls``: ``sense`` calls of the whole batch.
-    ``steps[p]``: knots of the walk (corrected predictions kept, both
-    fronts); ``max_residual``: largest
-    sensory error ``|sense(sample) - sense(start)|`` of a valid POV's final
-    samples; ``target_sensations[p]`` the start's sensation.
-    """
-
-    samples: np.ndarray
-    valid: np.ndarray
-    reason: list
-    queries: np.ndarray
-    steps: np.ndarray
-    calls: int
-    max_residual: float
-    target_sensations: np.ndarray
 
 
 class PovStore:

@@ -5,12 +5,9 @@
 from __future__ import annotations
 
 from dataclasses import MISSING, dataclass, field, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from sensorispace_ros.core.naive.agent import NaiveAgent
 
 EQUALITY_PASS = "equality_pass"
 # Stages the agent counts its queries in (queries_by_stage, calls_by_stage,
@@ -107,7 +104,8 @@ class NaiveAgentRecords:
     rank_probes: int = 0
 
     @classmethod
-    def from_agent(cls, agent: NaiveAgent) -> "NaiveAgentRecords":
+    def from_agent(cls, agent) -> "NaiveAgentRecords":
+        """The records of ``agent`` (a ``core.naive.agent.NaiveAgent``)."""
         records = agent.compensations
         n_motors = agent.n_motors
         pairs, set_ids = agent.equality_sets()

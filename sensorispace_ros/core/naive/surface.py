@@ -31,7 +31,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, VALID,
-    has_full_pose_rank, jacobian_stencil, minimum_norm_correction, repair_rows, sensory_jacobian)
+    SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, minimum_norm_correction, repair_rows, sensory_jacobian)
 
 TWO_PI = 2.0 * np.pi
 DIRECTIONS = 6          # proposals per front knot, evenly round its tangent plane
@@ -45,8 +45,6 @@ def cover_surfaces(body, start, *, rank, n_samples, fd_step, step, predictor_tol
                    sample_tol=np.inf):
     """``SensoryPointsOfView`` of 2-D POVs (see the module docstring);
     ``predictor_tol`` is unused (the correction bound is relative to ``step``)."""
-    from sensorispace_ros.core.naive.points_of_view import SensoryPointsOfView
-
     del predictor_tol
     cover = _Cover(body, start, rank=rank, fd_step=fd_step, step=step,
                    max_queries=max_queries,

@@ -85,9 +85,8 @@ from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
 from sensorispace_ros.core.naive.records import (STRUCTURE_FIELDS, NaiveAgentRecords,
                                                  structure_fields)
 from sensorispace_ros.graph.framework import GraphNode, frame, run_node
+from sensorispace_ros.protocol import AGENT_RECORDS_FILE
 
-
-AGENT_RECORDS_FILE = "agent_records.npz"
 TOPICS = ("/body/motor_command", "/body/sensation", "/agent/points_of_view",
           "/agent/compensations", "/agent/done", "/agent/pov_records",
           "/agent/compensation_records", "/agent/stage_counters")

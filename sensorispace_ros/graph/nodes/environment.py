@@ -32,12 +32,11 @@ import numpy as np
 
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.graph import tracing
-from sensorispace_ros.core import world as world_mod
 from sensorispace_ros.state.environment_record import (PROGRESS_FILE, ProgressWriter,
     decode_progress)
 from sensorispace_ros.graph.framework import GraphNode, build_world, frame, run_node
+from sensorispace_ros.protocol import KIND_CODES
 
-KIND_CODES = {world_mod.TRANSLATION: 0, world_mod.REDISTRIBUTION: 1}
 # One participant announcement period of the graph's Fast DDS profile
 # (dds_environment.LEASE_ANNOUNCEMENT_S = 1 s) plus a margin; see _peers_ready.
 RECORDER_DISCOVERY_S = 1.5

@@ -1,0 +1,35 @@
+"""A run's world from its configuration: the one place that turns the
+``world.*`` and ``arm.*`` parameters into ``core.paper.exploration.build_world``
+arguments. Every run producer, node and evaluator builds its world here."""
+from __future__ import annotations
+
+from sensorispace_ros.core.paper import exploration
+
+
+def world_params(cfg: dict) -> dict:
+    """``core.paper.exploration.build_world`` parameters from the configuration."""
+    world, lights, retina = cfg["world"], cfg["world"]["lights"], cfg["world"]["retina"]
+    return {
+        "m0": tuple(cfg["arm"]["initial_motor_state"]),
+        "grid_half_width": world["grid_half_width"],
+        "grid_count": world["grid_count"],
+        "n_lights": lights["count"],
+        "light_radius_min": lights["radius_min"],
+        "light_radius_max": lights["radius_max"],
+        "n_receptors": retina["receptors"],
+        "retina_half_width": retina["half_width"],
+        "min_lights_in_view": lights["min_in_view"],
+        "redistribution_probability": world["redistribution_probability"],
+        "order": world["schedule"],
+        "segments": tuple(cfg["arm"]["segments"]),
+        "eye": cfg["arm"]["eye"],
+        "motor_unit": cfg["arm"]["motor_unit"],
+        "code": retina["code"],
+        "code_value": retina["code_value"],
+    }
+
+
+def run_world(cfg: dict, seed: int | None = None) -> exploration.World:
+    """The world (ground truth and schedule) of a run of the validated
+    configuration ``cfg``, seeded by ``seed`` (``cfg["seed"]`` by default)."""
+    return exploration.build_world(int(cfg["seed"] if seed is None else seed), world_params(cfg))

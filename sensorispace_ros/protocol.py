@@ -1,0 +1,43 @@
+"""The graph's protocol facts, without ROS: what nodes, the recorder, the
+analysis of a bag and the evaluator agree on.
+
+Frame ids (msg_schemas/topics.yaml): ``change/<k>``, ``end/<k>``,
+``cmd/<n>``, ``next/<k>``, and their parser; the code of each change kind on
+``/environment/event``; the files nodes write into the run's results
+directory. Plain Python: ``recording`` and ``evaluation`` read it without
+rclpy.
+"""
+from __future__ import annotations
+
+from sensorispace_ros.core.world import REDISTRIBUTION, TRANSLATION
+
+FRAME_KINDS = ("change", "end", "cmd", "next")
+# Numbers count changes and commands and travel as int64/uint64 elsewhere.
+MAX_FRAME_NUMBER = 2 ** 63 - 1
+
+# /environment/event's ``kind`` column.
+KIND_CODES = {TRANSLATION: 0, REDISTRIBUTION: 1}
+KIND_OF_CODE = {code: kind for kind, code in KIND_CODES.items()}
+
+# Files in graph.results_dir: the representation node's arrays, the agent's records.
+RESULT_FILE = "representation.npz"
+AGENT_RECORDS_FILE = "agent_records.npz"
+
+
+def frame(kind: str, number: int) -> str:
+    """Protocol frame id: ``change/<k>``, ``end/<k>``, ``cmd/<n>``, ``next/<k>`` (topics.yaml)."""
+    return f"{kind}/{int(number)}"
+
+
+def parse_frame(frame_id: str) -> tuple[str, int] | None:
+    """``(kind, number)`` of a protocol frame id, None for anything else."""
+    kind, _, number = frame_id.partition("/")
+    # ASCII digits only: str.isdigit() is also true for "²" (int() raises) and
+    # for "٣" (int() reads 3).
+    if kind not in FRAME_KINDS or not (number.isascii() and number.isdigit()):
+        return None
+    # A longer number is no frame id (a fuzzed "cmd/" + 400 nines); the length
+    # goes first: int() raises on a string of more than 4,300 digits.
+    if len(number) > 19 or int(number) > MAX_FRAME_NUMBER:
+        return None
+    return kind, int(number)
