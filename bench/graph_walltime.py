@@ -10,11 +10,11 @@ Both sides do the same work and are timed the same way (target: graph <=
   project, builds the world, steps the naive agent through the schedule
   (``core.naive.run.explore_naive``) and builds the representation
   (``offline.representation.build_representation``), timed from its spawn to its exit. No
-  ground-truth evaluation: ``offline.strategies.run_naive_strategy``
-  also run the paper strategy for the coverage denominator (~3 s on
-  paper.yaml), which the graph does after its clock stops.
-  ``--legacy-offline`` also prints ``run_naive_strategy`` timed in this
-  process (imports excluded, evaluation included).
+  ground-truth evaluation: its join (``evaluation.naive.join_naive_run``)
+  also runs the paper strategy for the coverage denominator, which the
+  graph does after its clock stops.
+  ``--legacy-offline`` also prints ``run_naive_strategy`` and that join
+  timed in this process (imports excluded, evaluation included).
 * graph: every node in one process on one executor (default) or ``sensorispace
   launch`` with one process per node (``--processes``: node start-up
   included, evaluation not).
@@ -85,10 +85,13 @@ def legacy_offline(config_path: str) -> float:
     evaluation included) + representation, in this process, imports excluded."""
     from sensorispace_ros import config
     from sensorispace_ros.offline.representation import build_representation
+    from sensorispace_ros.evaluation.ground_truth import RunTruth
+    from sensorispace_ros.evaluation.naive import join_naive_run
     from sensorispace_ros.offline.strategies import run_naive_strategy
     cfg = config.load_config(config_path)
     started = time.perf_counter()
     produced = run_naive_strategy(cfg, cfg["seed"])
+    join_naive_run(produced, RunTruth(cfg, produced.world))
     build_representation(produced.povs, produced.pairs, produced.set_ids, cfg, cfg["seed"])
     return time.perf_counter() - started
 

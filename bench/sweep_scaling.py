@@ -1,7 +1,7 @@
 """How a sweep scales with local Dask workers.
 
 Runs the same sweep (default: 8 naive seeds of config/paper.yaml) through
-``sensorispace_ros.offline.sweep.sweep`` on a LocalCluster of 1 worker, then
+``sensorispace_ros.evaluation.sweep.sweep`` on a LocalCluster of 1 worker, then
 of 2 workers, each into a fresh directory, and prints:
 
 - the wall time of each and their ratio (2 workers / 1 worker);
@@ -25,8 +25,8 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from sensorispace_ros.offline.run_files import METRICS_FILE  # noqa: E402
-from sensorispace_ros.offline.sweep import parse_seeds, sweep  # noqa: E402
+from sensorispace_ros.evaluation.run_files import METRICS_FILE  # noqa: E402
+from sensorispace_ros.evaluation.sweep import parse_seeds, sweep  # noqa: E402
 
 
 def timed_sweep(config: Path, strategy: str, seeds: list[int], workers: int,

@@ -12,6 +12,10 @@ JointState's ``joint_names: description`` names the description's joints.
 what the body publishes on ``/body/description``:
 ``core.body_description.BodyDescription``); ``columns`` of such a topic is a
 ContractError, so nothing can size it from anything but a description.
+
+The table itself is plain Python (the analysis of a bag reads it without
+rclpy); a contract's QoS profile and the publishers and subscriptions made
+from it import rclpy when asked for.
 """
 from __future__ import annotations
 
@@ -23,8 +27,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import yaml
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 PACKAGE = "sensorispace_ros"
 _SCHEMA_FILE = Path("msg_schemas") / "topics.yaml"
@@ -60,7 +62,7 @@ def _expanded(names, description, topic: str) -> list[str]:
 class TopicContract:
     name: str
     type_name: str                 # e.g. "sensor_msgs/msg/PointCloud2"
-    qos: QoSProfile
+    qos_spec: dict                 # topics.yaml's qos entry (history, depth, reliability, ...)
     publisher: str
     subscribers: tuple[str, ...]
     ground_truth: bool
@@ -69,6 +71,11 @@ class TopicContract:
     meaning: str
     element_spec: tuple[str, ...] = ()   # names of a Float64MultiArray's data[i], as written
     joint_names_spec: tuple[str, ...] | str = ()   # a JointState's names, or DESCRIBED
+
+    @property
+    def qos(self):
+        """The topic's ``rclpy.qos.QoSProfile``."""
+        return qos_profile(self.qos_spec)
 
     @property
     def msg_type(self):
@@ -135,7 +142,10 @@ def schema_path() -> Path:
                             + ", ".join(str(c) for c in candidates))
 
 
-def qos_profile(spec: dict) -> QoSProfile:
+def qos_profile(spec: dict):
+    """An ``rclpy.qos.QoSProfile`` from a topics.yaml qos entry."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
     history = HistoryPolicy.KEEP_ALL if spec["history"] == "keep_all" else HistoryPolicy.KEEP_LAST
     return QoSProfile(
         history=history,
@@ -152,7 +162,7 @@ def load_contracts(path: str | None = None) -> dict[str, TopicContract]:
     contracts = {}
     for name, spec in raw["topics"].items():
         contracts[name] = TopicContract(
-            name=name, type_name=spec["type"], qos=qos_profile(spec["qos"]),
+            name=name, type_name=spec["type"], qos_spec=dict(spec["qos"]),
             publisher=spec["publisher"], subscribers=tuple(spec.get("subscribers", ())),
             ground_truth=bool(spec.get("ground_truth", False)),
             column_spec=dict(spec.get("columns") or {}), frame_id=str(spec.get("frame_id", "")),
@@ -196,12 +206,14 @@ def _incompatible_qos_warning(node, topic: str):
 # (the pitfall that silently loses data, ROS_NOTES.md) is kept.
 def create_publisher(node, topic: str):
     """A publisher whose type and QoS come from the contract."""
+    from rclpy.event_handler import PublisherEventCallbacks
+
     spec = contract(topic)
     return node.create_publisher(spec.msg_type, topic, spec.qos, event_callbacks=PublisherEventCallbacks(
         incompatible_qos=_incompatible_qos_warning(node, topic), use_default_callbacks=False))
 
 
-def subscription_qos(topic: str) -> QoSProfile:
+def subscription_qos(topic: str):
     """The contract's QoS with KEEP_ALL history.
 
     History is not part of QoS matching: ``keep_last(1)`` on a publisher
@@ -210,12 +222,16 @@ def subscription_qos(topic: str) -> QoSProfile:
     message arriving just after the real /environment/lights replaced it
     and the run stalled).
     """
+    from rclpy.qos import HistoryPolicy, QoSProfile
+
     spec = contract(topic)
     return QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=0, reliability=spec.qos.reliability,
                       durability=spec.qos.durability)
 
 
 def create_subscription(node, topic: str, callback, **kwargs):
+    from rclpy.event_handler import SubscriptionEventCallbacks
+
     spec = contract(topic)
     return node.create_subscription(
         spec.msg_type, topic, callback, subscription_qos(topic),

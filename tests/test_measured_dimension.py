@@ -7,7 +7,7 @@ import pytest
 
 from sensorispace_ros import config
 from sensorispace_ros.offline.representation import build_representation
-from sensorispace_ros.offline.run_files import representation_from_arrays
+from sensorispace_ros.evaluation.run_files import representation_from_arrays
 
 FAST = {"representation.regularization.iterations": 1, "representation.cca.n_epochs": 5}
 

@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sensorispace_ros.offline import evaluation, figures, reproduce, run_files, strategies
+from sensorispace_ros.evaluation import evaluator as evaluation
+from sensorispace_ros.evaluation import figures, reproduce, run_files, runs, space_figures
+from sensorispace_ros.offline import strategies
 from sensorispace_ros.offline.representation import DIMENSIONS, Representation, build_representation
 from sensorispace_ros.config import load_config
 
@@ -112,7 +114,7 @@ def test_reaching_examples_skip_pairs_a_pruned_graph_does_not_connect():
     arrays = {"config_json": json.dumps(cfg), "true_positions": positions,
               "povs": rng.uniform(0, 1, size=(40, 3, 4)),
               "embedding_2d_before": embedding, "embedding_2d_iterations": embedding[None]}
-    examples = figures.reaching_examples(arrays, "2d", count=3)
+    examples = space_figures.reaching_examples(arrays, "2d", count=3)
     assert len(examples["starts"]) == 3
     for start, target in zip(examples["starts"], examples["targets"]):
         assert (start < 20) == (target < 20)
@@ -219,7 +221,7 @@ def test_graph_run_evaluation_matches_reproduce(smoke_run, tmp_path):
                    "embedding_3d_before", "embedding_2d_iterations", "embedding_3d_iterations",
                    "set_spread_2d", "set_spread_3d")}
     cfg = load_config(SMOKE, overrides={"output.figures": False})
-    graph = evaluation.evaluate_graph_run(agent_side, cfg, tmp_path,
+    graph = runs.evaluate_graph_run(agent_side, cfg, tmp_path,
                                           metrics={"naive.coverage": 1.0})
     assert (tmp_path / run_files.METRICS_FILE).is_file()
     assert graph["naive"]["coverage"] == 1.0

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.config import load_config
-from sensorispace_ros.offline import evaluation, figures
+from sensorispace_ros.evaluation import evaluator as evaluation
+from sensorispace_ros.evaluation import figures
 from sensorispace_ros.offline.representation import Representation
 
 SPACES = ("truth", "hausdorff", "2d.before", "2d.after", "3d.before", "3d.after")

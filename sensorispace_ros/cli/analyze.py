@@ -1,5 +1,5 @@
 """``sensorispace analyze``: a run's representation and metrics rebuilt from its bag
-alone (recording.analyze.analyze_bag)."""
+alone (evaluation.analyze.analyze_bag)."""
 from __future__ import annotations
 
 import argparse
@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from sensorispace_ros.recording import analyze
+    from sensorispace_ros.evaluation import analyze
 
     bag = Path(args.bag)
     out = out_dir(args, f"{bag.resolve().name}-analyzed")

@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from sensorispace_ros.offline.run_files import read_metrics
+    from sensorispace_ros.evaluation.run_files import read_metrics
 
     a, b = read_metrics(args.a), read_metrics(args.b)
     print(compare_table(a, b, str(args.a), str(args.b), only_different=args.only_different))
@@ -51,7 +51,7 @@ def _difference(a, b) -> str:
 
 
 def _metric_rows(a: dict, b: dict, only_different: bool) -> list[tuple[str, str, str, str]]:
-    from sensorispace_ros.offline.run_files import flatten_metrics
+    from sensorispace_ros.evaluation.run_files import flatten_metrics
 
     flat_a = flatten_metrics({k: v for k, v in a.items() if k != "config"})
     flat_b = flatten_metrics({k: v for k, v in b.items() if k != "config"})

@@ -33,7 +33,7 @@ _seed = checked(int, lambda value: value >= 0, "a non-negative integer")
 
 def run(args: argparse.Namespace) -> int:
     from sensorispace_ros import config as config_mod
-    from sensorispace_ros.offline.reproduce import reproduce
+    from sensorispace_ros.evaluation.reproduce import reproduce
     from sensorispace_ros.progress import Progress
 
     overrides = {}

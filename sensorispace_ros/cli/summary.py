@@ -5,7 +5,7 @@ import math
 from functools import partial
 from pathlib import Path
 
-from sensorispace_ros.offline.run_files import metric
+from sensorispace_ros.evaluation.run_files import metric
 
 
 def fmt(value, digits: int = 4) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 from sensorispace_ros.cli.arguments import add_out, out_dir
-from sensorispace_ros.offline.sweep import SweepError, parse_seeds
+from sensorispace_ros.evaluation.sweep import SweepError, parse_seeds
 
 
 HELP = "run every (config, seed) as a Dask task; summarise the spread"
@@ -41,7 +41,7 @@ def _seeds(text: str) -> list[int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from sensorispace_ros.offline.sweep import sweep
+    from sensorispace_ros.evaluation.sweep import sweep
 
     out = out_dir(args, f"sweep-{args.strategy}")
     report = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))

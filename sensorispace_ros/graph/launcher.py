@@ -9,7 +9,7 @@ private unless the user says otherwise (graph.dds_environment). Progress
 comes from the environment's progress record (polled: the launcher is not in
 the graph). A node that dies is started again as ``RespawnPolicy`` allows;
 otherwise the run fails naming it. At the end the run is evaluated
-(offline.evaluation, ground truth joined there, never in the agent or the
+(evaluation.evaluator, ground truth joined there, never in the agent or the
 representation): from the bag if one was recorded, otherwise from the
 representation node's arrays.
 """
@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
-from sensorispace_ros.offline.evaluation import evaluate_run
-from sensorispace_ros.offline.run_files import metric
+from sensorispace_ros.evaluation.graph_run import evaluate_run
+from sensorispace_ros.evaluation.run_files import metric
 from sensorispace_ros.recording.completeness import wait_for_complete_recording
 from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progress
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,10 +34,12 @@ class StrategyOutput:
     povs: np.ndarray                 # (P, N, 4) motor states of each point of view
     pairs: np.ndarray                # (K, 2) POV index pairs (i -> j) of equality sets
     set_ids: np.ndarray              # (K,) equality set of each pair
-    true_positions: np.ndarray       # (P, 2) ground truth sensor positions
+    true_positions: np.ndarray | None  # (P, 2) ground truth sensor positions (evaluator's)
     metrics: dict                    # dotted keys: exploration.*, pov.*, naive.*, ...
     arrays: dict                     # figure / re-evaluation material
     timings_s: dict
+    world: Any = None                # the run's world (core.run_world), when simulated
+    naive_run: Any = None            # core.naive.run.NaiveRunResult, until the evaluator joins it
 
 
 def pov_params(cfg: dict) -> dict:
@@ -86,7 +89,7 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
                           metrics=_paper_metrics(explored, sampled, valid, povs, true_poses,
                                                  world.arm),
                           arrays=_paper_arrays(world, explored, valid, true_poses),
-                          timings_s=timings)
+                          timings_s=timings, world=world)
 
 
 def _paper_metrics(explored, sampled, valid: np.ndarray, povs: np.ndarray,
@@ -165,12 +168,12 @@ def _sample_points_of_view(motor_states: np.ndarray, cfg: dict, progress=None,
 
 
 def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
-    """Simulations 1 and 2 from the sensorimotor flow alone, then the run
-    joined with ground truth (``evaluation.evaluate_naive_run``, timed as
-    ``naive_ground_truth``: not a stage of the agent)."""
+    """Simulations 1 and 2 from the sensorimotor flow alone: the agent's own
+    data and counters. Ground truth (true positions, ``pov.*``, the naive
+    agent's ``naive.*`` against truth, figure arrays) is joined by the
+    evaluator (``evaluation.naive.join_naive_run``) from ``naive_run``."""
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
-    from sensorispace_ros.offline.evaluation import evaluate_naive_run
 
     world = run_world(cfg, seed)
     params = NaiveParams(**cfg["naive"])
@@ -180,29 +183,10 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     timings = {key: float(value) for key, value in result.timings_s.items()
                if key in ("exploration", "points_of_view", "equality_sets")}
     timings.setdefault("exploration", elapsed - sum(timings.values()))
-    started = time.perf_counter()
-    evaluated = evaluate_naive_run(result, world)
-    timings["naive_ground_truth"] = time.perf_counter() - started
-    povs = np.asarray(result.povs)
-    true_poses = np.asarray(evaluated.true_poses)
-    metrics = {"pov.count": len(povs),
-               "pov.max_pose_drift": pose_drift(povs, true_poses, world.arm),
-               **evaluated.metrics, **result.metrics,
-               "naive.timings_s.evaluation": timings["naive_ground_truth"]}
-    arrays = {
-        "motor_states": povs[:, 0],
-        "true_poses": true_poses,
-        "grid_index": np.asarray(evaluated.grid_index, dtype=int),
-        "grid": world.grid,
-        "grid_spacing": np.float64(world.spacing),
-        "initial_motor_state": world.m0,
-        "receptors": world.receptors,
-        "initial_lights": world.initial_lights,
-    }
-    return StrategyOutput(povs=povs, pairs=np.asarray(result.pairs, dtype=int),
-                          set_ids=np.asarray(result.set_ids, dtype=int),
-                          true_positions=true_poses[:, :2].copy(), metrics=metrics,
-                          arrays=arrays, timings_s=timings)
+    return StrategyOutput(povs=np.asarray(result.povs), pairs=np.asarray(result.pairs, dtype=int),
+                          set_ids=np.asarray(result.set_ids, dtype=int), true_positions=None,
+                          metrics=dict(result.metrics), arrays={}, timings_s=timings,
+                          world=world, naive_run=result)
 
 
 def pose_drift(povs: np.ndarray, true_poses: np.ndarray, body_arm=None) -> float:

@@ -2,7 +2,7 @@
 timestamp order, its session configuration, and the check that it follows the
 topic contract. Opening a bag checks its MCAP summary CRC; rosbags checks each
 chunk's CRC as it decompresses it (every CRC: ``bag verify``). Every problem is
-a one-line ``BagError``; no rclpy except in ``read_bag_messages``."""
+a one-line ``BagError``; no rclpy (messages are decoded by rosbags)."""
 from __future__ import annotations
 
 import importlib
@@ -124,20 +124,30 @@ def read_bag(
 def read_bag_messages(
     bag_dir: str | os.PathLike, topics: list[str] | None = None
 ) -> Iterator[tuple[str, str, int, object]]:
-    """Like read_bag but yields rclpy message objects (imports rclpy lazily)."""
-    from rclpy.serialization import deserialize_message
-
-    classes: dict[str, type] = {}
+    """Like read_bag but yields decoded messages: rosbags' classes of the Jazzy
+    type store (the fields and names of the ROS messages; no rclpy)."""
+    store = typestore()
     for topic, msgtype, timestamp, cdr in read_bag(bag_dir, topics):
-        cls = classes.get(msgtype) or classes.setdefault(msgtype, message_class(msgtype))
+        if msgtype not in store.types:
+            raise BagError(f"message type {msgtype} is not installed")
         try:
-            message = deserialize_message(cdr, cls)
+            message = _decoded(store, cdr, msgtype)
         except Exception as exc:
             raise BagError(
                 f"bag {bag_dir}: a {msgtype} message on {topic} does not deserialise: "
                 f"{one_line(exc)}"
             ) from None
         yield topic, msgtype, timestamp, message
+
+
+def _decoded(store, cdr: bytes, msgtype: str) -> object:
+    """One CDR message as rosbags decodes it. Bytes after the message are
+    padding (rclpy's serializer leaves some), ignored as rclpy ignores them."""
+    if len(cdr) < 4 or cdr[:2] not in (b"\x00\x00", b"\x00\x01"):
+        raise ValueError("not a CDR encapsulation")
+    msgdef = store.get_msgdef(msgtype)
+    decode = msgdef.deserialize_cdr_le if cdr[1] else msgdef.deserialize_cdr_be
+    return decode(memoryview(cdr)[4:], 0, msgdef.cls, store)[0]
 
 
 def message_class(type_name: str) -> type:

@@ -12,7 +12,7 @@ import yaml
 from rclpy.serialization import serialize_message
 from std_msgs.msg import UInt64
 
-from sensorispace_ros.recording import analyze
+from sensorispace_ros.evaluation import analyze
 from sensorispace_ros.recording.bag_format import (
     SESSION_CONFIG_TOPIC,
     SESSION_CONFIG_TYPE,
@@ -173,7 +173,8 @@ _missing = [m for m in _CORE if importlib.util.find_spec(f"sensorispace_ros.core
 @pytest.mark.skipif(bool(_missing), reason=f"core modules not written yet: {_missing}")
 def test_analyze_bag_equals_the_pipeline_on_the_same_data(tmp_path):
     from sensorispace_ros import config
-    from sensorispace_ros.offline import evaluation, run_files
+    from sensorispace_ros.evaluation import evaluator as evaluation
+    from sensorispace_ros.evaluation import run_files
     from sensorispace_ros.offline.representation import build_representation
 
     povs, rows = write_run(tmp_path / "bag")

@@ -19,7 +19,7 @@ import zlib
 import numpy as np
 import pytest
 
-from sensorispace_ros.recording import analyze
+from sensorispace_ros.evaluation import analyze
 from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 
 from conftest import REPO
@@ -182,7 +182,7 @@ def test_the_bag_holds_the_run_configuration(tiny_run):
 
 def test_analyze_of_the_bag_reproduces_the_live_metrics(tiny_run, tmp_path):
     from sensorispace_ros.cli import main as cli
-    from sensorispace_ros.offline import run_files
+    from sensorispace_ros.evaluation import run_files
 
     live_file = tiny_run["results"] / "metrics.json"
     if not live_file.is_file():

@@ -15,7 +15,7 @@ from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
 from sensorispace_ros.core.world import REDISTRIBUTION
-from sensorispace_ros.offline.evaluation import evaluate_naive_run
+from sensorispace_ros.evaluation.naive import evaluate_naive_run
 
 from naive_flag_runs import assert_same_results, runs_on_and_off
 

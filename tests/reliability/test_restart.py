@@ -52,7 +52,7 @@ PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_
 @pytest.fixture(scope="module")
 def offline_naive_metrics(tmp_path_factory) -> dict:
     from sensorispace_ros import config
-    from sensorispace_ros.offline import reproduce, run_files
+    from sensorispace_ros.evaluation import reproduce, run_files
 
     out = tmp_path_factory.mktemp("offline_naive")
     reproduce.reproduce(config.load_config(SMOKE), "naive", out_dir=out, figures=False)
@@ -60,8 +60,8 @@ def offline_naive_metrics(tmp_path_factory) -> dict:
 
 
 def analysed_metrics(bag, out) -> dict:
-    from sensorispace_ros.recording import analyze
-    from sensorispace_ros.offline import run_files
+    from sensorispace_ros.evaluation import analyze
+    from sensorispace_ros.evaluation import run_files
 
     cfg = analyze.config_from_bag(bag)
     cfg["output"]["figures"] = False

@@ -165,7 +165,7 @@ def unrecorded_launch(tmp_path_factory):
 @pytest.fixture(scope="module")
 def offline_smoke(tmp_path_factory):
     from sensorispace_ros import config
-    from sensorispace_ros.offline import reproduce, run_files
+    from sensorispace_ros.evaluation import reproduce, run_files
 
     out = tmp_path_factory.mktemp("offline")
     reproduce.reproduce(config.load_config(SMOKE), "naive", out_dir=out, figures=False)
@@ -176,7 +176,7 @@ def offline_smoke(tmp_path_factory):
                                                       ("unrecorded_launch", "agent_records.npz")])
 def test_launched_metrics_have_the_offline_naive_keys_and_numbers(launched, evaluated_from,
                                                                    offline_smoke, request):
-    from sensorispace_ros.offline import run_files
+    from sensorispace_ros.evaluation import run_files
 
     run = request.getfixturevalue(launched)
     assert run["returncode"] == 0, run["output"]

@@ -9,7 +9,7 @@ from sensor_msgs.msg import JointState, PointCloud2
 
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core.body_description import BodyDescription
-from sensorispace_ros.messages import MessageError
+from sensorispace_ros.messages import MessageError, clouds
 
 PAPER_BODY = BodyDescription.revolute(4, 6)       # joint1..joint4 in rad, 6 receptors
 JOINT_NAMES = list(PAPER_BODY.joint_names)
@@ -347,7 +347,7 @@ def _packer_layout(frame_id=b"cmd/1", stamp=(0, 5), height=1, width=3, fields=MO
     frame = struct.pack("<iII", *stamp, len(frame_id) + 1) + frame_id + b"\x00"
     frame += frame_padding * (-len(frame) % 4)
     return b"".join((b"\x00\x01\x00\x00", frame, struct.pack("<II", height, width),
-                     messages._cdr_fields(fields), bytes([is_bigendian, 0, 0, 0]),
+                     clouds._cdr_fields(fields), bytes([is_bigendian, 0, 0, 0]),
                      struct.pack("<III", point_step, row_step,
                                  len(data) if n_data is None else n_data),
                      data, bytes([is_dense]))).replace(*patch, 1)[:-cut or None]

@@ -12,11 +12,11 @@ from pathlib import Path
 import pytest
 
 from sensorispace_ros import config as config_mod
-from sensorispace_ros.offline.reproduce import reproduce
-from sensorispace_ros.offline.run_files import METRICS_FILE, flatten_metrics
-from sensorispace_ros.offline.sweep import (PARTIAL_PREFIX, connect, parse_seeds, plan_sweep,
+from sensorispace_ros.evaluation.reproduce import reproduce
+from sensorispace_ros.evaluation.run_files import METRICS_FILE, flatten_metrics
+from sensorispace_ros.evaluation.sweep import (PARTIAL_PREFIX, connect, parse_seeds, plan_sweep,
                                             run_sweep, sweep)
-from sensorispace_ros.offline.sweep_summary import SUMMARY_JSON, SUMMARY_MD
+from sensorispace_ros.evaluation.sweep_summary import SUMMARY_JSON, SUMMARY_MD
 
 REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "config" / "smoke.yaml"

@@ -5,7 +5,7 @@ The driver owns the world (``core.paper.exploration.World``): it steps a
 ``SensingOnly(body)`` and the passive sensation after each change. It notes
 what the environment did at each of the agent's events (object centre,
 light layout, event kind) for the evaluator, which joins it with ground
-truth afterwards (``offline.evaluation.evaluate_naive_run``); the agent never
+truth afterwards (``evaluation.naive.evaluate_naive_run``); the agent never
 sees any of it.
 """
 from __future__ import annotations

@@ -193,20 +193,17 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     the change is declared non-compensable. (The paper's formula, with a
     null displacement, would "compensate" it trivially.)
 
-    Compensations whose 1-D POV is split (two loops, paper Fig. 5b: the
-    kernel walk covers one) are discarded and the arm stays put, as the
-    paper ignores them. 0-D and 2-D POVs are sampled whole, split or not.
+    Compensations whose 1-D POV is split (two loops, paper Fig. 5b) are
+    discarded and the arm stays put; 0-D and 2-D POVs are sampled whole.
 
     ``skip_certain_failures``: a target farther than ``threshold`` from the
     tip's workspace (the annulus ``inner_reach <= |xy| <= reach``) cannot be
     compensated by any motor state (the pose error is at least the distance
     of its position to that annulus, whatever the eye's orientation), and on
     the paper arm one with ``|target_xy| < 1 - threshold`` can only be
-    reached with a split POV; all are decided without running Nelder-Mead.
-    The outcome is identical (tests compare it with ``False``); ~80 % of the
-    paper grid lies beyond reach, so this saves most of the search time.
-    ``grid`` is the object's grid (checked against the events' grid
-    indices). ``progress(done, total)`` is called every 100 events.
+    reached with a split POV; all are decided without running Nelder-Mead,
+    with the same outcome. ``grid`` is the object's grid (checked against
+    the events' grid indices). ``progress(done, total)``: every 100 events.
     """
     m0 = _checked_exploration(m0, grid, events, threshold, rigid_tol, body_arm)
     started = time.perf_counter()

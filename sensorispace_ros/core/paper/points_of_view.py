@@ -228,10 +228,9 @@ class _KernelWalks:
 
 def _walk_kernels(start, target, *, step, min_steps, close_tol, max_steps, record_every,
                   progress, kernel_step=None) -> _KernelWalks:
-    """Walk every POV's kernel from ``start`` until its loop closes (at least
-    ``min_steps`` steps, back within ``close_tol``) or ``max_steps``.
-    ``kernel_step(m, pose_target)``: the corrected step and the unit kernel
-    (the paper arm's ``_corrected_kernel_step`` by default)."""
+    """Walk every POV's kernel from ``start`` until its loop closes (``min_steps``
+    at least, back within ``close_tol``) or ``max_steps``; ``kernel_step(m, pose_target)``
+    gives the corrected step and the unit kernel (default ``_corrected_kernel_step``)."""
     kernel_step = _corrected_kernel_step if kernel_step is None else kernel_step
     n_pov = len(start)
     steps = np.zeros(n_pov, dtype=int)
@@ -242,9 +241,8 @@ def _walk_kernels(start, target, *, step, min_steps, close_tol, max_steps, recor
     record_index = [np.arange(n_pov)]
     record_state = [start.copy()]
 
-    # Working set of the POVs still walking, joint-major ``(J, n)`` so every
-    # operation of the step is elementwise on contiguous rows; POVs leave it
-    # as their loop closes.
+    # Working set of the POVs still walking, joint-major ``(J, n)`` (each step's
+    # operations elementwise on contiguous rows); a POV leaves it when its loop closes.
     ids = np.arange(n_pov)
     m = start.T.copy()
     m_start = start.T.copy()
@@ -356,17 +354,15 @@ def _corrected_kernel_step(m: np.ndarray, pose_target: np.ndarray):
     ``f(m) = pose_target`` ``(3, n)``, and the unit kernel direction there.
 
     This is ``arm.forward``, ``arm.jacobian`` and ``arm.kernel_direction``
-    written out for the 3-segment arm with one trigonometric pass: the walk
-    takes tens of thousands of steps over hundreds of POVs, and the generic
-    batched versions (``np.linalg.det``/``solve`` on 3x3 stacks) are several
-    times slower per step (docs/benchmarks.md). Tests check it against arm.py.
+    written out for the 3-segment arm with one trigonometric pass (faster per
+    step than the generic batched versions; tests check it against arm.py).
 
     Our addition, not the paper's: plain Euler kernel steps drift off the
     fibre by O(step^2) each, which over one loop exceeds the pose accuracy
     a POV must keep, so every step is followed by the least-norm
     Newton step ``dm = -J^+ (f(m) - f(m_i))`` (``J^+ = J^T (J J^T)^-1``),
     which moves across the fibre, not along it. The Jacobian taken before
-    the correction also gives the kernel (the correction is ~1e-7 rad).
+    the small correction also gives the kernel.
     """
     theta = m[:3].copy()                     # segment angles, summed in place
     theta[1] += theta[0]

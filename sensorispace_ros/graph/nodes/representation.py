@@ -231,7 +231,7 @@ class RepresentationNode(GraphNode):
             self.chain_pool_starter.join()
             representation = self._build_representation(
                 self.description.to_radians(povs), pairs, set_ids, distance)
-            # Same array names as offline.run_files.run_arrays, so evaluation code is shared.
+            # Same array names as evaluation.run_files.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
                       "hausdorff": representation.distance}
             for dim in sorted(representation.before):

@@ -3,7 +3,8 @@
 The sensor pose of a POV comes from the arm's forward model (or a recorded
 ``/body/sensor_pose``); the object's centre, the light layout and the kind of
 each change come from the seeded schedule, or from ``/environment/event``
-where a bag recorded it. ``evaluation`` compares the run with these.
+where a bag recorded it. ``RunTruth`` holds a run's world, built once per
+evaluation and handed to every part of it.
 """
 from __future__ import annotations
 
@@ -13,8 +14,27 @@ from typing import Mapping
 import numpy as np
 
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
+from sensorispace_ros.core.paper import exploration
 from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.core.world import REDISTRIBUTION
+
+
+class RunTruth:
+    """The ground truth of one run: its world (``core.run_world``), built when
+    the truth is made unless the run producer hands over its own, and the sensor
+    positions the paper strategy compensates (the naive coverage denominator),
+    explored on first use."""
+
+    def __init__(self, cfg: dict, world: exploration.World | None = None):
+        self.cfg = cfg
+        self.world = run_world(cfg) if world is None else world
+        self._paper_positions: np.ndarray | None = None
+
+    @property
+    def paper_positions(self) -> np.ndarray:
+        if self._paper_positions is None:
+            self._paper_positions = paper_compensated_positions(self.world)
+        return self._paper_positions
 
 
 @dataclass
@@ -67,9 +87,7 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
 def paper_compensated_positions(world) -> np.ndarray:
     """Sensor positions ``(Q, 2)`` the paper strategy compensates (with its
     initial POV), for the coverage denominator."""
-    from sensorispace_ros.core.paper.exploration import explore_paper
-
-    explored = explore_paper(m0=world.m0, grid=world.grid, events=world.events,
+    explored = exploration.explore_paper(m0=world.m0, grid=world.grid, events=world.events,
                              initial_center=world.initial_center, body_arm=world.arm)
     return explored.true_poses[:, :2].copy()
 
@@ -83,10 +101,9 @@ def compensable_grid(world) -> np.ndarray:
     return np.flatnonzero(world.arm.reachable(targets, float(pose0[2])))
 
 
-def body_truth(cfg: dict) -> dict:
-    """``body.*`` of a configuration: joints, the eye pose's rank, the
-    points of view's dimension, receptors and the compensable grid positions."""
-    world = run_world(cfg)
+def body_truth(world: exploration.World) -> dict:
+    """``body.*`` of a run's world: joints, the eye pose's rank, the points
+    of view's dimension, receptors and the compensable grid positions."""
     return {"body.joints": world.arm.n_joints, "body.pose_rank": world.arm.pose_rank,
             "body.pov_dim": world.arm.pov_dim, "body.receptors": int(len(world.receptors)),
             "body.compensable_positions": int(len(compensable_grid(world)))}
@@ -112,16 +129,16 @@ def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
         arm=world.arm)
 
 
-def naive_truth_of_changes(cfg: dict, n_changes: int, poses: np.ndarray,
+def naive_truth_of_changes(truth: RunTruth, n_changes: int, poses: np.ndarray,
                            recorded: Mapping[int, tuple] | None = None) -> NaiveGroundTruth:
     """Ground truth of a naive graph run of ``n_changes`` changes (agent event
     t = change t): ``recorded[k] = (centre (2,), kind, grid index)`` of the
     changes the environment was seen announcing (a bag's
-    ``/environment/event``), the seeded schedule of the world rebuilt from
-    the configuration for the others, the initial centre and the coverage
-    denominator. ``poses`` ``(P, 3)``: the sensor pose of each POV."""
+    ``/environment/event``), the seeded schedule of the run's world for the
+    others, the initial centre and the coverage denominator. ``poses``
+    ``(P, 3)``: the sensor pose of each POV."""
     recorded = recorded or {}
-    world = run_world(cfg)
+    world = truth.world
     if n_changes > len(world.events):
         raise ValueError(f"the run ended after {n_changes} changes; its configuration "
                          f"schedules {len(world.events)}")
@@ -139,4 +156,4 @@ def naive_truth_of_changes(cfg: dict, n_changes: int, poses: np.ndarray,
         centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
         grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
         initial_motor_state=np.asarray(world.m0, dtype=float),
-        paper_positions=paper_compensated_positions(world), arm=world.arm)
+        paper_positions=truth.paper_positions, arm=world.arm)

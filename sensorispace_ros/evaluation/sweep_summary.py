@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorispace_ros.offline.run_files import METRICS_FILE, flatten_metrics
+from sensorispace_ros.evaluation.run_files import METRICS_FILE, flatten_metrics
 
 SUMMARY_JSON = "summary.json"
 SUMMARY_MD = "summary.md"

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Sequence
 
-from sensorispace_ros.offline.run_files import METRICS_FILE
+from sensorispace_ros.evaluation.run_files import METRICS_FILE
 
 STRATEGIES = ("paper", "naive")
 SEED_DIR = "seed-{seed}"
@@ -115,7 +115,7 @@ def run_task(task: SweepTask) -> str:
     attempt of the same run is removed once this one is in place.
     """
     from sensorispace_ros import config as config_mod
-    from sensorispace_ros.offline.reproduce import reproduce
+    from sensorispace_ros.evaluation.reproduce import reproduce
 
     final = Path(task.run_dir)
     if is_complete(task):
@@ -170,7 +170,7 @@ def sweep(config_paths: Sequence[str | Path], strategy: str, seeds: Iterable[int
           out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
           report: Callable[[str], None] | None = None) -> SweepOutcome:
     """Plan, run and summarise a sweep; see the module docstring."""
-    from sensorispace_ros.offline.sweep_summary import summarize
+    from sensorispace_ros.evaluation.sweep_summary import summarize
 
     tasks = plan_sweep(config_paths, strategy, list(seeds), out_dir)
     with connect(workers, scheduler) as client:

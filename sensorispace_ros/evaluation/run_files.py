@@ -2,8 +2,8 @@
 
 ``run_arrays`` names what a run keeps to redraw its figures or be evaluated
 again (``representation_from_arrays`` reads the representation back);
-``write_run`` writes the three; ``write_metrics`` / ``read_metrics`` the
-metrics file, floats rounded to ``FLOAT_DIGITS`` significant digits.
+``write_metrics`` / ``read_metrics`` the metrics file, floats rounded to
+``FLOAT_DIGITS`` significant digits (``runs.write_run`` writes the three).
 """
 from __future__ import annotations
 
@@ -11,16 +11,13 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sensorispace_ros import config as config_mod
 from sensorispace_ros.offline.representation import DIMENSIONS, Representation
-from sensorispace_ros.offline.timing import timed_stage
 
-if TYPE_CHECKING:
-    from sensorispace_ros.offline.strategies import StrategyOutput
+from sensorispace_ros.offline.strategies import StrategyOutput
 
 METRICS_FILE = "metrics.json"
 ARRAYS_FILE = "arrays.npz"
@@ -28,38 +25,6 @@ FIGURES_DIR = "figures"
 # Significant digits written to metrics.json: far below every acceptance bar,
 # and it keeps last-bit noise of BLAS reductions out of run-to-run diffs.
 FLOAT_DIGITS = 12
-
-
-def write_run(out_dir: str | Path, flat_metrics: dict, arrays: dict, cfg: dict, strategy: str,
-              timings: dict, progress=None) -> dict:
-    """Figures (when ``cfg["output"]["figures"]``), arrays.npz and metrics.json
-    of a finished run; returns the metrics.
-
-    ``flat_metrics`` has dotted keys; ``timings`` go under ``timings_s``
-    (figure drawing is timed as ``figures``, outside ``total``).
-    """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    timings = dict(timings)
-    arrays = dict(arrays)
-    if cfg["output"]["figures"]:
-        from sensorispace_ros.offline import figures
-
-        with timed_stage(progress, "figures", timings, total=len(figures.FIGURES)):
-            arrays.update(figures.draw_run_figures(arrays, cfg, out_dir / FIGURES_DIR, progress))
-    np.savez_compressed(out_dir / ARRAYS_FILE, **arrays)
-
-    flat = dict(flat_metrics)
-    pairs, set_ids = arrays["pairs"], arrays["set_ids"]
-    flat.setdefault("equality_sets.count", int(len(np.unique(set_ids))))
-    flat.setdefault("equality_sets.pairs", int(len(pairs)))
-    flat.update({f"timings_s.{key}": value for key, value in timings.items()})
-    flat["strategy"] = strategy
-    flat["seed"] = cfg["seed"]
-    metrics = nest(flat)
-    metrics["config"] = config_mod.flatten(cfg)
-    write_metrics(metrics, out_dir / METRICS_FILE)
-    return metrics
 
 
 def run_arrays(produced: StrategyOutput, representation: Representation, cfg: dict,

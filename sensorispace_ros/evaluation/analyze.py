@@ -26,7 +26,7 @@ What the bag gives (see recording.bag_format, nodes/recorder.py):
   layout version = redistributions so far) and the world rebuilt from the
   bag's configuration (initial centre, the paper strategy's compensated
   positions for the coverage denominator) by the offline evaluator itself,
-  ``offline.evaluation.evaluate_naive_records``.
+  ``evaluation.naive.evaluate_naive_records``.
 
 Duplicates: a restarted node re-sends (the environment its current
 change, the agent a reaction, the body passive sensations of re-delivered
@@ -37,7 +37,7 @@ taken from the world rebuilt from the bag's configuration (the environment
 plays the same seeded schedule); ``analysis.events`` says how many.
 
 Then ``offline.representation.build_representation`` and the offline
-evaluator (``offline.evaluation.evaluate_graph_run``): the same
+evaluator (``evaluation.runs.evaluate_graph_run``): the same
 ``metrics.json`` / figures as ``reproduce``.
 """
 from __future__ import annotations
@@ -48,6 +48,16 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorispace_ros import config, contracts, messages
+from sensorispace_ros.core.arm import Arm
+from sensorispace_ros.core.naive.records import STAGES, STRUCTURE_FIELDS, NaiveAgentRecords
+from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from_motor
+from sensorispace_ros.evaluation.naive import naive_metrics
+from sensorispace_ros.evaluation.run_files import run_arrays
+from sensorispace_ros.evaluation.runs import evaluate_graph_run
+from sensorispace_ros.offline.representation import assemble_points_of_view, build_representation
+from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
+from sensorispace_ros.protocol import KIND_OF_CODE, parse_frame
 from sensorispace_ros.recording.bag_format import SESSION_CONFIG_TOPIC, BagError
 from sensorispace_ros.recording.bag_reader import (
     bag_info,
@@ -64,8 +74,6 @@ DESCRIPTION = "/body/description"
 
 def config_from_bag(bag_dir) -> dict:
     """The run's validated configuration, from its /session/config message."""
-    from sensorispace_ros import config
-
     text = read_session_config(bag_dir)
     with tempfile.NamedTemporaryFile("w", suffix=".yaml") as handle:
         handle.write(text)
@@ -81,9 +89,6 @@ def body_description(bag_dir, cfg: dict | None = None):
     """The body description of the run: the bag's first well-formed
     /body/description; without one (a bag recorded before it existed), the
     configured arm and retina (``cfg``, or the bag's configuration)."""
-    from sensorispace_ros import messages
-    from sensorispace_ros.core.arm import Arm
-
     if DESCRIPTION in bag_info(bag_dir).topics:
         for _, _, _, msg in read_bag_messages(bag_dir, [DESCRIPTION]):
             try:
@@ -98,9 +103,6 @@ def _tables(bag_dir, topic: str, kinds=("change",), description=None) -> dict[st
     """frame id -> decoded table of the first message of ``topic`` with that frame id
     (a re-send after a restart is a duplicate, see the module docstring);
     ``description`` sizes a topic sized by the body."""
-    from sensorispace_ros import contracts, messages
-    from sensorispace_ros.graph.framework import parse_frame
-
     columns = contracts.contract(topic).columns_for(description)
     tables = {}
     for _, _, _, msg in read_bag_messages(bag_dir, [topic]):
@@ -118,9 +120,6 @@ def agent_data(bag_dir, description=None) -> dict:
     """POV ids, POV motor samples, equality pairs (POV positions) and set ids, as the
     representation node builds them, plus the change each POV was published for.
     ``description``: the body's (``body_description`` by default)."""
-    from sensorispace_ros import contracts, messages
-    from sensorispace_ros.graph.nodes.representation import assemble_points_of_view
-
     description = body_description(bag_dir) if description is None else description
     pov_tables = _tables(bag_dir, POVS, description=description)
     row_tables = _tables(bag_dir, ROWS)
@@ -153,9 +152,6 @@ def true_poses(bag_dir, povs: np.ndarray, description=None, body_arm=None
     """Sensor pose (x, y, alpha) of each POV's first sample: recorded where that motor
     state was commanded, ``body_arm``'s forward model otherwise (the arm of the bag's
     configuration by default). Returns (poses, number recorded)."""
-    from sensorispace_ros import contracts, messages
-    from sensorispace_ros.core.arm import Arm
-
     description = body_description(bag_dir) if description is None else description
     if body_arm is None:
         body_arm = Arm.from_config(config_from_bag(bag_dir)["arm"])
@@ -199,8 +195,6 @@ def events(bag_dir) -> dict[str, np.ndarray]:
 
 
 def _concatenated(bag_dir, topic: str, description=None) -> np.ndarray:
-    from sensorispace_ros import contracts, messages
-
     present = topic in bag_info(bag_dir).topics
     tables = list(_tables(bag_dir, topic, description=description).values()) if present else []
     columns = contracts.contract(topic).columns_for(description)
@@ -211,8 +205,6 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
     """The agent's records of the run (``core.naive.records.NaiveAgentRecords``),
     or None when the bag lacks them (recorded before they were published, or the
     run did not end). ``description``: the body's (``body_description`` by default)."""
-    from sensorispace_ros.core.naive.records import STAGES, STRUCTURE_FIELDS, NaiveAgentRecords
-
     info = bag_info(bag_dir)
     if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
         return None
@@ -252,43 +244,29 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
 def recorded_changes(change_events: dict) -> dict[int, tuple]:
     """change number -> (centre, kind, grid index) of each recorded ``/environment/event``
     (``ground_truth.naive_truth_of_changes``)."""
-    from sensorispace_ros.graph.framework import parse_frame
-    from sensorispace_ros.graph.nodes.environment import KIND_CODES
-
-    kind_of_code = {code: kind for kind, code in KIND_CODES.items()}
     changes = {}
     for frame_id, event in change_events.items():
         changes[int(parse_frame(frame_id)[1])] = (
             np.array([event["center_x"], event["center_y"]], dtype=float),
-            kind_of_code[int(event["kind"])], int(event["grid_index"]))
+            KIND_OF_CODE[int(event["kind"])], int(event["grid_index"]))
     return changes
 
 
 def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dict:
     """Rebuild and evaluate the run recorded in ``bag_dir``; write ``out_dir/metrics.json``,
-    ``arrays.npz`` and figures (``evaluation.evaluate_graph_run``, as for a live graph run).
-    ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics."""
-    from sensorispace_ros import config, contracts
-    from sensorispace_ros.core.arm import Arm
-    from sensorispace_ros.offline.evaluation import evaluate_graph_run, naive_metrics
-    from sensorispace_ros.offline.ground_truth import ground_truth_from_motor
-    from sensorispace_ros.offline.representation import build_representation
-    from sensorispace_ros.offline.run_files import run_arrays
-    from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
-
+    ``arrays.npz`` and figures (``runs.evaluate_graph_run``, as for a live graph run).
+    ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics.
+    The run's ground truth (``RunTruth``: its world) is built once and handed down."""
     started = time.perf_counter()
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)
     check_contract(bag_dir, {n: c.type_name for n, c in contracts.load_contracts().items()})
     cfg = config_from_bag(bag_dir) if cfg is None else config.validate_config(cfg)
     seed = int(cfg["seed"])
-
     description, body_arm = body_description(bag_dir, cfg), Arm.from_config(cfg["arm"])
     data = agent_data(bag_dir, description)
     povs, pairs, set_ids = data["povs"], data["pairs"], data["set_ids"]
     poses, recorded = true_poses(bag_dir, povs, description, body_arm)
-    change_events = events(bag_dir)
-    totals = agent_totals(bag_dir)
-
+    change_events, totals = events(bag_dir), agent_totals(bag_dir)
     # The Hausdorff metric's wrap is 2 pi: the POVs as angles (the same bits for rad).
     representation = build_representation(description.to_radians(povs), pairs, set_ids, cfg,
                                            seed, progress)
@@ -297,13 +275,10 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
                               timings_s={})
     arrays = run_arrays(produced, representation, cfg, seed)
     arrays.update({"true_poses": poses, "motor_states": povs[:, 0], "pov_ids": data["ids"]})
-    # grid position of the object for the change each POV answered: recorded
-    # (/environment/event) where there is one, else inferred from the tip
-    # displacement (the initial POV answers no event)
-    inferred = ground_truth_from_motor(povs, cfg)["grid_index"]
-    arrays["grid_index"] = np.array(
-        [int(change_events[f]["grid_index"]) if f in change_events else int(g)
-         for f, g in zip(data["pov_frames"], inferred)], dtype=int)
+    from_motor = ground_truth_from_motor(povs, cfg)
+    arrays["grid_index"] = _grid_index(data["pov_frames"], change_events, from_motor)
+    for key, value in from_motor.items():
+        arrays.setdefault(key, value)
     counters = {
         "pov.max_pose_drift": pose_drift(povs, poses, body_arm),
         "analysis.bag": str(bag_dir),
@@ -312,32 +287,47 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
         "analysis.complete": totals is not None
         and (totals["points_of_view"], totals["compensation_rows"]) == (len(povs), len(pairs)),
         **{f"timings_s.{key}": value for key, value in representation.timings_s.items()},
+        **{f"agent.{name}": value for name, value in (totals or {}).items()},
     }
-    for name, value in (totals or {}).items():
-        counters[f"agent.{name}"] = value       # the agent's own counters (/agent/done)
+    truth = RunTruth(cfg)
+    counters.update(_naive_numbers(bag_dir, data, totals, description, truth, poses,
+                                   change_events, arrays))
+    counters["timings_s.total"] = time.perf_counter() - started
+    return evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
+                              progress=progress, truth=truth)
+
+
+def _grid_index(pov_frames: list, change_events: dict, from_motor: dict) -> np.ndarray:
+    """Grid position of the object for the change each POV answered: recorded
+    (/environment/event) where there is one, else inferred from the tip
+    displacement (the initial POV answers no event)."""
+    return np.array([int(change_events[f]["grid_index"]) if f in change_events else int(g)
+                     for f, g in zip(pov_frames, from_motor["grid_index"])], dtype=int)
+
+
+def _naive_numbers(bag_dir, data: dict, totals: dict | None, description, truth: RunTruth,
+                   poses: np.ndarray, change_events: dict, arrays: dict) -> dict:
+    """``naive.*`` and ``exploration.*`` of the run: its records joined with
+    ground truth (``naive.naive_metrics``; sets ``arrays["grid_index"]``), or
+    the recorded counts when the bag lacks the records."""
     records = naive_records(bag_dir, data, totals, description)
-    if records is not None:
-        try:
-            evaluated = naive_metrics(records, cfg, totals["changes"], poses,
-                                      recorded_changes(change_events))
-        except ValueError as exc:
-            raise BagError(f"bag {bag_dir}: {exc}") from None
-        arrays["grid_index"] = evaluated.grid_index
-        counters.update(evaluated.metrics)
-        n_changes = int(totals["changes"]) - 1
-        recorded_events = sum(f"change/{k}" in change_events for k in range(1, n_changes + 1))
-        counters["analysis.events"] = (f"{recorded_events} of {n_changes} from recorded "
-                                       f"{EVENT}, {n_changes - recorded_events} from the "
-                                       f"seeded schedule")
-        counters["analysis.naive_records"] = "evaluated by offline.evaluation"
-    else:
-        if totals is not None:
-            counters["exploration.compensated"] = totals["compensated"]
+    if records is None:
+        counters = {} if totals is None else {"exploration.compensated": totals["compensated"]}
         counters["exploration.events"] = int(len(change_events))
         counters["exploration.state_changes"] = int(sum(int(e["kind"]) == 1
                                                         for e in change_events.values()))
         counters["analysis.naive_records"] = (f"absent (no {STAGE_COUNTERS} / {POV_RECORDS}): "
                                               f"naive.* not evaluated")
-    counters["timings_s.total"] = time.perf_counter() - started
-    return evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
-                              progress=progress)
+        return counters
+    try:
+        evaluated = naive_metrics(records, truth, totals["changes"], poses,
+                                  recorded_changes(change_events))
+    except ValueError as exc:
+        raise BagError(f"bag {bag_dir}: {exc}") from None
+    arrays["grid_index"] = evaluated.grid_index
+    n_changes = int(totals["changes"]) - 1
+    recorded = sum(f"change/{k}" in change_events for k in range(1, n_changes + 1))
+    return {**evaluated.metrics,
+            "analysis.events": f"{recorded} of {n_changes} from recorded {EVENT}, "
+                               f"{n_changes - recorded} from the seeded schedule",
+            "analysis.naive_records": "evaluated by evaluation.naive"}

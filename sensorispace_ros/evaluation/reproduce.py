@@ -6,7 +6,9 @@ from pathlib import Path
 
 from sensorispace_ros import config as config_mod
 from sensorispace_ros.core.arm import Arm
-from sensorispace_ros.offline.evaluation import evaluate_output
+from sensorispace_ros.evaluation.ground_truth import RunTruth
+from sensorispace_ros.evaluation.naive import join_naive_run
+from sensorispace_ros.evaluation.runs import evaluate_output
 from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import STRATEGIES, run_strategy
 
@@ -34,10 +36,13 @@ def reproduce(cfg: dict, strategy: str = "paper", seed: int | None = None,
 
     started = time.perf_counter()
     produced = run_strategy(cfg, strategy, seed, progress)
+    truth = RunTruth(cfg, produced.world)
+    if produced.naive_run is not None:
+        join_naive_run(produced, truth)
     # The Hausdorff metric reads motor values as angles (a period = 2 pi).
     angles = Arm.from_config(cfg["arm"]).to_radians(produced.povs)
     representation = build_representation(angles, produced.pairs, produced.set_ids, cfg,
                                           seed, progress)
     return evaluate_output(produced, representation, cfg, out_dir, strategy,
                            {**produced.timings_s, **representation.timings_s}, progress,
-                           started=started)
+                           started=started, truth=truth)
