@@ -201,9 +201,9 @@ def _incompatible_qos_warning(node, topic: str):
 
 
 # rclpy adds two default event handlers (incompatible QoS, incompatible type)
-# to every endpoint and rebuilds the wait set from all of them on every spin:
-# measured 1.5 -> 1.1 ms per in-process round trip when only the QoS warning
-# (the pitfall that silently loses data, ROS_NOTES.md) is kept.
+# to every endpoint and rebuilds the wait set from all of them on every spin;
+# only the QoS warning (the pitfall that silently loses data, ROS_NOTES.md) is
+# kept, which shortens every round trip (docs/benchmarks.md).
 def create_publisher(node, topic: str):
     """A publisher whose type and QoS come from the contract."""
     from rclpy.event_handler import PublisherEventCallbacks
@@ -218,9 +218,8 @@ def subscription_qos(topic: str):
 
     History is not part of QoS matching: ``keep_last(1)`` on a publisher
     bounds what it keeps for late joiners, but a depth-1 *subscription*
-    drops every message but the newest of a burst (measured: a malformed
-    message arriving just after the real /environment/lights replaced it
-    and the run stalled).
+    drops every message but the newest of a burst (a malformed message
+    arriving just after the real /environment/lights would replace it).
     """
     from rclpy.qos import HistoryPolicy, QoSProfile
 

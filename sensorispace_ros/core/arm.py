@@ -38,10 +38,10 @@ def forward(motor: np.ndarray, lengths=SEGMENT_LENGTHS) -> np.ndarray:
     motor = np.asarray(motor, dtype=float)
     if motor.ndim == 0 or motor.shape[-1] < 3:
         raise ValueError(f"motor must have shape (..., {N_JOINTS}), got {motor.shape}")
-    # One joint per row: the sums run as whole-row additions. numpy's cumsum /
-    # sum over a short last axis loop per batch row (0.12 ms for 649 rows vs
-    # 0.05 ms here) and add left to right, which these additions repeat, so
-    # the bits are the same (tests/core/test_body_simulation.py).
+    # One joint per row: the sums run as whole-row additions (numpy's cumsum /
+    # sum over a short last axis loop per batch row, slower) and add left to
+    # right, as cumsum does, so the bits are the same
+    # (tests/core/test_body_simulation.py).
     joints = motor.reshape(-1, motor.shape[-1]).T
     theta = np.empty((3, joints.shape[1]))
     np.add(joints[0], joints[1], out=theta[1])

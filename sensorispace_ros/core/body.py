@@ -293,15 +293,6 @@ class SensingOnly:
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         return self._sense(motor_states)
 
-    def sense_at_rest(self, kernel: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """What the resting eye sees, ``(R,)``, and its pose ``(3,)``: not a
-        query (no call is counted). ``kernel`` overrides the body's."""
-        if self.lights_world is None or self.motor_state is None:
-            raise RuntimeError("SimulatedBody.sense_at_rest needs lights and a motor state")
-        raw, poses = simulate(self.motor_state[None], self.lights_world, self.receptor_positions,
-                              kernel or self.kernel, self.arm)
-        return (raw if self.code is None else self.code.apply(raw))[0], poses[0]
-
     def move(self, motor_states: np.ndarray) -> None:
         """The body's ``move``; a body without one senses and the answer is dropped."""
         if self._move is None:

@@ -191,7 +191,7 @@ def _block_row(i0, i1, P, N, RT, Q, block, H2):
     rel = (K + 3) * 2.0 ** -23
     a_q = [Q[k, i0:i1].reshape(-1, 1) for k in range(K)]
     # Buffers are reused across tiles: fresh multi-MB arrays cost a page
-    # fault per 4 KiB on first touch, which measured as slow as the kernel.
+    # fault per 4 KiB on first touch, as much as the kernel's own work.
     size = bi * N * block * N
     diff_buf = np.empty(size, dtype=np.int16)
     sq_buf = np.empty(size, dtype=np.float32)

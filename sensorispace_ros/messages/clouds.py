@@ -421,9 +421,8 @@ class CloudCdrReader:
         row_step_expected = width * self._point_step
         dense_at = position + n_data
         # Between processes Fast DDS hands over the payload padded to a multiple
-        # of 4 bytes (CDR's alignment; the general path ignores trailing bytes):
-        # measured, every probe message of a launched graph went the general path
-        # while this one required the exact length.
+        # of 4 bytes (CDR's alignment; the general path ignores trailing bytes),
+        # so up to 3 trailing bytes are accepted here too.
         if (point_step != self._point_step or row_step != row_step_expected
                 or n_data != row_step_expected or not 0 <= len(raw) - dense_at - 1 <= 3
                 or raw[dense_at] != 1):

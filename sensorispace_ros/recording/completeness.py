@@ -2,11 +2,10 @@
 
 A recorder started again mid-run gets the agent's POVs and equality rows
 from their TRANSIENT_LOCAL history, once its readers have matched the
-agent's writers. Nothing made the end of a run wait for that: the launcher
-stopped the agent when the representation was done, and a recorder restarted
-late could close its bag without them (seen once: 10 of 39 POVs). The
-recorder now counts what it holds against ``/agent/done`` (the agent's own
-totals), as the representation does, and when both agree writes
+agent's writers; a recorder restarted late could otherwise close its bag
+without some of them. The recorder counts what it holds against
+``/agent/done`` (the agent's own totals), as the representation does, and
+when both agree writes
 ``<bag>.complete`` beside the bag directory; the launcher and the test
 harness wait for that file (``wait_for_complete_recording``) before they stop
 the nodes. The recorder removes the file when it starts and when it closes
