@@ -2,14 +2,13 @@
 (no timing assertions: timings belong to bench/, not to tests)."""
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sensorispace_ros.core.numpy_math import numpy_calls_c_math
 
-REPO = Path(__file__).resolve().parent.parent
+from shared import REPO
 sys.path.insert(0, str(REPO))
 
 from bench import run_all, scale  # noqa: E402

@@ -2,14 +2,13 @@
 with only body keys changed, and none tunes the naive agent."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
 from sensorispace_ros import config
 from sensorispace_ros.core.arm import Arm
 
-ROOT = Path(__file__).resolve().parents[1]
+from shared import REPO as ROOT
 CATALOGUE = sorted((ROOT / "config" / "bodies").glob("*.yaml"))
 BODY_PREFIXES = ("arm.", "world.retina.")
 EXPECTED = {"paper", "five-joint", "three-joint", "level-eye", "receptors-12", "degrees",

@@ -10,9 +10,8 @@ import yaml
 from sensorispace_ros import config
 from sensorispace_ros.config import ConfigError, flatten, load_config, unflatten, validate_config
 
-REPO = Path(__file__).resolve().parents[1]
+from shared import REPO, SMOKE
 PAPER = REPO / "config" / "paper.yaml"
-SMOKE = REPO / "config" / "smoke.yaml"
 
 
 def write(tmp_path: Path, params: dict, wrapped: bool = True) -> Path:

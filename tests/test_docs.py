@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from shared import REPO as ROOT
 README = ROOT / "README.md"
 PACKAGE = "sensorispace_ros"
 JOURNAL = "bench/JOURNAL.md"      # the one place allowed to keep history wording

@@ -22,7 +22,7 @@ rest of a round trip's work, and a graph run sends a command and an answer
 for every ``sense`` call (docs/benchmarks.md). ``cloud_to_matrix`` /
 ``cloud_to_table`` check a ``SerializedCloud``
 exactly as a PointCloud2, and rclpy reads the bytes written as the messages
-``matrix_to_cloud`` / ``motor_to_joint_state`` build (tests/ros/test_messages.py
+``matrix_to_cloud`` / ``motor_to_joint_state`` build (tests/graph/test_messages.py
 checks both ways with ``rclpy.serialization``; padding bytes are zero here,
 unset in rclpy's). ``CloudCdrReader`` reads a float cloud's bytes as
 ``cloud_from_cdr`` + ``cloud_to_matrix`` do, and those laid out exactly as

@@ -12,7 +12,7 @@ import pytest
 from sensorispace_ros.core import numpy_math
 from sensorispace_ros.core.numpy_math import c_math_environment, numpy_calls_c_math
 
-REPO = Path(__file__).resolve().parents[2]
+from shared import REPO
 
 
 def wide_sample_differences() -> list[int]:

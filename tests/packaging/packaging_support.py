@@ -6,7 +6,7 @@ import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
+from shared import REPO
 PACKAGE = "sensorispace_ros"
 SETUP_PY = REPO / "setup.py"
 PACKAGE_XML = REPO / "package.xml"

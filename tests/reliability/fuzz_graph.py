@@ -41,6 +41,7 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))     # tests/: shared
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import node_processes as np_mod                       # noqa: E402
 else:
@@ -49,9 +50,8 @@ else:
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import dds_environment, in_process  # noqa: E402
+from shared import REPO, SMOKE  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[2]
-SMOKE = REPO / "config" / "smoke.yaml"
 CLOUD_TOPICS = ("/environment/lights", "/body/motor_command", "/body/sensation",
                 "/agent/points_of_view", "/agent/compensations", "/agent/done")
 DUPLICATED = ("/body/sensation", "/agent/settled", "/agent/points_of_view",

@@ -12,26 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros.graph import launcher
-from sensorispace_ros.graph.nodes.representation import RESULT_FILE
+from sensorispace_ros.protocol import RESULT_FILE
+from shared import stop_by_pid
 
 NODES = ("environment", "body", "agent", "representation", "recorder")
-
-
-def stop_by_pid(process: subprocess.Popen, grace_s: float = 5.0) -> None:
-    """SIGTERM, then SIGKILL after ``grace_s``; never by name."""
-    if process.poll() is None:
-        try:
-            os.kill(process.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
-        try:
-            process.wait(timeout=grace_s)
-        except subprocess.TimeoutExpired:
-            try:
-                os.kill(process.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            process.wait()
 
 
 def node_parameters(name: str, results_dir: Path, bag_dir: Path, nodes=NODES) -> dict:
@@ -106,11 +90,11 @@ class NodeProcesses:
         return wait_for_complete_recording(bag_dir, timeout_s,
                                            alive=lambda: recorder.poll() is None)
 
-    def stop(self, grace_s: float = 5.0) -> None:
+    def stop(self) -> None:
         order = [n for n in self.children if n != "recorder"] + \
                 [n for n in self.children if n == "recorder"]
         for name in order:
-            stop_by_pid(self.children[name], grace_s)
+            stop_by_pid(self.children[name])
         for log in self._logs:
             log.close()
         self._logs = []

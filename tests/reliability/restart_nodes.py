@@ -24,6 +24,7 @@ from pathlib import Path
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))     # tests/: shared
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import node_processes as np_mod                       # noqa: E402
 else:
@@ -31,9 +32,8 @@ else:
 
 from sensorispace_ros.graph import dds_environment, launcher  # noqa: E402
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE  # noqa: E402
+from shared import REPO, SMOKE  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[2]
-SMOKE = REPO / "config" / "smoke.yaml"
 
 
 class SettledWatcher:

@@ -2,7 +2,7 @@
 
 Every broken bag gives ONE line on stderr (``sensorispace: error: ...``), no
 traceback, and exit code 2, from ``analyze``, ``replay`` and ``bag recover``.
-tests/bags covers some of these in-process (cli.main); here the real command
+tests/recording covers some of these in-process (cli.main); here the real command
 runs, so a traceback printed by an import, a ROS start-up or an atexit hook
 would be caught too.
 
@@ -28,7 +28,7 @@ from sensorispace_ros.recording.bag_format import (
 )
 from sensorispace_ros.recording.bag_writer import BagWriter
 
-from .conftest import REPO
+from shared import REPO
 
 SAMPLE = REPO / "bags" / "sample_smoke"
 STORE = get_typestore(Stores.ROS2_JAZZY)

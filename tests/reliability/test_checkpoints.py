@@ -57,7 +57,7 @@ class EnvironmentProbe:
         from sensorispace_ros.graph import in_process
         from sensorispace_ros.graph.nodes.environment import EnvironmentNode
 
-        from .conftest import SMOKE
+        from shared import SMOKE
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
@@ -197,7 +197,7 @@ def test_a_restarted_body_answers_commands_only_once_the_lights_of_before_the_ki
     from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, build_world, frame
     from sensorispace_ros.graph.nodes.body import BodyNode
 
-    from .conftest import SMOKE
+    from shared import SMOKE
     cfg_overrides = in_process.parameter_overrides(SMOKE, {"graph.checkpoint_dir": str(tmp_path)})
     resting = np.array([0.3, -1.2, 2.0, -2.5])
     RestingStateFile(tmp_path / "body.state", 5).save(np.append(resting, 3))  # lights 3 applied

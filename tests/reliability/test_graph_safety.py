@@ -14,7 +14,7 @@ import pytest
 
 from sensorispace_ros.graph import dds_environment, launcher
 
-from .conftest import SMOKE
+from shared import SMOKE
 from .node_processes import stop_by_pid
 
 SUBSCRIBER = """

@@ -22,7 +22,7 @@ again with the same command line. Asserted:
   in 2 of ~10 runs, their writer not yet matched with the recorder's reader);
 - ``sensorispace analyze`` of that bag (duplicates included: restarted nodes
   re-send; skipped for the representation, which adds nothing to the bag) gives the undisturbed run's numbers: the parity keys of
-  tests/ros/test_launch.py (exploration.*, quality.*, pov.count,
+  tests/graph/test_launch.py (exploration.*, quality.*, pov.count,
   naive.coverage, naive.wrong_poses, naive.state_changes_accepted) equal the
   offline naive run's.
 
@@ -34,7 +34,7 @@ import json
 
 import pytest
 
-from .conftest import SMOKE
+from shared import SMOKE
 from .node_processes import NODES, assert_same_result, load_result
 from .restart_nodes import restart_run
 
@@ -47,16 +47,6 @@ PARITY_PREFIXES = ("exploration.", "quality.")
 # saw no settle arrive earlier than RECORDER_MARGIN_S before the kill, another only 47.
 KILL_AT = 120
 PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
-
-
-@pytest.fixture(scope="module")
-def offline_naive_metrics(tmp_path_factory) -> dict:
-    from sensorispace_ros import config
-    from sensorispace_ros.evaluation import reproduce, run_files
-
-    out = tmp_path_factory.mktemp("offline_naive")
-    reproduce.reproduce(config.load_config(SMOKE), "naive", out_dir=out, figures=False)
-    return run_files.flatten_metrics(json.loads((out / "metrics.json").read_text()))
 
 
 def analysed_metrics(bag, out) -> dict:
@@ -72,7 +62,7 @@ def analysed_metrics(bag, out) -> dict:
 @pytest.mark.parametrize("victim", NODES)
 def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_path,
                                                                  single_host_result,
-                                                                 offline_naive_metrics):
+                                                                 smoke_naive_reference):
     outcome = restart_run(victim, tmp_path, kill_at=KILL_AT, stall_s=150, reference=None)
     assert outcome.get("settled_at_kill", 10**6) < 200, str(outcome)     # killed mid-run
     assert outcome["state"] == "completed", str(outcome)
@@ -84,6 +74,7 @@ def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_pat
     if victim == "representation":
         return          # its restart changes nothing the bag holds (it only reads history)
     analysed = analysed_metrics(tmp_path / "bag", tmp_path / "analysed")
+    offline_naive_metrics = smoke_naive_reference.metrics
     checked = [k for k in offline_naive_metrics
                if k in PARITY_KEYS or k.startswith(PARITY_PREFIXES)]
     assert len(checked) > 20 and analysed["pov.count"] > 3

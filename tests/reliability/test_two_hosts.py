@@ -18,7 +18,7 @@ import pytest
 
 from sensorispace_ros.graph import dds_environment
 
-from .conftest import SMOKE
+from shared import SMOKE
 from .node_processes import NodeProcesses, assert_same_result, command, load_result
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
@@ -92,7 +92,7 @@ def test_graph_split_over_two_namespaces_equals_the_single_host_run(
     results, bag = tmp_path / "results", tmp_path / "bag"
     # The namespaces have networks of their own, but /dev/shm is shared with the
     # host: a domain id no host-side test uses (free_domain_id: 1..100,
-    # tests/bags: 150..229), with ports above the ephemeral range.
+    # tests/recording: 150..229), with ports above the ephemeral range.
     env = dds_environment.graph_environment(TWO_HOST_DOMAIN_ID)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     env["ROS_STATIC_PEERS"] = ";".join(ADDRESSES.values())

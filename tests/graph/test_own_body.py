@@ -1,4 +1,4 @@
-"""A body of one's own (docs/own-body.md): tests/ros/own_body.py, two joints in
+"""A body of one's own (docs/own-body.md): tests/graph/own_body.py, two joints in
 degrees and three receptors, written with rclpy and sensor_msgs alone, in
 place of the project's simulator. The project's environment and agent, each
 a process of its own on a private domain, take it as it describes itself: the
@@ -7,9 +7,7 @@ after change and ends the run with its totals. It need not find any spatial
 structure in such a body."""
 from __future__ import annotations
 
-import os
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -17,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import SMOKE
+from shared import SMOKE, stop_by_pid
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
@@ -75,17 +73,6 @@ class Observer:
         self.context.try_shutdown()
 
 
-def _stop(process: subprocess.Popen) -> None:
-    """SIGTERM by PID, SIGKILL after 10 s."""
-    if process.poll() is None:
-        os.kill(process.pid, signal.SIGTERM)
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.kill(process.pid, signal.SIGKILL)
-            process.wait()
-
-
 def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id):
     from sensorispace_ros.graph.dds_environment import graph_environment
 
@@ -114,7 +101,7 @@ def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id
     finally:
         observer.close()
         for process in processes.values():
-            _stop(process)
+            stop_by_pid(process)
     agent_log = logs["agent"].read_text()
     assert not exited, (exited, agent_log[-3000:])
     assert observer.done is not None, agent_log[-3000:]

@@ -3,7 +3,6 @@ worker, resumes after an interruption; and on a scheduler with separate workers.
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -18,8 +17,7 @@ from sensorispace_ros.evaluation.sweep import (PARTIAL_PREFIX, connect, parse_se
                                             run_sweep, sweep)
 from sensorispace_ros.evaluation.sweep_summary import SUMMARY_JSON, SUMMARY_MD
 
-REPO = Path(__file__).resolve().parents[2]
-SMOKE = REPO / "config" / "smoke.yaml"
+from shared import SMOKE, free_port, stop_by_pid
 SEEDS = [0, 1, 2, 3]
 BIN = Path(sys.executable).parent
 
@@ -32,15 +30,20 @@ def _results(path: Path) -> dict:
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """``reproduce`` of every smoke seed and strategy, in this process."""
+def reference(tmp_path_factory, smoke_naive_reference):
+    """``reproduce`` of every smoke seed and strategy, in this process (the naive
+    run of smoke.yaml's own seed is the session's)."""
     root = tmp_path_factory.mktemp("reference")
+    smoke_seed = config_mod.load_config(SMOKE)["seed"]
     out = {}
     for strategy in ("paper", "naive"):
         for seed in SEEDS:
-            cfg = config_mod.load_config(SMOKE, {"seed": seed, "output.figures": False})
             run_dir = root / f"{strategy}-{seed}"
-            reproduce(cfg, strategy, out_dir=run_dir)
+            if (strategy, seed) == ("naive", smoke_seed):
+                run_dir = smoke_naive_reference.run_dir
+            else:
+                cfg = config_mod.load_config(SMOKE, {"seed": seed, "output.figures": False})
+                reproduce(cfg, strategy, out_dir=run_dir)
             out[strategy, seed] = _results(run_dir / METRICS_FILE)
     return out
 
@@ -122,26 +125,13 @@ def test_a_second_invocation_finishes_only_the_missing_runs(reference, tmp_path)
     assert "`exploration.compensated`" in (tmp_path / SUMMARY_MD).read_text()
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def _stop(processes):
     for process in processes:
-        if process.poll() is None:
-            os.kill(process.pid, signal.SIGTERM)
-    for process in processes:
-        try:
-            process.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.kill(process.pid, signal.SIGKILL)
-            process.wait()
+        stop_by_pid(process)
 
 
 def test_a_sweep_on_a_scheduler_with_two_separate_workers(reference, tmp_path):
-    address = f"tcp://127.0.0.1:{_free_port()}"
+    address = f"tcp://127.0.0.1:{free_port()}"
     port = address.rsplit(":", 1)[1]
     env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
     log = (tmp_path / "dask.log").open("w")

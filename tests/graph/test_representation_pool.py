@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import SMOKE
+from shared import SMOKE
 
 READY = re.compile(r"chain pool ready in [0-9.]+ s, worker pids \[(\d+), (\d+)\]")
 

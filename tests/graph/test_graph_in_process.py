@@ -19,7 +19,7 @@ from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import in_process
 from sensorispace_ros.offline.representation import DIMENSIONS, build_representation
 
-from .conftest import SMOKE
+from shared import SMOKE
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
@@ -34,13 +34,14 @@ def smoke_cfg():
     return config.load_config(SMOKE)
 
 
-def _offline_run(cfg, description):
-    """The offline naive run and its representation (of the POVs as angles)."""
+def _offline_run(cfg, description, produced=None):
+    """The offline naive run (``produced`` when the caller has it) and its
+    representation (of the POVs as angles)."""
     from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.run import run_naive
-    world = run_world(cfg)
-    produced = run_naive(world, NaiveParams(**cfg["naive"]))
+    if produced is None:
+        produced = run_naive(run_world(cfg), NaiveParams(**cfg["naive"]))
     representation = build_representation(
         description.to_radians(produced.povs), produced.pairs, produced.set_ids, cfg,
         cfg["seed"])
@@ -48,8 +49,8 @@ def _offline_run(cfg, description):
 
 
 @pytest.fixture(scope="module")
-def offline(smoke_cfg):
-    return _offline_run(smoke_cfg, PAPER_BODY)
+def offline(smoke_cfg, smoke_naive_run):
+    return _offline_run(smoke_cfg, PAPER_BODY, smoke_naive_run)
 
 
 # The smoke configuration with the paper's arm commanded in degrees.

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +13,7 @@ from sensorispace_ros.offline import strategies
 from sensorispace_ros.offline.representation import DIMENSIONS, Representation, build_representation
 from sensorispace_ros.config import load_config
 
-REPO = Path(__file__).resolve().parents[1]
-SMOKE = REPO / "config" / "smoke.yaml"
+from shared import SMOKE
 
 REQUIRED_KEYS = [
     "exploration.events", "exploration.state_changes", "exploration.compensated",

@@ -15,7 +15,7 @@ from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 from sensorispace_ros.recording.bag_verify import verify_bag
 from sensorispace_ros import contracts, messages
 
-from conftest import REPO
+from shared import REPO
 
 SAMPLE = REPO / "bags" / "sample_smoke"
 

@@ -20,19 +20,13 @@ from sensorispace_ros.graph import in_process
 from sensorispace_ros.graph.live_view import LiveView
 from sensorispace_ros.graph.nodes.viewer import ViewerNode
 
-from .conftest import SMOKE
+from shared import SMOKE, free_port
 from .foxglove_client import FoxgloveClient
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 VIEWER_TOPICS = contracts.topics_published_by("viewer")
 CLOUD_COLUMNS = contracts.contract("/viewer/representation_2d").columns
 PAPER_BODY = BodyDescription.revolute(4, 6)
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def cdr(msg) -> bytes:
@@ -305,7 +299,7 @@ def test_the_foxglove_layout_shows_the_viewer_topics_in_their_frames():
     import json
     import re
 
-    from .conftest import REPO
+    from shared import REPO
 
     layout = json.loads((REPO / "docs" / "foxglove-layout.json").read_text())
     panels = layout["configById"]
@@ -344,7 +338,7 @@ def test_launch_with_view_serves_the_run_and_records_the_viewer_topics(tmp_path,
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
-    from .conftest import REPO
+    from shared import REPO
 
     port = free_port()
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",

@@ -20,7 +20,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.signals import SignalHandlerOptions
 
-from .conftest import REPO, SMOKE
+from shared import REPO, SMOKE, stop_by_pid
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
@@ -42,16 +42,6 @@ def _read_lines(proc, lines: list) -> threading.Thread:
     thread = threading.Thread(target=pump, daemon=True)
     thread.start()
     return thread
-
-
-def _stop(proc) -> None:
-    if proc.poll() is None:
-        os.kill(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.kill(proc.pid, signal.SIGKILL)
-            proc.wait()
 
 
 def _launcher_env():
@@ -98,7 +88,7 @@ def smoke_launch(tmp_path_factory):
         proc.wait(timeout=450)
         pump.join(timeout=5)
     finally:
-        _stop(proc)
+        stop_by_pid(proc)
     return {"output": "".join(lines), "returncode": proc.returncode, "seen": seen,
             "domain_id": domain_id, "results": tmp_path / "results" / "smoke"}
 
@@ -157,25 +147,15 @@ def unrecorded_launch(tmp_path_factory):
     try:
         output, _ = proc.communicate(timeout=450)
     finally:
-        _stop(proc)
+        stop_by_pid(proc)
     return {"output": output, "returncode": proc.returncode,
             "results": tmp_path / "results" / "smoke"}
-
-
-@pytest.fixture(scope="module")
-def offline_smoke(tmp_path_factory):
-    from sensorispace_ros import config
-    from sensorispace_ros.evaluation import reproduce, run_files
-
-    out = tmp_path_factory.mktemp("offline")
-    reproduce.reproduce(config.load_config(SMOKE), "naive", out_dir=out, figures=False)
-    return run_files.flatten_metrics(json.loads((out / "metrics.json").read_text()))
 
 
 @pytest.mark.parametrize("launched, evaluated_from", [("smoke_launch", "the bag"),
                                                       ("unrecorded_launch", "agent_records.npz")])
 def test_launched_metrics_have_the_offline_naive_keys_and_numbers(launched, evaluated_from,
-                                                                   offline_smoke, request):
+                                                                   smoke_naive_reference, request):
     from sensorispace_ros.evaluation import run_files
 
     run = request.getfixturevalue(launched)
@@ -183,7 +163,7 @@ def test_launched_metrics_have_the_offline_naive_keys_and_numbers(launched, eval
     graph = run_files.flatten_metrics(json.loads((run["results"] / "metrics.json").read_text()))
     assert graph["analysis.naive_records"].startswith("evaluated"), \
         f"not evaluated from {evaluated_from}: {graph['analysis.naive_records']}"
-    offline = offline_smoke
+    offline = smoke_naive_reference.metrics
 
     def compared(key):
         return not (key.startswith(("timings_s.", "config.", "analysis."))
@@ -224,7 +204,7 @@ def test_launch_names_a_node_that_dies(tmp_path, domain_id):
         proc.wait(timeout=60)
         pump.join(timeout=5)
     finally:
-        _stop(proc)
+        stop_by_pid(proc)
     output = "".join(lines)
     assert proc.returncode != 0
     assert "node 'body' died" in output, output

@@ -3,7 +3,7 @@ command retransmit, settled re-send; the representation ignores the
 duplicates a restarted agent re-publishes.
 
 The graph test runs every node in this process on one executor (a private
-Context and domain id, as tests/ros/test_graph_in_process.py) and "kills" the
+Context and domain id, as tests/graph/test_graph_in_process.py) and "kills" the
 agent twice: the node is dropped at that instant without writing anything
 more, and a fresh AgentNode is started on the same checkpoint directory. The
 run must end with the offline run's POVs, equality sets, records and totals.
@@ -23,7 +23,7 @@ from sensorispace_ros.graph.body_over_topics import BodyOverTopics, RunAborted
 from sensorispace_ros.graph.nodes.agent import AgentNode
 from sensorispace_ros.graph.nodes.representation import RepresentationNode
 
-from .conftest import SMOKE
+from shared import SMOKE
 
 PAPER_BODY = BodyDescription.revolute(4, 6)
 SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
@@ -377,19 +377,11 @@ def _run_with_deaths(tmp_path, domain_id, deaths, timeout_s=300.0):
     return result["nodes"], dead
 
 
-@pytest.fixture(scope="module")
-def offline():
-    from sensorispace_ros.core.run_world import run_world
-    from sensorispace_ros.core.naive.params import NaiveParams
-    from sensorispace_ros.core.naive.run import run_naive
-    cfg = config.load_config(SMOKE)
-    world = run_world(cfg)
-    return run_naive(world, NaiveParams(**cfg["naive"]))
-
-
 @pytest.mark.graph
 @pytest.mark.slow
-def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_id, offline):
+def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_id,
+                                                           smoke_naive_run):
+    offline = smoke_naive_run
     reference = offline.agent
     n_changes = reference._event
     # First death: waiting for the answer to a command a third into the run.

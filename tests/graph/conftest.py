@@ -1,20 +1,7 @@
-"""Every graph a test starts discovers on localhost only, in its own domain;
-``context`` is a private rclpy Context there, for in-process nodes."""
-import os
-from pathlib import Path
-
+"""The graph tests' fixtures on top of tests/conftest.py's ``domain_id``:
+the environment of a node process there, and ``context``, a private rclpy
+Context there, for in-process nodes."""
 import pytest
-
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-
-REPO = Path(__file__).resolve().parents[2]
-SMOKE = REPO / "config" / "smoke.yaml"
-
-
-@pytest.fixture
-def domain_id():
-    from sensorispace_ros.graph.dds_environment import free_domain_id
-    return free_domain_id()
 
 
 @pytest.fixture

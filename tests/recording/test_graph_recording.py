@@ -22,7 +22,7 @@ import pytest
 from sensorispace_ros.evaluation import analyze
 from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 
-from conftest import REPO
+from shared import REPO
 
 TINY = """/**:
   ros__parameters:

@@ -5,13 +5,12 @@ import json
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 
 from sensorispace_ros.graph import tracing
 
-REPO = Path(__file__).resolve().parent.parent
+from shared import REPO
 sys.path.insert(0, str(REPO))
 
 from bench import graph_hops  # noqa: E402

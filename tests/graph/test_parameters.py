@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from .conftest import SMOKE
+from shared import SMOKE
 
 
 @pytest.mark.parametrize("node, override, name", [

@@ -14,7 +14,7 @@ from sensorispace_ros.recording.bag_reader import read_bag
 from sensorispace_ros.recording.bag_recovery import recover_bag
 from sensorispace_ros.recording.bag_writer import WAL_NAME, BagWriter
 
-REPO = Path(__file__).resolve().parents[2]
+from shared import REPO
 
 
 def killed_writer(bag: Path, body: str, write_ahead: bool = True) -> None:

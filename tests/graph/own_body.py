@@ -1,4 +1,4 @@
-"""A body of one's own, outside the project: ``python tests/ros/own_body.py``.
+"""A body of one's own, outside the project: ``python tests/graph/own_body.py``.
 
 Two hinges, ``hip`` and ``knee``, commanded in degrees, and three receptors
 whose outputs are smooth functions of the joint angles and of where the

@@ -16,7 +16,7 @@ from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import framework, in_process
 from sensorispace_ros.graph.framework import MAX_FRAME_NUMBER, GraphNode, parse_frame
 
-from .conftest import SMOKE
+from shared import SMOKE
 
 PAPER_BODY = BodyDescription.revolute(4, 6)
 SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)

@@ -14,7 +14,7 @@ from sensorispace_ros.graph import in_process
 from sensorispace_ros.core import hausdorff
 from sensorispace_ros.graph.nodes.representation import RepresentationNode, assemble_points_of_view
 
-from .conftest import SMOKE
+from shared import SMOKE
 
 pytestmark = pytest.mark.skipif(not hausdorff.numba_available(),
                                 reason="the growing matrix needs numba")

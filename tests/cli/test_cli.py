@@ -6,15 +6,13 @@ import argparse
 import importlib
 import json
 import re
-from pathlib import Path
 
 import pytest
 
 from sensorispace_ros.cli import main as cli
 from sensorispace_ros.cli.compare import compare_table
 
-REPO = Path(__file__).resolve().parents[1]
-SMOKE = REPO / "config" / "smoke.yaml"
+from shared import SMOKE
 
 
 def one_error_line(captured) -> str:
