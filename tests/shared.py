@@ -36,3 +36,20 @@ def stop_by_pid(process: subprocess.Popen, grace_s: float = GRACE_S) -> int | No
         except ProcessLookupError:
             pass
     return process.returncode
+
+
+def count_world_builds(monkeypatch) -> dict:
+    """Count, from now on, the worlds built (``core.paper.exploration.build_world``,
+    what ``core.run_world.run_world`` calls) and the paper explorations run
+    (``explore_paper``, the naive coverage denominator): ``{"worlds", "explorations"}``."""
+    from sensorispace_ros.core.paper import exploration
+
+    counts = {"worlds": 0, "explorations": 0}
+    for name, key in (("build_world", "worlds"), ("explore_paper", "explorations")):
+        original = getattr(exploration, name)
+
+        def counted(*args, _original=original, _key=key, **kwargs):
+            counts[_key] += 1
+            return _original(*args, **kwargs)
+        monkeypatch.setattr(exploration, name, counted)
+    return counts

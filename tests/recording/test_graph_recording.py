@@ -14,15 +14,15 @@ import os
 import signal
 import subprocess
 import sys
-import zlib
 
 import numpy as np
 import pytest
 
 from sensorispace_ros.evaluation import analyze
+from sensorispace_ros.graph.dds_environment import free_domain_id
 from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 
-from shared import REPO
+from shared import REPO, count_world_builds
 
 TINY = """/**:
   ros__parameters:
@@ -46,10 +46,6 @@ TINY = """/**:
 """
 
 
-def _domain_id(name: str) -> int:
-    return 150 + (zlib.crc32(name.encode()) + os.getpid()) % 80
-
-
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     """One launched tiny run for the module: (bag, results dir, config file)."""
@@ -62,7 +58,7 @@ def tiny_run(tmp_path_factory):
     previous = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     try:
-        result = launcher.launch_graph(config, run="tiny", domain_id=_domain_id("tiny_run"),
+        result = launcher.launch_graph(config, run="tiny", domain_id=free_domain_id(),
                                        record=True, results_root=root / "results",
                                        bags_root=root / "bags", timeout_s=240, stream=log)
     finally:
@@ -148,7 +144,7 @@ def test_replay_into_a_fresh_representation_node_gives_the_live_embedding(tiny_r
                     + tiny_run["log"].strip().splitlines()[-1])
     live = np.load(tiny_run["results"] / RESULT_FILE)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-               ROS_DOMAIN_ID=str(_domain_id("replay")), PYTHONPATH=str(REPO))
+               ROS_DOMAIN_ID=str(free_domain_id()), PYTHONPATH=str(REPO))
     representation = subprocess.Popen(
         [sys.executable, "-m", "sensorispace_ros.graph.nodes.representation", "--ros-args",
          "--params-file", str(tiny_run["config"]), "-p", f"graph.results_dir:={tmp_path}",
@@ -195,3 +191,12 @@ def test_analyze_of_the_bag_reproduces_the_live_metrics(tiny_run, tmp_path):
                 if not k.startswith("timings_s.") and k != "analysis.bag"}
 
     assert comparable(tmp_path) == comparable(live_file)
+
+
+def test_analyze_builds_the_world_once_and_explores_the_paper_strategy_once(
+        tiny_run, tmp_path, monkeypatch):
+    counts = count_world_builds(monkeypatch)
+    metrics = analyze.analyze_bag(tiny_run["bag"], tmp_path)
+    assert metrics["analysis"]["naive_records"] == "evaluated by evaluation.naive"
+    assert metrics["naive"]["paper_positions"] > 0 and metrics["body"]["receptors"] > 0
+    assert counts == {"worlds": 1, "explorations": 1}
