@@ -3,7 +3,10 @@
 arguments. Every run producer, node and evaluator builds its world here."""
 from __future__ import annotations
 
-from sensorispace_ros.core.paper import exploration
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sensorispace_ros.core.paper.exploration import World
 
 
 def world_params(cfg: dict) -> dict:
@@ -29,7 +32,9 @@ def world_params(cfg: dict) -> dict:
     }
 
 
-def run_world(cfg: dict, seed: int | None = None) -> exploration.World:
+def run_world(cfg: dict, seed: int | None = None) -> World:
     """The world (ground truth and schedule) of a run of the validated
     configuration ``cfg``, seeded by ``seed`` (``cfg["seed"]`` by default)."""
+    from sensorispace_ros.core.paper import exploration   # numba and scipy: on first use
+
     return exploration.build_world(int(cfg["seed"] if seed is None else seed), world_params(cfg))

@@ -9,14 +9,16 @@ evaluation and handed to every part of it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
-from sensorispace_ros.core.paper import exploration
 from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.core.world import REDISTRIBUTION
+
+if TYPE_CHECKING:
+    from sensorispace_ros.core.paper.exploration import World
 
 
 class RunTruth:
@@ -25,7 +27,7 @@ class RunTruth:
     positions the paper strategy compensates (the naive coverage denominator),
     explored on first use."""
 
-    def __init__(self, cfg: dict, world: exploration.World | None = None):
+    def __init__(self, cfg: dict, world: World | None = None):
         self.cfg = cfg
         self.world = run_world(cfg) if world is None else world
         self._paper_positions: np.ndarray | None = None
@@ -87,6 +89,8 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
 def paper_compensated_positions(world) -> np.ndarray:
     """Sensor positions ``(Q, 2)`` the paper strategy compensates (with its
     initial POV), for the coverage denominator."""
+    from sensorispace_ros.core.paper import exploration   # numba and scipy: on first use
+
     explored = exploration.explore_paper(m0=world.m0, grid=world.grid, events=world.events,
                              initial_center=world.initial_center, body_arm=world.arm)
     return explored.true_poses[:, :2].copy()
@@ -101,7 +105,7 @@ def compensable_grid(world) -> np.ndarray:
     return np.flatnonzero(world.arm.reachable(targets, float(pose0[2])))
 
 
-def body_truth(world: exploration.World) -> dict:
+def body_truth(world: World) -> dict:
     """``body.*`` of a run's world: joints, the eye pose's rank, the points
     of view's dimension, receptors and the compensable grid positions."""
     return {"body.joints": world.arm.n_joints, "body.pose_rank": world.arm.pose_rank,

@@ -17,7 +17,10 @@ import numpy as np
 from sensorispace_ros import config as config_mod
 from sensorispace_ros.offline.representation import DIMENSIONS, Representation
 
-from sensorispace_ros.offline.strategies import StrategyOutput
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sensorispace_ros.offline.strategies import StrategyOutput
 
 METRICS_FILE = "metrics.json"
 ARRAYS_FILE = "arrays.npz"

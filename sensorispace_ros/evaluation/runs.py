@@ -39,7 +39,8 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     """
     if truth is None:
         truth = RunTruth(cfg, produced.world)
-    flat = {**body_truth(truth.world), **produced.metrics, **_space_numbers(representation, strategy)}
+    flat = {**body_truth(truth.world), **produced.metrics,
+            **_space_numbers(representation, strategy)}
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),

@@ -31,7 +31,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, VALID,
-    SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, minimum_norm_correction, repair_rows, sensory_jacobian)
+    SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, minimum_norm_correction,
+    repair_rows, sensory_jacobian)
 
 TWO_PI = 2.0 * np.pi
 DIRECTIONS = 6          # proposals per front knot, evenly round its tangent plane
