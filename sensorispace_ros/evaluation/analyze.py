@@ -51,6 +51,7 @@ import numpy as np
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.arm import Arm
 from sensorispace_ros.core.naive.records import STAGES, STRUCTURE_FIELDS, NaiveAgentRecords
+from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from_motor
 from sensorispace_ros.evaluation.naive import naive_metrics
 from sensorispace_ros.evaluation.run_files import run_arrays
@@ -314,8 +315,8 @@ def _naive_numbers(bag_dir, data: dict, totals: dict | None, description, truth:
     if records is None:
         counters = {} if totals is None else {"exploration.compensated": totals["compensated"]}
         counters["exploration.events"] = int(len(change_events))
-        counters["exploration.state_changes"] = int(sum(int(e["kind"]) == 1
-                                                        for e in change_events.values()))
+        counters["exploration.state_changes"] = int(sum(
+            KIND_OF_CODE.get(int(e["kind"])) == REDISTRIBUTION for e in change_events.values()))
         counters["analysis.naive_records"] = (f"absent (no {STAGE_COUNTERS} / {POV_RECORDS}): "
                                               f"naive.* not evaluated")
         return counters
