@@ -22,6 +22,11 @@ KIND_OF_CODE = {code: kind for kind, code in KIND_CODES.items()}
 # Files in graph.results_dir: the representation node's arrays, the agent's records.
 RESULT_FILE = "representation.npz"
 AGENT_RECORDS_FILE = "agent_records.npz"
+# Files in graph.checkpoint_dir (state/): the agent's snapshot and journal, the
+# environment's progress record (the launcher polls it).
+SNAPSHOT_FILE = "agent.snapshot"
+JOURNAL_FILE = "agent.journal"
+PROGRESS_FILE = "environment.json"
 
 
 def frame(kind: str, number: int) -> str:

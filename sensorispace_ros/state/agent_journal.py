@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-SNAPSHOT_FILE = "agent.snapshot"
-JOURNAL_FILE = "agent.journal"
+from sensorispace_ros.protocol import JOURNAL_FILE, SNAPSHOT_FILE  # noqa: F401 (the state's files)
+
 SNAPSHOT_FORMAT = 1
 
 _HEAD = struct.Struct("<cqIII")

@@ -15,7 +15,8 @@ import json
 import os
 from pathlib import Path
 
-PROGRESS_FILE = "environment.json"
+from sensorispace_ros.protocol import PROGRESS_FILE  # noqa: F401 (the record's file)
+
 # Well inside a page: one pwrite replaces the whole record. Always this many
 # bytes (JSON ignores the trailing blanks), so a shorter record never leaves
 # the tail of a longer one behind.
