@@ -63,6 +63,7 @@ from sensorispace_ros.recording.bag_format import SESSION_CONFIG_TOPIC, BagError
 from sensorispace_ros.recording.bag_reader import (
     bag_info,
     check_contract,
+    infos_kept,
     read_bag_messages,
     read_session_config,
 )
@@ -258,8 +259,12 @@ def analyze_bag(bag_dir, out_dir, cfg: dict | None = None, progress=None) -> dic
     ``arrays.npz`` and figures (``runs.evaluate_graph_run``, as for a live graph run).
     ``cfg`` replaces the configuration stored in the bag. Returns the nested metrics.
     The run's ground truth (``RunTruth``: its world) is built once and handed down."""
-    started = time.perf_counter()
-    bag_dir, out_dir = Path(bag_dir), Path(out_dir)
+    with infos_kept():          # the bag is closed: its topics and counts are read once
+        return _analyze_bag(Path(bag_dir), Path(out_dir), cfg, progress, time.perf_counter())
+
+
+def _analyze_bag(bag_dir: Path, out_dir: Path, cfg: dict | None, progress, started: float
+                 ) -> dict:
     check_contract(bag_dir, {n: c.type_name for n, c in contracts.load_contracts().items()})
     cfg = config_from_bag(bag_dir) if cfg is None else config.validate_config(cfg)
     seed = int(cfg["seed"])

@@ -5,6 +5,7 @@ chunk's CRC as it decompresses it (every CRC: ``bag verify``). Every problem is
 a one-line ``BagError``; no rclpy (messages are decoded by rosbags)."""
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 from dataclasses import dataclass
@@ -69,14 +70,36 @@ def open_reader(bag_dir: str | os.PathLike):
     return reader
 
 
+# Bag directory -> BagInfo while an ``infos_kept`` block runs (None otherwise).
+_KEPT_INFOS: dict | None = None
+
+
+@contextlib.contextmanager
+def infos_kept():
+    """Within the block, ``bag_info`` opens each bag once: for a reader that
+    asks many times about a bag nothing changes meanwhile (``analyze``)."""
+    global _KEPT_INFOS
+    outer, _KEPT_INFOS = _KEPT_INFOS, ({} if _KEPT_INFOS is None else _KEPT_INFOS)
+    try:
+        yield
+    finally:
+        _KEPT_INFOS = outer
+
+
 def bag_info(bag_dir: str | os.PathLike) -> BagInfo:
+    key = str(Path(bag_dir).resolve())
+    if _KEPT_INFOS is not None and key in _KEPT_INFOS:
+        return _KEPT_INFOS[key]
     reader = open_reader(bag_dir)
     try:
         topics = {name: info.msgtype for name, info in reader.topics.items()}
         counts = {name: info.msgcount for name, info in reader.topics.items()}
     finally:
         reader.close()
-    return BagInfo(Path(bag_dir), topics, counts)
+    info = BagInfo(Path(bag_dir), topics, counts)
+    if _KEPT_INFOS is not None:
+        _KEPT_INFOS[key] = info
+    return info
 
 
 def check_contract(bag_dir: str | os.PathLike, contract_types: Mapping[str, str]) -> BagInfo:
