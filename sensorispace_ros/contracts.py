@@ -12,6 +12,12 @@ JointState's ``joint_names: description`` names the description's joints.
 what the body publishes on ``/body/description``:
 ``core.body_description.BodyDescription``); ``columns`` of such a topic is a
 ContractError, so nothing can size it from anything but a description.
+
+A column's type is one of COLUMN_TYPES. ``number`` (the sensations' columns)
+stands for any of NUMBER_TYPES, the PointField types a real sensor gives
+(FLOAT64, FLOAT32, UINT16, UINT8), one type for every such column of a
+message, as its fields say: readers convert it to float64
+(``messages.cloud_to_matrix``), and a row of NaN in it is a lost frame.
 """
 from __future__ import annotations
 
@@ -33,6 +39,8 @@ _SCHEMA_FILE = Path("msg_schemas") / "topics.yaml"
 PER_JOINT = "<j>"           # in a column name: one column per joint, j = 0..N-1
 PER_RECEPTOR = "<i>"        # in a column name: one column per receptor, i = 0..R-1
 DESCRIBED = "description"   # joint_names: the body description's joint names
+NUMBER_TYPES = ("float64", "float32", "uint16", "uint8")
+COLUMN_TYPES = ("float64", "float32", "uint32", "int32", "uint16", "uint8", "number")
 
 
 class ContractError(ValueError):
@@ -151,6 +159,10 @@ def load_contracts(path: str | None = None) -> dict[str, TopicContract]:
     raw = yaml.safe_load(Path(path or schema_path()).read_text())
     contracts = {}
     for name, spec in raw["topics"].items():
+        unknown = set((spec.get("columns") or {}).values()) - set(COLUMN_TYPES)
+        if unknown:
+            raise ContractError(f"{name}: column types {sorted(unknown)} are not among "
+                                f"{', '.join(COLUMN_TYPES)}")
         contracts[name] = TopicContract(
             name=name, type_name=spec["type"], qos=qos_profile(spec["qos"]),
             publisher=spec["publisher"], subscribers=tuple(spec.get("subscribers", ())),
