@@ -303,7 +303,7 @@ class SimulatedBody:
         self.calls += 1
 
     def _reach(self, motor_states: np.ndarray, call: int | None
-               ) -> tuple[np.random.Generator, np.ndarray]:
+               ) -> tuple[np.random.Generator | None, np.ndarray]:
         """Count command ``call`` (default: the next) and move the imperfect arm:
         its generator (the motor draws taken) and the joints reached."""
         number = self.calls if call is None else int(call)

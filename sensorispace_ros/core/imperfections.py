@@ -73,16 +73,19 @@ class BodyNoise:
         self.seed = int(seed)
         self._stream = CounterStream(self.seed, STREAM)
         self._dtype = np.dtype(imperfections.dtype)
+        # Only a quantum or a type: nothing to draw, no generator to position.
+        self._draws = (imperfections.noise, imperfections.dropout,
+                       imperfections.motor_noise) != (0.0, 0.0, 0.0)
 
-    def command(self, call: int) -> np.random.Generator:
+    def command(self, call: int) -> np.random.Generator | None:
         """The generator of the body's ``call``-th command (0 = the first)."""
-        return self._stream.at(call, COMMAND)
+        return self._stream.at(call, COMMAND) if self._draws else None
 
-    def passive(self, change: int) -> np.random.Generator:
+    def passive(self, change: int) -> np.random.Generator | None:
         """The generator of the passive sensation after change ``change``."""
-        return self._stream.at(change, PASSIVE)
+        return self._stream.at(change, PASSIVE) if self._draws else None
 
-    def reach(self, commanded: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def reach(self, commanded: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
         """The joint values reached for ``commanded`` (B, J): the call's first draws."""
         sd = self.imperfections.motor_noise
         if sd == 0.0:
@@ -94,7 +97,7 @@ class BodyNoise:
         (a replay: for an evaluator that has the commands, not the body)."""
         return self.reach(np.asarray(commanded, dtype=float), self.command(call))
 
-    def perceive(self, raw: np.ndarray, code, rng: np.random.Generator) -> np.ndarray:
+    def perceive(self, raw: np.ndarray, code, rng: np.random.Generator | None) -> np.ndarray:
         """What reaches the agent of the receptors' ``raw`` outputs (B, R):
         noise, ``code`` (a ``SensorCode`` or None), quantum, type, lost rows."""
         imperfect = self.imperfections

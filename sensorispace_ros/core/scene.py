@@ -1,7 +1,7 @@
 """What the viewer draws, as plain geometry: the arm, its eye, the lights, the
 points of view found, and colours for the representation. No ROS here: the
 viewer node (graph.nodes.viewer) turns these shapes into markers and clouds
-(messages.shapes_to_marker_array, messages.coloured_cloud).
+(viewer_messages.shapes_to_marker_array, viewer_messages.coloured_cloud).
 
 Everything is in the world frame of the arm (arm units, z = 0: the arm is
 planar). The eye is drawn as the rays of its pinhole retina (unit focal

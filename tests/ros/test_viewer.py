@@ -13,7 +13,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
-from sensorispace_ros import contracts, messages
+from sensorispace_ros import contracts, messages, viewer_messages
 from sensorispace_ros.core import scene
 from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import in_process
@@ -41,18 +41,18 @@ def cdr(msg) -> bytes:
 
 
 def test_packed_rgb_holds_the_colour_in_its_bits():
-    packed = messages.packed_rgb(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
+    packed = viewer_messages.packed_rgb(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
                                            [1.0, 1.0, 1.0], [0.5, 0.25, 0.0]]))
     assert packed.dtype == np.float32
     assert packed.view(np.uint32).tolist() == [0xFF0000, 0x00FF00, 0x0000FF, 0xFFFFFF,
                                                (128 << 16) | (64 << 8)]
     with pytest.raises(ValueError, match="rgb"):
-        messages.packed_rgb(np.array([[1.5, 0.0, 0.0]]))
+        viewer_messages.packed_rgb(np.array([[1.5, 0.0, 0.0]]))
 
 
 def test_the_representation_cloud_has_float32_xyz_a_packed_rgb_and_the_pov_ids():
     xyz = np.array([[0.5, -1.0, 0.0], [2.0, 3.0, 0.25]])
-    msg = messages.coloured_cloud(xyz, np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+    msg = viewer_messages.coloured_cloud(xyz, np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
                                   np.array([4, 9]), CLOUD_COLUMNS,
                                   messages.make_header(scene.REPRESENTATION_FRAME, 7))
     decoded = STORE.deserialize_cdr(cdr(msg), "sensor_msgs/msg/PointCloud2")  # not rclpy's reader
@@ -73,7 +73,7 @@ def test_scene_shapes_become_markers_of_the_matching_type():
     view.set_motor_state([0.1, -1.5, 2.2, -3.0])
     view.set_lights(np.array([[4.0, 1.0], [5.0, -2.0], [-4.0, 3.0]]))
     view.set_probes(np.array([[1.0, 1.0, 0.0]]))
-    array = deserialize_message(cdr(messages.shapes_to_marker_array(
+    array = deserialize_message(cdr(viewer_messages.shapes_to_marker_array(
         view.shapes(), messages.make_header(scene.WORLD_FRAME, 5))), MarkerArray)
     markers = {m.ns: m for m in array.markers}
     expected = {"arm": Marker.LINE_STRIP, "joints": Marker.SPHERE_LIST,
@@ -91,12 +91,12 @@ def test_scene_shapes_become_markers_of_the_matching_type():
 
 def test_series_are_multiarrays_named_by_their_contract():
     names = contracts.contract("/viewer/sensation").elements_for(PAPER_BODY)
-    msg = deserialize_message(cdr(messages.values_to_multiarray(np.arange(6.0), names)),
+    msg = deserialize_message(cdr(viewer_messages.values_to_multiarray(np.arange(6.0), names)),
                               Float64MultiArray)
     assert list(msg.data) == [0, 1, 2, 3, 4, 5]
     assert msg.layout.dim[0].label.split(",") == list(names) == [f"s{i}" for i in range(6)]
     with pytest.raises(ValueError, match="labels"):
-        messages.values_to_multiarray([1.0], names)
+        viewer_messages.values_to_multiarray([1.0], names)
 
 
 def test_the_viewer_contract_follows_the_topics_it_shows():
@@ -125,7 +125,7 @@ def test_the_live_view_advertises_ros2msg_channels_and_sends_cdr():
     live = LiveView(port, {"/viewer/sensation": "std_msgs/msg/Float64MultiArray"})
     client = FoxgloveClient(live.url).start()
     try:
-        sent = cdr(messages.values_to_multiarray(
+        sent = cdr(viewer_messages.values_to_multiarray(
             np.arange(6.0) / 10, contracts.contract("/viewer/sensation").elements_for(PAPER_BODY)))
         deadline = time.monotonic() + 30
         while not client.received("/viewer/sensation") and time.monotonic() < deadline:

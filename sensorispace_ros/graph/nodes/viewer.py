@@ -30,7 +30,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from sensorispace_ros import config, contracts, messages
+from sensorispace_ros import config, contracts, messages, viewer_messages
 from sensorispace_ros.core import scene
 from sensorispace_ros.graph.framework import GraphNode, build_world, run_node
 
@@ -168,7 +168,7 @@ class ViewerNode(GraphNode):
             self.drop("/agent/stage_counters", f"{len(table)} rows")
             return
         names = contracts.contract("/viewer/stage_counters").elements
-        self.publish("/viewer/stage_counters", messages.values_to_multiarray(
+        self.publish("/viewer/stage_counters", viewer_messages.values_to_multiarray(
             [float(table[name][0]) for name in names], names))
 
     def on_embedding(self, msg) -> None:
@@ -182,7 +182,7 @@ class ViewerNode(GraphNode):
             self.drop("/representation/embedding", str(exc))
             return
         xyz = np.column_stack([table["x"], table["y"], table["z"]])
-        self.publish(f"/viewer/representation_{dim}", messages.coloured_cloud(
+        self.publish(f"/viewer/representation_{dim}", viewer_messages.coloured_cloud(
             xyz, self.scene.representation_colours(table["pov"]), table["pov"],
             self.columns["/viewer/representation_2d"],
             messages.make_header(scene.REPRESENTATION_FRAME, self.now_ns())))
@@ -196,13 +196,13 @@ class ViewerNode(GraphNode):
             self._take_body_messages()
         if self.scene_changed:
             self.scene_changed = False
-            self.publish("/viewer/scene", messages.shapes_to_marker_array(
+            self.publish("/viewer/scene", viewer_messages.shapes_to_marker_array(
                 self.scene.shapes(), messages.make_header(scene.WORLD_FRAME, self.now_ns())))
         activity = (self.change, self.command, len(self.scene.pov_positions),
                     self.equality_rows)
         if activity != self.activity_sent:
             self.activity_sent = activity
-            self.publish("/viewer/activity", messages.values_to_multiarray(
+            self.publish("/viewer/activity", viewer_messages.values_to_multiarray(
                 activity, contracts.contract("/viewer/activity").elements))
 
     def _take_body_messages(self) -> None:
@@ -216,7 +216,7 @@ class ViewerNode(GraphNode):
                 self.command = max(self.command, number)
         sensation = self._take_latest("/body/sensation")
         if sensation is not None and len(sensation[1].matrix):
-            self.publish("/viewer/sensation", messages.values_to_multiarray(
+            self.publish("/viewer/sensation", viewer_messages.values_to_multiarray(
                 sensation[1].matrix[-1],
                 contracts.contract("/viewer/sensation").elements_for(self.description)))
 
