@@ -111,6 +111,11 @@ def with_number_type(columns: Mapping[str, str], kind: str) -> dict:
     return {name: kind if spec == NUMBER else spec for name, spec in columns.items()}
 
 
+def _as_written(columns: Mapping[str, str]) -> Mapping[str, str]:
+    """What a writer not told a type writes for ``number`` columns: float64."""
+    return with_number_type(columns, "float64") if NUMBER in columns.values() else columns
+
+
 def _resolved(msg, columns: Mapping[str, str]) -> Mapping[str, str]:
     """``columns`` with each ``number`` column of the type the message's first
     such field has (its other fields are checked against it later); MessageError
@@ -155,7 +160,9 @@ def _cloud(layout: _Layout, n_rows: int, data: bytes, header: Header) -> PointCl
 
 def table_to_cloud(table: np.ndarray | Mapping[str, np.ndarray], columns: Mapping[str, str],
                    header: Header) -> PointCloud2:
-    """Pack a table (structured array, or {column: 1-D array}) as a PointCloud2."""
+    """Pack a table (structured array, or {column: 1-D array}) as a PointCloud2
+    (``number`` columns as float64)."""
+    columns = _as_written(columns)
     layout = _layout(tuple(columns.items()))
     dtype = layout.dtype
     if isinstance(table, np.ndarray) and table.dtype.names is not None:
@@ -255,8 +262,8 @@ def _uniform_layout(columns: Mapping[str, str], caller: str) -> _Layout:
 
 def matrix_to_cloud(matrix: np.ndarray, columns: Mapping[str, str], header: Header) -> PointCloud2:
     """A matrix ``(rows, len(columns))`` as a cloud of columns of one type (float64,
-    or another: the values cast to it)."""
-    layout = _uniform_layout(columns, "matrix_to_cloud")
+    or another: the values cast to it; ``number`` columns as float64)."""
+    layout = _uniform_layout(_as_written(columns), "matrix_to_cloud")
     matrix = np.asarray(matrix)
     if matrix.ndim != 2 or matrix.shape[1] != len(columns):
         raise ValueError(f"matrix must have shape (rows, {len(columns)}), got {matrix.shape}")
@@ -418,7 +425,7 @@ class CloudCdrPacker:
     ``matrix_to_cloud`` builds (checked in the tests)."""
 
     def __init__(self, columns: Mapping[str, str]):
-        self._layout = _uniform_layout(columns, "CloudCdrPacker")
+        self._layout = _uniform_layout(_as_written(columns), "CloudCdrPacker")
         self._n_columns = len(columns)
         self._fields = _cdr_fields(self._layout.fields)
 
