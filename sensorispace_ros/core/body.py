@@ -291,7 +291,12 @@ class SimulatedBody:
         if self.noise is not None:
             self._reach(motor_states, call)
             return
-        self._count(motor_states)
+        # _count written out: this is every perfect call's path.
+        if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
+            raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
+                             f"got {motor_states.shape}")
+        self.queries += len(motor_states)
+        self.calls += 1
         if len(motor_states):
             self.motor_state = motor_states[-1].copy()
 
