@@ -214,7 +214,8 @@ class SimulatedBody:
     ``kernel``: "auto" (compiled when numba is installed), "numpy" or "numba"
     (see ``simulate``); the answers are the same bits. ``body_arm``: the
     chain (the paper arm by default); ``code``: the sensor code between the
-    receptors and the agent (none: their raw outputs).
+    receptors and the agent (none: their raw outputs); ``noise``: its
+    imperfect sensors and motors (``core.imperfections``; none: perfect).
     """
 
     def __init__(self, receptor_positions: np.ndarray, lights_world: np.ndarray | None = None,
