@@ -8,6 +8,9 @@ dispatching by body. The generic chain kernel on the same three unit links
 is timed too. Then microseconds per row of ``simulate`` on each body of
 ``config/bodies/``.
 
+Then ``SimulatedBody.sense`` on the paper body, perfect and with each
+imperfection of ``config/noisy-smoke.yaml`` (and all of them), per call.
+
 ``--against DIR`` also times ``SimulatedBody.sense`` on the paper body in
 child processes alternating between this checkout and the one at ``DIR``
 (e.g. a ``git worktree`` of an earlier commit), three rounds, best of each:
@@ -77,6 +80,32 @@ def catalogue_us_per_row(rows: int = 2000, repeats: int = 200) -> dict:
     return out
 
 
+IMPERFECTIONS = {"perfect": {}, "noise": {"world.retina.noise": 1e-3},
+                 "quantum": {"world.retina.quantum": 1e-3},
+                 "float32": {"world.retina.dtype": "float32"},
+                 "dropout": {"world.retina.dropout": 1e-3},
+                 "motor_noise": {"arm.motor_noise": 1e-3},
+                 "all": {"world.retina.noise": 1e-3, "world.retina.quantum": 1e-3,
+                         "world.retina.dtype": "float32", "world.retina.dropout": 1e-3,
+                         "arm.motor_noise": 1e-3}}
+
+
+def imperfect_sense_us(repeats: int = 3000) -> dict:
+    """``SimulatedBody.sense`` (us per call) on the paper body for each entry of
+    IMPERFECTIONS, per batch size."""
+    out = {}
+    for name, overrides in IMPERFECTIONS.items():
+        world = build_world(config.load_config(overrides=config.unflatten(overrides)))
+        body = world.body(lights=world.initial_lights)
+        out[name] = {}
+        for rows in BATCHES:
+            motor = np.random.default_rng(0).uniform(-3, 3, (rows, 4))
+            body.sense(motor)
+            out[name][rows] = 1e6 * _best(lambda: body.sense(motor),
+                                          repeats if rows < 2000 else repeats // 6)
+    return out
+
+
 # Timed in a child process of either checkout: only what both have.
 _SENSE_TIMES = """
 import json, sys, time
@@ -132,6 +161,10 @@ def main() -> None:
     for rows, r in paper_body_ratios().items():
         print(f"  {rows:5d}  {r['own_us']:8.2f}  {r['simulate_us']:8.2f} ({r['simulate_ratio']:.3f})"
               f"  {r['chain_us']:8.2f} ({r['chain_ratio']:.3f})")
+    print("SimulatedBody.sense on the paper body, us per call: rows " +
+          "  ".join(f"{rows:>8d}" for rows in BATCHES))
+    for name, by_rows in imperfect_sense_us().items():
+        print(f"  {name:12s}" + "  ".join(f"{us:8.2f}" for us in by_rows.values()))
     print("us per row of SimulatedBody.sense, 2000-row batches:")
     for name, us in catalogue_us_per_row().items():
         print(f"  {name:18s} {us:.3f}")

@@ -248,12 +248,15 @@ def _check_body(cfg: dict) -> None:
     """The arm and the sensor code make sense together (``core.arm.Arm`` and
     ``core.sensor_code.SensorCode`` name the parameter in their errors)."""
     from sensorispace_ros.core.arm import Arm
+    from sensorispace_ros.core.imperfections import Imperfections
     from sensorispace_ros.core.sensor_code import SensorCode
     arm_cfg, retina = cfg["arm"], cfg["world"]["retina"]
     try:
         body_arm = Arm(tuple(arm_cfg["segments"]), arm_cfg["eye"], arm_cfg["motor_unit"])
         SensorCode(retina["code"], retina["code_value"], retina["receptors"],
                    np.random.default_rng(0))
+        Imperfections(noise=retina["noise"], quantum=retina["quantum"], dtype=retina["dtype"],
+                      dropout=retina["dropout"], motor_noise=arm_cfg["motor_noise"])
     except ValueError as error:
         raise ConfigError(str(error)) from None
     if len(arm_cfg["initial_motor_state"]) != body_arm.n_joints:

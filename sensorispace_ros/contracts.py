@@ -16,6 +16,12 @@ ContractError, so nothing can size it from anything but a description.
 The table itself is plain Python (the analysis of a bag reads it without
 rclpy); a contract's QoS profile and the publishers and subscriptions made
 from it import rclpy when asked for.
+
+A column's type is one of COLUMN_TYPES. ``number`` (the sensations' columns)
+stands for any of NUMBER_TYPES, the PointField types a real sensor gives
+(FLOAT64, FLOAT32, UINT16, UINT8), one type for every such column of a
+message, as its fields say: readers convert it to float64
+(``messages.cloud_to_matrix``), and a row of NaN in it is a lost frame.
 """
 from __future__ import annotations
 
@@ -35,6 +41,8 @@ _SCHEMA_FILE = Path("msg_schemas") / "topics.yaml"
 PER_JOINT = "<j>"           # in a column name: one column per joint, j = 0..N-1
 PER_RECEPTOR = "<i>"        # in a column name: one column per receptor, i = 0..R-1
 DESCRIBED = "description"   # joint_names: the body description's joint names
+NUMBER_TYPES = ("float64", "float32", "uint16", "uint8")
+COLUMN_TYPES = ("float64", "float32", "uint32", "int32", "uint16", "uint8", "number")
 
 
 class ContractError(ValueError):
@@ -161,6 +169,10 @@ def load_contracts(path: str | None = None) -> dict[str, TopicContract]:
     raw = yaml.safe_load(Path(path or schema_path()).read_text())
     contracts = {}
     for name, spec in raw["topics"].items():
+        unknown = set((spec.get("columns") or {}).values()) - set(COLUMN_TYPES)
+        if unknown:
+            raise ContractError(f"{name}: column types {sorted(unknown)} are not among "
+                                f"{', '.join(COLUMN_TYPES)}")
         contracts[name] = TopicContract(
             name=name, type_name=spec["type"], qos_spec=dict(spec["qos"]),
             publisher=spec["publisher"], subscribers=tuple(spec.get("subscribers", ())),

@@ -30,6 +30,7 @@ from sensorispace_ros.core import arm, retina
 from sensorispace_ros.core.arm import LEVEL_DIRECTION as _LEVEL_DIRECTION
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.body_description import BodyDescription
+from sensorispace_ros.core.imperfections import BodyNoise
 from sensorispace_ros.core.sensor_code import SensorCode
 
 try:
@@ -213,12 +214,14 @@ class SimulatedBody:
     ``kernel``: "auto" (compiled when numba is installed), "numpy" or "numba"
     (see ``simulate``); the answers are the same bits. ``body_arm``: the
     chain (the paper arm by default); ``code``: the sensor code between the
-    receptors and the agent (none: their raw outputs).
+    receptors and the agent (none: their raw outputs); ``noise``: its
+    imperfect sensors and motors (``core.imperfections``; none: perfect).
     """
 
     def __init__(self, receptor_positions: np.ndarray, lights_world: np.ndarray | None = None,
                  motor_state: np.ndarray | None = None, kernel: str = "auto",
-                 body_arm: Arm = PAPER_ARM, code: SensorCode | None = None):
+                 body_arm: Arm = PAPER_ARM, code: SensorCode | None = None,
+                 noise: BodyNoise | None = None):
         if kernel not in KERNELS:
             raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
         self.kernel = kernel
@@ -232,38 +235,64 @@ class SimulatedBody:
         self.motor_state = None if motor_state is None else np.asarray(motor_state, float)
         self.queries = 0          # motor states probed so far
         self.calls = 0            # sense() calls (round trips in the ROS graph)
+        self.changes = 0          # set_lights() calls: the number of the current layout
+        # Imperfect sensors and motors (core.imperfections); None: a perfect body,
+        # whose path stays as it was (one test per call).
+        self.noise = None if noise is None or noise.imperfections.perfect else noise
+        self.last_reached: np.ndarray | None = None   # joints the last command reached
 
-    def set_lights(self, lights_world: np.ndarray) -> None:
+    def set_lights(self, lights_world: np.ndarray, change: int | None = None) -> None:
+        """The lights of change ``change`` (default: the one after the current)."""
         self.lights_world = np.asarray(lights_world, dtype=float)
+        self.changes = self.changes + 1 if change is None else int(change)
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         return self.sense_with_poses(motor_states)[0]
 
-    def sense_with_poses(self, motor_states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def sense_with_poses(self, motor_states: np.ndarray, call: int | None = None
+                         ) -> tuple[np.ndarray, np.ndarray]:
         """``sense`` and the eye poses ``(B, 3)`` it computed on the way (ground
-        truth, for the evaluator): the forward model runs once per row."""
+        truth, for the evaluator): the forward model runs once per row. With
+        imperfections the poses are those of the joints reached, and ``call``
+        (default: the next) numbers the command for the noise stream: a
+        command answered again is given its first number."""
         if self.lights_world is None:
             raise RuntimeError("SimulatedBody.sense called before any lights were set")
         motor_states = np.asarray(motor_states, dtype=float)
+        if self.noise is not None:
+            rng, reached = self._reach(motor_states, call)
+            raw, poses = simulate(reached, self.lights_world, self.receptor_positions,
+                                  self.kernel, self.arm)
+            return self.noise.perceive(raw, self.code, rng), poses
         self.move(motor_states)
         raw, poses = simulate(motor_states, self.lights_world, self.receptor_positions,
                               self.kernel, self.arm)
         return (raw if self.code is None else self.code.apply(raw)), poses
 
-    def sense_at_rest(self, kernel: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def sense_at_rest(self, kernel: str | None = None, change: int | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
         """What the resting eye sees, ``(R,)``, and its pose ``(3,)``: not a
-        query (no call is counted). ``kernel`` overrides the body's."""
+        query (no call is counted). ``kernel`` overrides the body's; ``change``
+        (default: the current) numbers the sensation for the noise stream."""
         if self.lights_world is None or self.motor_state is None:
             raise RuntimeError("SimulatedBody.sense_at_rest needs lights and a motor state")
         raw, poses = simulate(self.motor_state[None], self.lights_world, self.receptor_positions,
                               kernel or self.kernel, self.arm)
+        if self.noise is not None:
+            rng = self.noise.passive(self.changes if change is None else change)
+            return self.noise.perceive(raw, self.code, rng)[0], poses[0]
         return (raw if self.code is None else self.code.apply(raw))[0], poses[0]
 
-    def move(self, motor_states: np.ndarray) -> None:
+    def move(self, motor_states: np.ndarray, call: int | None = None) -> None:
         """The command ``sense`` answers, for a caller that already has the
         sensations (the naive agent resting at a state it sensed since the
-        last change): the arm ends at the last row; counted as a call."""
+        last change): the arm ends at the last row (the joints reached);
+        counted as a call."""
         motor_states = np.asarray(motor_states, dtype=float)
+        if self.noise is not None:
+            self._reach(motor_states, call)
+            return
+        # _count written out: this is every perfect call's path.
         if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
             raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
                              f"got {motor_states.shape}")
@@ -271,6 +300,27 @@ class SimulatedBody:
         self.calls += 1
         if len(motor_states):
             self.motor_state = motor_states[-1].copy()
+
+    def _count(self, motor_states: np.ndarray) -> None:
+        if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
+            raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
+                             f"got {motor_states.shape}")
+        self.queries += len(motor_states)
+        self.calls += 1
+
+    def _reach(self, motor_states: np.ndarray, call: int | None
+               ) -> tuple[np.random.Generator | None, np.ndarray]:
+        """Count command ``call`` (default: the next) and move the imperfect arm:
+        its generator (the motor draws taken) and the joints reached."""
+        number = self.calls if call is None else int(call)
+        self._count(motor_states)
+        self.calls = number + 1
+        rng = self.noise.command(number)
+        reached = self.noise.reach(motor_states, rng)
+        self.last_reached = reached
+        if len(reached):
+            self.motor_state = reached[-1].copy()
+        return rng, reached
 
     def sensor_pose(self, motor_states: np.ndarray) -> np.ndarray:
         """Ground truth pose of the eye (evaluation only)."""
@@ -291,7 +341,10 @@ class SensingOnly:
                             or BodyDescription.revolute(self.n_motors, self.n_sensors))
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
-        return self._sense(motor_states)
+        """The body's answer as float64, whatever type the body senses in (the
+        agent's view in the graph too: ``messages`` converts a sensation's
+        columns to float64)."""
+        return np.asarray(self._sense(motor_states), dtype=float)
 
     def move(self, motor_states: np.ndarray) -> None:
         """The body's ``move``; a body without one senses and the answer is dropped."""

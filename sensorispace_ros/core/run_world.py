@@ -29,6 +29,11 @@ def world_params(cfg: dict) -> dict:
         "motor_unit": cfg["arm"]["motor_unit"],
         "code": retina["code"],
         "code_value": retina["code_value"],
+        "retina_noise": retina["noise"],
+        "retina_quantum": retina["quantum"],
+        "retina_dtype": retina["dtype"],
+        "retina_dropout": retina["dropout"],
+        "motor_noise": cfg["arm"]["motor_noise"],
     }
 
 

@@ -228,7 +228,8 @@ class GraphNode(Node):
     def read_float_cloud(self, topic: str, msg, kinds: tuple[str, ...]
                          ) -> tuple[tuple[str, int], messages.FloatCloud] | None:
         """``(kind, number), cloud`` of a ``raw=True`` subscription's message on
-        ``topic`` (all-float64 columns) whose frame id is one of ``kinds``, or
+        ``topic`` (columns of one type, or ``number`` columns: read as float64)
+        whose frame id is one of ``kinds``, or
         None once it has been dropped: ``read_serialized`` then ``decode``, the
         same checks and drop reasons, with ``messages.CloudCdrReader``'s fast
         path for the bytes ``CloudCdrPacker`` writes (the probe topics)."""

@@ -10,7 +10,10 @@ cheaper than assigning an ndarray to a sequence field.
 
 Decoding is strict: anything that does not match the expected layout exactly
 (names, types, offsets, steps, data length, non-finite floats, unknown joint
-names) raises ``MessageError``; nodes log and drop such messages.
+names) raises ``MessageError``; nodes log and drop such messages. A sensor's
+columns (contract type ``number``: /body/sensation) may be any of
+NUMBER_TYPES, one for all of them, and are read as float64; NaN in them is a
+lost frame, inf is malformed.
 
 The probe topics (/body/motor_command, /body/sensation, /body/sensor_pose,
 /body/joint_states) and /environment/lights (one per change, which the agent
@@ -40,6 +43,7 @@ from sensorispace_ros.messages.clouds import (CloudCdrPacker, CloudCdrReader, Fl
                                               HeaderView, MessageError, SerializedCloud, TimeView,
                                               cloud_column, cloud_from_cdr, cloud_to_matrix,
                                               cloud_to_table, make_header, matrix_to_cloud,
+                                              NUMBER, NUMBER_TYPES, with_number_type,
                                               record_dtype, stamp_ns, table_to_cloud)
 from sensorispace_ros.messages.joint_states import (MAX_JOINTS, MAX_RECEPTORS,
                                                     JointStateCdrPacker, description_from_msg,
@@ -51,7 +55,7 @@ from sensorispace_ros.messages.viewer import (coloured_cloud, packed_rgb, shape_
 __all__ = ["CloudCdrPacker", "CloudCdrReader", "FloatCloud", "HeaderView", "MessageError",
            "SerializedCloud", "TimeView", "cloud_column", "cloud_from_cdr", "cloud_to_matrix",
            "cloud_to_table", "make_header", "matrix_to_cloud", "record_dtype", "stamp_ns",
-           "table_to_cloud", "MAX_JOINTS", "MAX_RECEPTORS", "JointStateCdrPacker",
+           "table_to_cloud", "NUMBER", "NUMBER_TYPES", "with_number_type", "MAX_JOINTS", "MAX_RECEPTORS", "JointStateCdrPacker",
            "description_from_msg", "description_to_msg", "joint_state_to_motor",
            "motor_to_joint_state", "coloured_cloud", "packed_rgb", "shape_to_marker",
            "shapes_to_marker_array", "values_to_multiarray"]

@@ -12,14 +12,24 @@ from builtin_interfaces.msg import Time
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
+from sensorispace_ros import contracts
+
 # PointField datatype <-> little-endian numpy dtype (only the types the contract uses).
 _FIELD_DTYPES = {
     "float64": (PointField.FLOAT64, np.dtype("<f8")),
     "uint32": (PointField.UINT32, np.dtype("<u4")),
     "int32": (PointField.INT32, np.dtype("<i4")),
     "uint8": (PointField.UINT8, np.dtype("u1")),
+    "uint16": (PointField.UINT16, np.dtype("<u2")),
     "float32": (PointField.FLOAT32, np.dtype("<f4")),      # the viewer's clouds
 }
+_KIND_OF_DATATYPE = {datatype: kind for kind, (datatype, _) in _FIELD_DTYPES.items()}
+
+# A contract column of type ``number`` (a sensor's, /body/sensation) is any of
+# NUMBER_TYPES, the same for every such column of a message, as its fields say;
+# it is read as float64, and NaN in it is a lost frame, not a malformed message.
+NUMBER = "number"
+NUMBER_TYPES = contracts.NUMBER_TYPES
 
 
 class MessageError(ValueError):
@@ -30,7 +40,7 @@ class _Layout(NamedTuple):
     """What a table's columns fix about its cloud, computed once per contract."""
     dtype: np.dtype
     fields: tuple            # (name, offset, datatype, count) of each PointField
-    float_only: bool         # every column float64: the data is a (rows, columns) matrix
+    uniform: np.dtype | None  # the one type of every column: the data is a (rows, columns) matrix
 
 
 @functools.lru_cache(maxsize=None)
@@ -42,7 +52,42 @@ def _layout(items: tuple) -> _Layout:
                          f"use one of {sorted(_FIELD_DTYPES)}") from None
     fields = tuple((name, dtype.fields[name][1], _FIELD_DTYPES[kind][0], 1)
                    for name, kind in items)
-    return _Layout(dtype, fields, all(kind == "float64" for _, kind in items))
+    kinds = {kind for _, kind in items}
+    uniform = _FIELD_DTYPES[kinds.pop()][1] if len(kinds) == 1 else None
+    return _Layout(dtype, fields, uniform)
+
+
+def _fields_of(msg) -> tuple:
+    return (msg.field_tuples if isinstance(msg, SerializedCloud)
+            else tuple((f.name, f.offset, f.datatype, f.count) for f in msg.fields))
+
+
+def with_number_type(columns: Mapping[str, str], kind: str) -> dict:
+    """``columns`` with each ``number`` column of type ``kind`` (one of NUMBER_TYPES):
+    what a publisher of those columns writes."""
+    if kind not in NUMBER_TYPES:
+        raise ValueError(f"a number column is one of {', '.join(NUMBER_TYPES)}, got {kind!r}")
+    return {name: kind if spec == NUMBER else spec for name, spec in columns.items()}
+
+
+def _as_written(columns: Mapping[str, str]) -> Mapping[str, str]:
+    """What a writer not told a type writes for ``number`` columns: float64."""
+    return with_number_type(columns, "float64") if NUMBER in columns.values() else columns
+
+
+def _resolved(msg, columns: Mapping[str, str]) -> Mapping[str, str]:
+    """``columns`` with each ``number`` column of the type the message's first
+    such field has (its other fields are checked against it later); MessageError
+    when that is no number type."""
+    numbers = [name for name, spec in columns.items() if spec == NUMBER]
+    if not numbers:
+        return columns
+    datatype = next((field[2] for field in _fields_of(msg) if field[0] == numbers[0]), None)
+    kind = _KIND_OF_DATATYPE.get(datatype)
+    if kind not in NUMBER_TYPES:
+        raise MessageError(f"field {numbers[0]!r}: datatype {datatype} is not one of "
+                           f"{', '.join(NUMBER_TYPES)}")
+    return with_number_type(columns, kind)
 
 
 def record_dtype(columns: Mapping[str, str]) -> np.dtype:
@@ -74,7 +119,9 @@ def _cloud(layout: _Layout, n_rows: int, data: bytes, header: Header) -> PointCl
 
 def table_to_cloud(table: np.ndarray | Mapping[str, np.ndarray], columns: Mapping[str, str],
                    header: Header) -> PointCloud2:
-    """Pack a table (structured array, or {column: 1-D array}) as a PointCloud2."""
+    """Pack a table (structured array, or {column: 1-D array}) as a PointCloud2
+    (``number`` columns as float64)."""
+    columns = _as_written(columns)
     layout = _layout(tuple(columns.items()))
     dtype = layout.dtype
     if isinstance(table, np.ndarray) and table.dtype.names is not None:
@@ -94,8 +141,7 @@ def table_to_cloud(table: np.ndarray | Mapping[str, np.ndarray], columns: Mappin
 
 def _checked_rows(msg: PointCloud2, columns: Mapping[str, str], layout: _Layout) -> int:
     """Number of rows of a cloud whose layout is exactly ``layout``; else MessageError."""
-    fields = (msg.field_tuples if isinstance(msg, SerializedCloud)
-              else tuple((f.name, f.offset, f.datatype, f.count) for f in msg.fields))
+    fields = _fields_of(msg)
     if fields != layout.fields:
         names = [field[0] for field in fields]
         if names != list(columns):
@@ -130,6 +176,7 @@ def _non_finite_column(records: np.ndarray, columns: Mapping[str, str]) -> str |
 
 def cloud_to_table(msg: PointCloud2, columns: Mapping[str, str]) -> np.ndarray:
     """Unpack a PointCloud2 into a structured array, checking it against ``columns``."""
+    columns = _resolved(msg, columns)
     layout = _layout(tuple(columns.items()))
     records = np.frombuffer(msg.data, dtype=layout.dtype,
                             count=_checked_rows(msg, columns, layout))
@@ -143,8 +190,7 @@ def cloud_column(msg: PointCloud2, name: str, kind: str) -> np.ndarray:
     """Column ``name`` (type ``kind``) of a cloud whatever its other columns, for
     a reader that needs that one only; MessageError unless the cloud is a
     little-endian table of one row per point that holds it once."""
-    fields = (msg.field_tuples if isinstance(msg, SerializedCloud)
-              else tuple((f.name, f.offset, f.datatype, f.count) for f in msg.fields))
+    fields = _fields_of(msg)
     datatype, dtype = _FIELD_DTYPES[kind]
     found = [field for field in fields if field[0] == name]
     if len(found) != 1 or found[0][2:] != (datatype, 1):
@@ -166,31 +212,41 @@ def cloud_column(msg: PointCloud2, name: str, kind: str) -> np.ndarray:
     return np.ndarray((n_rows,), dtype, bytes(msg.data), offset, (point_step,)).copy()
 
 
-def matrix_to_cloud(matrix: np.ndarray, columns: Mapping[str, str], header: Header) -> PointCloud2:
-    """A float64 matrix ``(rows, len(columns))`` as a cloud of all-float64 columns."""
-    matrix = np.asarray(matrix, dtype=float)
+def _uniform_layout(columns: Mapping[str, str], caller: str) -> _Layout:
     layout = _layout(tuple(columns.items()))
+    if layout.uniform is None:
+        raise ValueError(f"{caller} needs columns of one type, got {dict(columns)}")
+    return layout
+
+
+def matrix_to_cloud(matrix: np.ndarray, columns: Mapping[str, str], header: Header) -> PointCloud2:
+    """A matrix ``(rows, len(columns))`` as a cloud of columns of one type (float64,
+    or another: the values cast to it; ``number`` columns as float64)."""
+    layout = _uniform_layout(_as_written(columns), "matrix_to_cloud")
+    matrix = np.asarray(matrix)
     if matrix.ndim != 2 or matrix.shape[1] != len(columns):
         raise ValueError(f"matrix must have shape (rows, {len(columns)}), got {matrix.shape}")
-    if not layout.float_only:
-        raise ValueError("matrix_to_cloud needs float64 columns only")
-    # A C-contiguous little-endian float64 matrix has exactly the packed record layout.
-    return _cloud(layout, len(matrix), np.ascontiguousarray(matrix, dtype="<f8").tobytes(),
-                  header)
+    # A C-contiguous little-endian matrix of the columns' type has exactly the packed layout.
+    return _cloud(layout, len(matrix),
+                  np.ascontiguousarray(matrix, dtype=layout.uniform).tobytes(), header)
 
 
 def cloud_to_matrix(msg: PointCloud2, columns: Mapping[str, str]) -> np.ndarray:
-    """Inverse of ``matrix_to_cloud``: a read-write float64 ``(rows, len(columns))`` array."""
-    layout = _layout(tuple(columns.items()))
-    if not layout.float_only:
-        raise ValueError("cloud_to_matrix needs float64 columns only")
+    """Inverse of ``matrix_to_cloud``: a read-write float64 ``(rows, len(columns))``
+    array, of columns of one type (``number`` columns: as the message's fields
+    say; NaN allowed in them, a lost frame)."""
+    numbers = NUMBER in columns.values()
+    columns = _resolved(msg, columns)
+    layout = _uniform_layout(columns, "cloud_to_matrix")
     n_rows = _checked_rows(msg, columns, layout)
-    matrix = np.frombuffer(msg.data, dtype="<f8", count=n_rows * len(columns)).reshape(
-        n_rows, len(columns))
-    if not np.isfinite(matrix).all():
-        bad = _non_finite_column(matrix.view(layout.dtype).reshape(-1), columns)
-        raise MessageError(f"column {bad!r} holds NaN or inf")
-    return matrix.astype(float)
+    matrix = np.frombuffer(msg.data, dtype=layout.uniform, count=n_rows * len(columns)).reshape(
+        n_rows, len(columns)).astype(float)
+    if layout.uniform.kind == "f" and not np.isfinite(matrix).all():
+        bad = (np.isinf(matrix) if numbers else ~np.isfinite(matrix)).any(axis=0)
+        if bad.any():
+            raise MessageError(f"column {list(columns)[int(np.argmax(bad))]!r} holds "
+                               + ("inf" if numbers else "NaN or inf"))
+    return matrix
 
 
 # ---------------------------------------------------------------- serialized clouds
@@ -328,19 +384,17 @@ class CloudCdrPacker:
     ``matrix_to_cloud`` builds (checked in the tests)."""
 
     def __init__(self, columns: Mapping[str, str]):
-        self._layout = _layout(tuple(columns.items()))
-        if not self._layout.float_only:
-            raise ValueError("CloudCdrPacker needs float64 columns only")
+        self._layout = _uniform_layout(_as_written(columns), "CloudCdrPacker")
         self._n_columns = len(columns)
         self._fields = _cdr_fields(self._layout.fields)
 
     def pack(self, matrix: np.ndarray, frame_id: str, stamp_ns: int = 0) -> bytes:
-        matrix = np.asarray(matrix, dtype=float)
+        matrix = np.asarray(matrix)
         if matrix.ndim != 2 or matrix.shape[1] != self._n_columns:
             raise ValueError(f"matrix must have shape (rows, {self._n_columns}), "
                              f"got {matrix.shape}")
         point_step = self._layout.dtype.itemsize
-        data = np.ascontiguousarray(matrix, dtype="<f8").tobytes()
+        data = np.ascontiguousarray(matrix, dtype=self._layout.uniform).tobytes()
         return b"".join((
             _cdr_header(frame_id, stamp_ns),
             _UINT32.pack(1), _UINT32.pack(len(matrix)),              # height, width
@@ -359,12 +413,12 @@ class FloatCloud(NamedTuple):
 
 _HEIGHT_WIDTH = struct.Struct("<II")
 _NANOSECONDS_PER_SECOND = 1_000_000_000
-_FLOAT64_LE = np.dtype("<f8")
 
 
 class CloudCdrReader:
     """``cloud_to_matrix(cloud_from_cdr(raw), columns)`` for the bytes of one
-    all-float64 contract, with the frame id and stamp.
+    contract whose columns share a type (``number`` columns: each of
+    NUMBER_TYPES, the last one read tried first), with the frame id and stamp.
 
     Bytes laid out exactly as ``CloudCdrPacker`` writes them (what the probe
     topics carry) are checked by comparing the fields section, steps, lengths
@@ -377,13 +431,16 @@ class CloudCdrReader:
 
     def __init__(self, columns: Mapping[str, str]):
         self._columns = dict(columns)
-        layout = _layout(tuple(self._columns.items()))
-        if not layout.float_only:
-            raise ValueError("CloudCdrReader needs float64 columns only")
+        kinds = NUMBER_TYPES if NUMBER in self._columns.values() else (None,)
         self._n_columns = len(self._columns)
-        self._point_step = layout.dtype.itemsize
-        # The fields sequence, then is_bigendian False and its padding.
-        self._fields = _cdr_fields(layout.fields) + b"\x00\x00\x00\x00"
+        # Per type the columns may have: (fields sequence then is_bigendian False and
+        # its padding, point step, dtype); the type last read first.
+        self._layouts = []
+        for kind in kinds:
+            layout = _uniform_layout(self._columns if kind is None
+                                     else with_number_type(self._columns, kind), "CloudCdrReader")
+            self._layouts.append((_cdr_fields(layout.fields) + b"\x00\x00\x00\x00",
+                                  layout.dtype.itemsize, layout.uniform))
 
     def read(self, raw: bytes) -> FloatCloud:
         """The cloud in ``raw`` (a ``raw=True`` subscription's message); bytes
@@ -411,23 +468,30 @@ class CloudCdrReader:
             position = end + (-end % 4)                # _aligned(end): 4 is aligned
             height, width = _HEIGHT_WIDTH.unpack_from(raw, position)
             position += 8
-            if height != 1 or not raw.startswith(self._fields, position):
+            if height != 1:
                 return None
-            position += len(self._fields)
+            for k, (fields, step, dtype) in enumerate(self._layouts):
+                if raw.startswith(fields, position):
+                    break
+            else:
+                return None
+            if k:
+                self._layouts.insert(0, self._layouts.pop(k))
+            position += len(fields)
             point_step, row_step, n_data = _THREE_UINT32.unpack_from(raw, position)
         except (struct.error, IndexError, UnicodeDecodeError):
             return None
         position += 12
-        row_step_expected = width * self._point_step
+        row_step_expected = width * step
         dense_at = position + n_data
         # Between processes Fast DDS hands over the payload padded to a multiple
         # of 4 bytes (CDR's alignment; the general path ignores trailing bytes),
         # so up to 3 trailing bytes are accepted here too.
-        if (point_step != self._point_step or row_step != row_step_expected
+        if (point_step != step or row_step != row_step_expected
                 or n_data != row_step_expected or not 0 <= len(raw) - dense_at - 1 <= 3
                 or raw[dense_at] != 1):
             return None
-        matrix = np.ndarray((width, self._n_columns), _FLOAT64_LE, raw, position).copy()
-        if not np.isfinite(matrix).all():
+        matrix = np.ndarray((width, self._n_columns), dtype, raw, position).astype(float)
+        if dtype.kind == "f" and not np.isfinite(matrix).all():
             return None                                # the general path names the column
         return FloatCloud(frame_id, sec * _NANOSECONDS_PER_SECOND + nanosec, matrix)

@@ -1,4 +1,5 @@
-"""A body of one's own, outside the project: ``python tests/graph/own_body.py``.
+"""A body of one's own, outside the project:
+``python tests/graph/own_body.py [--sensor-type float64|uint16]``.
 
 Two hinges, ``hip`` and ``knee``, commanded in degrees, and three receptors
 whose outputs are smooth functions of the joint angles and of where the
@@ -6,8 +7,13 @@ lights are: s = [cos(hip + u), sin(hip + u), cos(knee + v)], with (u, v) a
 tenth of the lights' mean position (rad). It honours the topics a body
 honours (docs/own-body.md) with rclpy, sensor_msgs and numpy alone, nothing
 of sensorispace_ros, as a body in another process or language would.
+``--sensor-type uint16`` publishes what a 16-bit ADC would: UINT16 columns,
+round((s + 1) / 2 * 65535).
 """
 from __future__ import annotations
+
+import argparse
+import sys
 
 import numpy as np
 import rclpy
@@ -50,20 +56,29 @@ def read_table(msg: PointCloud2, names: tuple[str, ...]) -> np.ndarray | None:
     return table if np.isfinite(table).all() else None
 
 
-def table_cloud(rows: np.ndarray, prefix: str, header: Header) -> PointCloud2:
-    rows = np.ascontiguousarray(rows, dtype="<f8")
-    fields = [PointField(name=f"{prefix}{k}", offset=8 * k, datatype=PointField.FLOAT64, count=1)
+# Sensor types this body can publish: PointField datatype and little-endian dtype.
+SENSOR_TYPES = {"float64": (PointField.FLOAT64, np.dtype("<f8")),
+                "uint16": (PointField.UINT16, np.dtype("<u2"))}
+
+
+def table_cloud(rows: np.ndarray, prefix: str, header: Header,
+                sensor_type: str = "float64") -> PointCloud2:
+    datatype, dtype = SENSOR_TYPES[sensor_type]
+    rows = np.ascontiguousarray(rows, dtype=dtype)
+    size = dtype.itemsize
+    fields = [PointField(name=f"{prefix}{k}", offset=size * k, datatype=datatype, count=1)
               for k in range(rows.shape[1])]
     return PointCloud2(header=header, height=1, width=len(rows), fields=fields,
-                       is_bigendian=False, point_step=8 * rows.shape[1],
-                       row_step=8 * rows.shape[1] * len(rows), data=rows.tobytes(),
+                       is_bigendian=False, point_step=size * rows.shape[1],
+                       row_step=size * rows.shape[1] * len(rows), data=rows.tobytes(),
                        is_dense=True)
 
 
 class OwnBody(Node):
 
-    def __init__(self):
+    def __init__(self, sensor_type: str = "float64"):
         super().__init__("own_body")
+        self.sensor_type = sensor_type
         self.rest = np.zeros(len(JOINTS))
         self.offset = np.zeros(2)
         self.applied = -1                 # the number of the last change applied
@@ -78,11 +93,13 @@ class OwnBody(Node):
 
     def sense(self, motor: np.ndarray) -> np.ndarray:
         angles = np.deg2rad(motor) + self.offset
-        return np.column_stack([np.cos(angles[:, 0]), np.sin(angles[:, 0]),
-                                np.cos(angles[:, 1])])
+        s = np.column_stack([np.cos(angles[:, 0]), np.sin(angles[:, 0]), np.cos(angles[:, 1])])
+        if self.sensor_type == "uint16":
+            return np.round((s + 1.0) / 2.0 * 65535.0)
+        return s
 
     def answer(self, motor: np.ndarray, header: Header) -> None:
-        self.sensation_pub.publish(table_cloud(self.sense(motor), "s", header))
+        self.sensation_pub.publish(table_cloud(self.sense(motor), "s", header, self.sensor_type))
         self.rest = motor[-1].copy()
 
     def on_lights(self, msg: PointCloud2) -> None:
@@ -112,8 +129,11 @@ class OwnBody(Node):
 
 
 def main() -> int:
-    rclpy.init()
-    node = OwnBody()
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sensor-type", choices=sorted(SENSOR_TYPES), default="float64")
+    options, ros_args = parser.parse_known_args()
+    rclpy.init(args=[sys.argv[0], *ros_args])
+    node = OwnBody(options.sensor_type)
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

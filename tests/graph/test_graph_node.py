@@ -19,7 +19,8 @@ from sensorispace_ros.graph.framework import MAX_FRAME_NUMBER, GraphNode, parse_
 from shared import SMOKE
 
 PAPER_BODY = BodyDescription.revolute(4, 6)
-SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
+SENSATION = messages.with_number_type(
+    contracts.contract("/body/sensation").columns_for(PAPER_BODY), "float64")
 KINDS = ("cmd", "change", "end")
 
 
@@ -50,27 +51,41 @@ def _read(node, topic, msg, kinds):
     return parsed, cloud.frame_id, cloud.stamp_ns, cloud.matrix.tobytes()
 
 
+def _typed(kind):
+    return dict.fromkeys(SENSATION, kind)
+
+
 def _messages():
     packer = messages.CloudCdrPacker(SENSATION)
     rows = np.arange(18.0).reshape(3, 6)
-    nan = rows.copy()
-    nan[2, 4] = np.nan
+    inf = rows.copy()
+    inf[2, 4] = np.inf
     good = packer.pack(rows, "cmd/7", 42)
     cloud = messages.matrix_to_cloud(rows, SENSATION, messages.make_header("change/2", 9))
+    mixed = messages.table_to_cloud({name: rows[:, k] for k, name in enumerate(SENSATION)},
+                                    {**SENSATION, "s3": "float32"}, messages.make_header("cmd/9"))
     return {
         "packed": (good, "cmd/7"),
         "rclpy_serialized": (serialize_message(cloud), "change/2"),
         "point_cloud": (cloud, "change/2"),
+        # a sensor's types: read as float64
+        **{f"packed_{kind}": (messages.CloudCdrPacker(_typed(kind)).pack(rows, "cmd/3"), "cmd/3")
+           for kind in ("float32", "uint16", "uint8")},
+        "uint16_point_cloud": (messages.matrix_to_cloud(rows, _typed("uint16"),
+                                                        messages.make_header("cmd/4")), "cmd/4"),
         "wrong_kind": (packer.pack(rows, "end/3"), "frame id 'end/3'"),
         "not_a_frame": (packer.pack(rows, "cmd/\u00b2"), "frame id 'cmd/²'"),
         "number_too_long": (packer.pack(rows, "cmd/" + "9" * 400), "frame id 'cmd/999"),
-        "nan": (packer.pack(nan, "cmd/8"), "column 's4' holds NaN or inf"),
+        "inf": (packer.pack(inf, "cmd/8"), "column 's4' holds inf"),
         # the frame id is checked before the data, as decode does
-        "nan_and_not_a_frame": (packer.pack(nan, "x/8"), "frame id 'x/8'"),
+        "inf_and_not_a_frame": (packer.pack(inf, "x/8"), "frame id 'x/8'"),
         "truncated": (good[:-1], "data of 144 bytes overruns"),
-        "tampered_point_cloud": (messages.matrix_to_cloud(nan, SENSATION,
+        "tampered_point_cloud": (messages.matrix_to_cloud(inf, SENSATION,
                                                           messages.make_header("cmd/1")),
-                                 "column 's4' holds NaN or inf"),
+                                 "column 's4' holds inf"),
+        "mismatched_field": (mixed, "field 's3'"),
+        "not_a_number_type": (messages.CloudCdrPacker(dict.fromkeys(SENSATION, "int32")).pack(
+            rows, "cmd/5"), "field 's0': datatype 5 is not one of"),
     }
 
 
@@ -101,6 +116,23 @@ def test_read_float_cloud_reads_and_drops_as_read_serialized_and_decode(context,
     finally:
         before.destroy_node()
         now.destroy_node()
+
+
+@pytest.mark.parametrize("kind", ["float64", "float32"])
+def test_a_lost_frame_is_read_as_nan_not_dropped(context, kind):
+    rows = np.arange(18.0).reshape(3, 6)
+    rows[1] = np.nan
+    node = _node(context)
+    try:
+        raw = messages.CloudCdrPacker(_typed(kind)).pack(rows, "cmd/2")
+        cloud = messages.matrix_to_cloud(rows, _typed(kind), messages.make_header("cmd/2"))
+        for msg in (raw, serialize_message(cloud)):
+            parsed, cloud = node.read_float_cloud("/body/sensation", msg, KINDS)
+            assert parsed == ("cmd", 2) and cloud.matrix.dtype == np.float64
+            np.testing.assert_array_equal(cloud.matrix, rows)      # NaN where NaN
+        assert not node.reasons
+    finally:
+        node.destroy_node()
 
 
 def test_messages_sized_by_the_body_wait_for_its_description(context):

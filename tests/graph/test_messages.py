@@ -223,7 +223,9 @@ def test_encode_refuses_wrong_shapes():
 
 # ------------------------------------------------ serialized clouds (raw publish / take)
 
-SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
+# The simulated body's sensation columns by default (the contract's are ``number``).
+SENSATION = messages.with_number_type(
+    contracts.contract("/body/sensation").columns_for(PAPER_BODY), "float64")
 POSE = contracts.contract("/body/sensor_pose").columns
 # Every frame id length mod 4 (the padding after it) and mod 8 (JointState's float64s).
 FRAME_IDS = ["", "c", "cm", "cmd", "cmd/", "cmd/7", "cmd/78", "cmd/789", "change/12345", "é/1"]
@@ -250,8 +252,51 @@ def test_cdr_packer_writes_what_rclpy_reads_and_cloud_from_cdr_reads_what_rclpy_
                     assert back.dtype == np.float64 and back.tobytes() == matrix.tobytes()
     with pytest.raises(ValueError, match="shape"):
         packer.pack(np.zeros((2, len(columns) + 1)), "cmd/1")
-    with pytest.raises(ValueError, match="float64"):
+    with pytest.raises(ValueError, match="one type"):
         messages.CloudCdrPacker(EVENT)
+
+
+NUMBER_SENSATION = contracts.contract("/body/sensation").columns_for(PAPER_BODY)
+
+
+@pytest.mark.parametrize("kind", messages.NUMBER_TYPES)
+def test_sensations_of_every_sensor_type_round_trip_as_float64(kind):
+    # What a sensor of that type gives (integers for the integer types).
+    rng = np.random.default_rng(3)
+    dtype = np.dtype(kind)
+    high = np.iinfo(dtype).max if dtype.kind == "u" else 1e3
+    matrix = rng.uniform(0, high, (40, 6)).astype(dtype)
+    if dtype.kind == "u":
+        matrix[0] = [0, high, 1, high - 1, 2, 3]                 # the type's extremes
+    typed = messages.with_number_type(NUMBER_SENSATION, kind)
+    packed = messages.CloudCdrPacker(typed).pack(matrix, "cmd/4", 8)
+    built = messages.matrix_to_cloud(matrix, typed, messages.make_header("cmd/4", 8))
+    assert deserialize_message(packed, PointCloud2) == built
+    assert {f.datatype for f in built.fields} == {messages._FIELD_DTYPES[kind][0]}
+    reader = messages.CloudCdrReader(NUMBER_SENSATION)
+    assert reader.read_packed(packed) is not None                # the fast path takes it
+    for back in (reader.read(packed).matrix, reader.read(serialize_message(built)).matrix,
+                 messages.cloud_to_matrix(built, NUMBER_SENSATION)):
+        assert back.dtype == np.float64
+        assert back.tobytes() == matrix.astype(np.float64).tobytes()
+
+
+def test_sensation_columns_must_share_one_number_type():
+    rows = np.ones((2, 6))
+    mixed = messages.table_to_cloud({name: rows[:, k] for k, name in enumerate(NUMBER_SENSATION)},
+                                    {**dict.fromkeys(NUMBER_SENSATION, "float32"), "s5": "uint16"},
+                                    messages.make_header("cmd/1"))
+    with pytest.raises(MessageError, match="s5"):
+        messages.cloud_to_matrix(mixed, NUMBER_SENSATION)
+    for kind in ("int32", "uint32"):
+        other = messages.matrix_to_cloud(rows, dict.fromkeys(NUMBER_SENSATION, kind),
+                                         messages.make_header("cmd/1"))
+        with pytest.raises(MessageError, match="'s0': datatype"):
+            messages.cloud_to_matrix(other, NUMBER_SENSATION)
+        assert messages.CloudCdrReader(NUMBER_SENSATION).read_packed(
+            serialize_message(other)) is None
+    with pytest.raises(ValueError, match="number column"):
+        messages.with_number_type(NUMBER_SENSATION, "int32")
 
 
 def test_joint_state_cdr_packer_writes_what_rclpy_reads():
@@ -448,7 +493,7 @@ def test_cloud_reader_reads_what_the_general_path_reads_bit_for_bit(columns):
                     expected = (frame_id, stamp, matrix.tobytes())
                     assert _general(raw, columns) == expected
                     assert _read(reader, raw) == expected
-    with pytest.raises(ValueError, match="float64"):
+    with pytest.raises(ValueError, match="one type"):
         messages.CloudCdrReader(EVENT)
 
 

@@ -43,12 +43,15 @@ class Observer:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.fields = {"/body/motor_command": set(), "/body/sensation": set()}
+        self.datatypes = {topic: set() for topic in self.fields}      # PointField datatypes
         self.settled: list[int] = []
         self.done: dict | None = None
         for topic, seen in self.fields.items():
             self.node.create_subscription(
                 PointCloud2, topic,
-                lambda msg, seen=seen: seen.add(tuple(f.name for f in msg.fields)),
+                lambda msg, seen=seen, types=self.datatypes[topic]: (
+                    seen.add(tuple(f.name for f in msg.fields)),
+                    types.update(f.datatype for f in msg.fields)),
                 contracts.subscription_qos(topic))
         self.node.create_subscription(UInt64, "/agent/settled",
                                       lambda msg: self.settled.append(msg.data),
@@ -73,7 +76,11 @@ class Observer:
         self.context.try_shutdown()
 
 
-def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id):
+def _run(tmp_path, domain_id, body_options=(), representation=False):
+    """The own body, the project's agent and environment (and representation),
+    each a process; returns the observer, the logs' text and the processes
+    that exited before the observer saw the end (and, with the representation,
+    before that wrote its result or said why not)."""
     from sensorispace_ros.graph.dds_environment import graph_environment
 
     env = graph_environment(domain_id)            # this test's domain, localhost only
@@ -81,32 +88,45 @@ def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id
     env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
     graph = ["-p", f"graph.results_dir:={tmp_path / 'results'}"]
     commands = {
-        "own_body": [str(OWN_BODY)],
+        "own_body": [str(OWN_BODY), *body_options],
         "agent": ["-m", "sensorispace_ros.graph.nodes.agent", "--ros-args",
                   "--params-file", str(SMOKE), *graph],
         "environment": ["-m", "sensorispace_ros.graph.nodes.environment", "--ros-args",
                         "--params-file", str(SMOKE), *graph,
                         "-p", "graph.wait_for_nodes:=[own_body,agent]"]}
+    if representation:
+        commands["representation"] = ["-m", "sensorispace_ros.graph.nodes.representation",
+                                      "--ros-args", "--params-file", str(SMOKE), *graph]
     processes, logs = {}, {name: tmp_path / f"{name}.log" for name in commands}
     observer = Observer(domain_id)
+
+    def ended():
+        if representation:
+            return processes["representation"].poll() is not None or observer.done is not None \
+                and re.search(r"representation (written|failed)", logs["representation"].read_text())
+        return observer.done is not None or any(p.poll() is not None for p in processes.values())
     try:
         for name, command in commands.items():
             with open(logs[name], "wb") as log:
                 processes[name] = subprocess.Popen(
                     [sys.executable, *command], env=env, stdout=log, stderr=subprocess.STDOUT,
                     start_new_session=True)
-        observer.spin_until(lambda: observer.done is not None or any(
-            p.poll() is not None for p in processes.values()), timeout_s=240)
+        observer.spin_until(ended, timeout_s=240)
         exited = {name: p.returncode for name, p in processes.items() if p.poll() is not None}
     finally:
         observer.close()
         for process in processes.values():
             stop_by_pid(process)
-    agent_log = logs["agent"].read_text()
+    return observer, {name: path.read_text() for name, path in logs.items()}, exited, processes
+
+
+def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id):
+    observer, logs, exited, processes = _run(tmp_path, domain_id)
+    agent_log = logs["agent"]
     assert not exited, (exited, agent_log[-3000:])
     assert observer.done is not None, agent_log[-3000:]
     n_changes = int(re.search(r"(\d+) environmental changes scheduled",
-                              logs["environment"].read_text()).group(1))
+                              logs["environment"]).group(1))
     # Every change was settled (the observer may join late: the last ones at
     # least), and the end came through the body's passive sensation.
     assert observer.done["changes"] == n_changes + 1 and observer.done["calls"] > 0
@@ -116,3 +136,28 @@ def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id
     assert observer.fields["/body/sensation"] == {("s0", "s1", "s2")}
     assert not re.search(r"dropped a message", agent_log), agent_log[-3000:]
     assert all(process.poll() is not None for process in processes.values())
+
+
+def test_the_agent_takes_the_uint16_sensations_of_a_16_bit_sensor(tmp_path, domain_id):
+    """The own body publishing what a 16-bit ADC gives (UINT16 columns): the
+    agent reads them (as float64, none dropped), the run ends, and the
+    representation writes its result or says why it has none."""
+    from sensor_msgs.msg import PointField
+
+    observer, logs, exited, _ = _run(tmp_path, domain_id, ("--sensor-type", "uint16"),
+                                     representation=True)
+    agent_log = logs["agent"]
+    assert observer.datatypes["/body/sensation"] == {PointField.UINT16}
+    assert observer.done is not None, agent_log[-3000:]
+    assert not exited.keys() - {"representation"}, (exited, agent_log[-3000:])
+    n_changes = int(re.search(r"(\d+) environmental changes scheduled",
+                              logs["environment"]).group(1))
+    assert observer.done["changes"] == n_changes + 1 and observer.done["calls"] > 0
+    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in agent_log
+    assert not re.search(r"dropped a message", agent_log), agent_log[-3000:]
+    written = (tmp_path / "results" / "representation.npz").is_file()
+    said_why = re.search(r"representation failed: (.+)|no representation: (.+)",
+                         logs["representation"])
+    assert written or said_why, logs["representation"][-3000:]
+    print(f"the agent on the UINT16 body: {observer.done}; representation "
+          + ("written" if written else f"not written: {said_why.group(0)}"))

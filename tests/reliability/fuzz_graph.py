@@ -78,6 +78,9 @@ def _subscribed_topics() -> list[str]:
     return sorted(topics)
 
 
+# Column types a fuzzed table fills with floats ("number": a sensor's, written as float64).
+FLOAT_KINDS = ("float64", "number")
+
 class Fuzzer:
     """A participant of its own that publishes malformed messages on a timer."""
 
@@ -147,14 +150,16 @@ class Fuzzer:
         columns = contracts.contract(topic).columns_for(PAPER_BODY)
         table = {}
         for name, kind in columns.items():
-            if kind == "float64":
+            if kind in FLOAT_KINDS:
                 table[name] = self.rng.normal(size=rows)
             else:
                 table[name] = self.rng.integers(0, 2 ** 16, size=rows)
         if nonfinite is not None:
-            float_columns = [n for n, k in columns.items() if k == "float64"]
-            table[float_columns[int(self.rng.integers(len(float_columns)))]][
-                int(self.rng.integers(rows))] = nonfinite
+            float_columns = [n for n, k in columns.items() if k in FLOAT_KINDS]
+            name = float_columns[int(self.rng.integers(len(float_columns)))]
+            if columns[name] == "number" and np.isnan(nonfinite):
+                nonfinite = np.inf           # NaN in a sensor's column is a lost frame
+            table[name][int(self.rng.integers(rows))] = nonfinite
         return messages.table_to_cloud(table, columns, self._header(frame_id))
 
     def malformed(self, topic: str):
@@ -162,7 +167,7 @@ class Fuzzer:
         if topic == DESCRIPTION:
             return "bad_description", self._description()
         columns = contracts.contract(topic).columns_for(PAPER_BODY)
-        has_float = any(k == "float64" for k in columns.values())
+        has_float = any(k in FLOAT_KINDS for k in columns.values())
         frame_id = self._valid_frame(topic)
         rows = int(self.rng.integers(1, 60))
         now = time.monotonic()

@@ -24,6 +24,7 @@ import numpy as np
 from sensorispace_ros.core import arm, retina, world as world_mod
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.body import SimulatedBody
+from sensorispace_ros.core.imperfections import BodyNoise, Imperfections
 from sensorispace_ros.core.paper.compensation import compensate_pose
 from sensorispace_ros.core.paper.fibres import fibre_is_split
 from sensorispace_ros.core.sensor_code import SensorCode
@@ -51,6 +52,13 @@ PAPER_PARAMS = {
     "motor_unit": "rad",
     "code": "identity",
     "code_value": 1.0,
+    # A perfect body (core.imperfections): the naive agent's body only; the
+    # paper strategy computes with the forward model and never senses.
+    "retina_noise": 0.0,
+    "retina_quantum": 0.0,
+    "retina_dtype": "float64",
+    "retina_dropout": 0.0,
+    "motor_noise": 0.0,
 }
 
 # Reasons an environmental change is not compensated.
@@ -79,10 +87,26 @@ class World:
     def initial_lights(self) -> np.ndarray:
         return self.initial_center + self.initial_offsets
 
+    @property
+    def imperfections(self) -> Imperfections:
+        """What the body does wrong (a perfect body by default)."""
+        return imperfections_of(self.params)
+
     def body(self, kernel: str = "auto", lights: np.ndarray | None = None) -> SimulatedBody:
-        """The simulated body of this world, resting at ``m0``."""
+        """The simulated body of this world, resting at ``m0``, with its
+        imperfections drawn from ``seed`` (``core.imperfections``)."""
+        imperfect = self.imperfections
         return SimulatedBody(self.receptors, lights, self.m0.copy(), kernel,
-                             body_arm=self.arm, code=self.code)
+                             body_arm=self.arm, code=self.code,
+                             noise=None if imperfect.perfect else BodyNoise(imperfect, self.seed))
+
+
+def imperfections_of(params: dict) -> Imperfections:
+    """The body's imperfections among world parameters (``PAPER_PARAMS`` keys)."""
+    return Imperfections(noise=float(params["retina_noise"]),
+                         quantum=float(params["retina_quantum"]),
+                         dtype=str(params["retina_dtype"]), dropout=float(params["retina_dropout"]),
+                         motor_noise=float(params["motor_noise"]))
 
 
 def build_world(seed: int, params: dict | None = None) -> World:
@@ -117,6 +141,7 @@ def build_world(seed: int, params: dict | None = None) -> World:
     code = SensorCode(merged["code"], merged["code_value"], len(receptors),
                       rng_for(seed, "sensor_code") if merged["code"] == "mix" else None)
     pose0 = body_arm.forward(m0)
+    imperfections_of(merged)            # a bad imperfection fails here, naming its parameter
     light_rng = rng_for(seed, "lights")
     for _ in range(int(merged["max_light_draws"])):
         offsets = world_mod.draw_light_offsets(light_rng, **light_kwargs)

@@ -10,7 +10,10 @@ one-row passive sensation of the resting arm (frame ``change/<k>`` or
 with its settle of k-1) that arrives before change k's lights is held and
 answered right after that change's passive sensation. Ground truth for the
 evaluator goes to ``/body/sensor_pose`` and ``/body/joint_states``; the agent
-never subscribes to those.
+never subscribes to those. An imperfect body (docs/bodies.md) publishes its
+sensations in ``world.retina.dtype``, its ground truth at the joints reached,
+and numbers its commands and changes as the offline driver does, so both
+draw the same noise (``core.imperfections``).
 
 Restart: with ``graph.checkpoint_dir`` set, the resting motor state
 and the number of the last lights applied are written on every command and
@@ -60,6 +63,9 @@ class BodyNode(GraphNode):
         # it has this one's answer).
         self.held: "messages.FloatCloud | None" = None
         self.held_for = -1
+        # The last command answered and its number in the body's noise stream
+        # (core.imperfections): a command sent again is answered alike.
+        self.answered: tuple[str, int] = ("", -1)
         if self.graph["checkpoint_dir"]:
             # [m0..m{N-1}, k]: the resting state and the number of the last lights applied
             self.resting_file = RestingStateFile(
@@ -76,7 +82,8 @@ class BodyNode(GraphNode):
         # CloudCdrPacker, GraphNode.read_float_cloud): rclpy's message conversions
         # would cost more than the rest of an answer, and every command gets
         # three publications.
-        self.sensation_packer = messages.CloudCdrPacker(self.columns["/body/sensation"])
+        self.sensation_packer = messages.CloudCdrPacker(messages.with_number_type(
+            self.columns["/body/sensation"], world.imperfections.dtype))
         self.pose_packer = messages.CloudCdrPacker(self.columns["/body/sensor_pose"])
         self.joint_packer = messages.JointStateCdrPacker(
             contracts.contract("/body/joint_states").joint_names_for(self.description))
@@ -102,7 +109,7 @@ class BodyNode(GraphNode):
             if len(lights) == 0:
                 self.drop("/environment/lights", "no lights")
                 return
-            self.body.set_lights(lights)
+            self.body.set_lights(lights, change=number)
         elif self.body.lights_world is None:
             self.drop("/environment/lights", "end of run before any lights")
             return
@@ -111,20 +118,20 @@ class BodyNode(GraphNode):
             self.lights_before_kill = None
         if self.resting_file is not None and self.lights_before_kill is None:
             self.resting_file.save((*self.body.motor_state.tolist(), number))
-        self.publish_passive(cloud.frame_id, cloud.stamp_ns)
+        self.publish_passive(cloud.frame_id, cloud.stamp_ns, number)
         tracing.stamp("body.passive", number)
         if self.held is not None and number >= self.held_for \
                 and self.lights_before_kill is None:
             held, self.held = self.held, None
             self.answer(held.matrix, held.frame_id, held.stamp_ns)
 
-    def publish_passive(self, frame_id: str, stamp_ns: int) -> None:
+    def publish_passive(self, frame_id: str, stamp_ns: int, number: int) -> None:
         """What the resting eye sees after a change. Not a query of the agent's:
         ``SimulatedBody.sense_at_rest``, as the offline driver computes it
         (core.naive.run._passive_sensation), by the compiled kernel (2 instead
         of 54 us: the agent waits for this on every change)."""
         rest = self.body.motor_state
-        sensation, pose = self.body.sense_at_rest()
+        sensation, pose = self.body.sense_at_rest(change=number)
         self.publish_answer(sensation[None], pose[None], rest, frame_id, stamp_ns)
 
     def on_command(self, msg) -> None:
@@ -178,7 +185,9 @@ class BodyNode(GraphNode):
     def answer(self, motor: np.ndarray, frame_id: str, stamp_ns: int) -> None:
         # One forward model per row for both replies (it was run twice: sense + sensor_pose);
         # the sensation goes first so the waiting agent proceeds while the ground truth is sent.
-        sensations, poses = self.body.sense_with_poses(motor)
+        again = self.answered[0] == frame_id
+        sensations, poses = self.body.sense_with_poses(motor, self.answered[1] if again else None)
+        self.answered = (frame_id, self.body.calls - 1)
         if self.resting_file is not None:
             # before the answer: once the agent has it, a restart rests where it did
             self.resting_file.save((*self.body.motor_state.tolist(), self.lights_number))
