@@ -9,7 +9,6 @@ from sensor_msgs.msg import PointField
 
 from sensorispace_ros import config, messages
 from sensorispace_ros.graph import in_process
-from sensorispace_ros.offline import strategies
 
 from shared import REPO
 

@@ -5,7 +5,7 @@ import struct
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import JointState, PointCloud2
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core.body_description import BodyDescription
@@ -272,7 +272,7 @@ def test_sensations_of_every_sensor_type_round_trip_as_float64(kind):
     packed = messages.CloudCdrPacker(typed).pack(matrix, "cmd/4", 8)
     built = messages.matrix_to_cloud(matrix, typed, messages.make_header("cmd/4", 8))
     assert deserialize_message(packed, PointCloud2) == built
-    assert {f.datatype for f in built.fields} == {messages._FIELD_DTYPES[kind][0]}
+    assert {f.datatype for f in built.fields} == {getattr(PointField, kind.upper())}
     reader = messages.CloudCdrReader(NUMBER_SENSATION)
     assert reader.read_packed(packed) is not None                # the fast path takes it
     for back in (reader.read(packed).matrix, reader.read(serialize_message(built)).matrix,
