@@ -14,6 +14,7 @@ import array
 import functools
 import sys
 import time
+from pathlib import Path
 from typing import Callable
 
 import rclpy
@@ -51,6 +52,19 @@ def frame(kind: str, number: int) -> str:
 
 
 MAX_FRAME_NUMBER = 2 ** 63 - 1
+# In graph.results_dir: the run's own directory, named by the time the agent
+# ended the run (the stamp of /agent/done, which the agent and the
+# representation both have), so that a second run does not overwrite a first.
+RUN_PLACEHOLDER = "{run}"
+
+
+def run_directory(results_dir: str, end_stamp_ns: int) -> Path:
+    """``graph.results_dir`` with ``{run}`` replaced by the run's name:
+    ``run-<UTC date>-<time>-<ms>`` of the end's stamp; a path without
+    ``{run}`` is the run directory itself."""
+    seconds, ns = divmod(int(end_stamp_ns), 1_000_000_000)
+    name = time.strftime("run-%Y%m%d-%H%M%S", time.gmtime(seconds)) + f"-{ns // 1_000_000:03d}"
+    return Path(results_dir.replace(RUN_PLACEHOLDER, name))
 
 
 def parse_frame(frame_id: str) -> tuple[str, int] | None:
@@ -74,8 +88,12 @@ class GraphNode(Node):
     Parameters are declared from the parameter file
     (``automatically_declare_parameters_from_overrides``) so that every one,
     typos included, reaches ``config.load_config`` / ``config.load_graph``,
-    which name the bad parameter.
+    which name the bad parameter. Only the simulated body checks
+    ``arm.initial_motor_state`` against the simulated arm
+    (``simulated_body``); a body of one's own says what it is itself.
     """
+
+    simulated_body = False
 
     def __init__(self, name: str, *, context=None, parameter_overrides=None):
         super().__init__(name, context=context, parameter_overrides=parameter_overrides,
@@ -95,7 +113,7 @@ class GraphNode(Node):
                 graph[pname[len(GRAPH_PREFIX):]] = value
             else:
                 flat[pname] = value
-        self.cfg = config.load_config(None, overrides=flat)
+        self.cfg = config.load_config(None, overrides=flat, simulated_body=self.simulated_body)
         self.graph = config.load_graph(graph)
         self.dropped: dict[str, int] = {}
         self._cloud_readers: dict[str, messages.CloudCdrReader] = {}
@@ -351,7 +369,18 @@ def run_node(make_node: Callable[[], GraphNode], name: str, args=None) -> int:
 
 
 def build_world(cfg: dict):
-    """The run's world (ground truth) from the validated configuration."""
+    """The run's world (ground truth) from the validated configuration.
+
+    The lights are drawn so that the simulated arm at ``arm.initial_motor_state``
+    sees some; where that start is another body's (not one value per joint of
+    the simulated arm), the arm's default start is used for that draw.
+    """
+    from sensorispace_ros.core.arm import Arm
     from sensorispace_ros.core.paper import exploration
     from sensorispace_ros.offline.strategies import world_params
-    return exploration.build_world(cfg["seed"], world_params(cfg))
+    params = world_params(cfg)
+    n_joints = Arm.from_config(cfg["arm"]).n_joints
+    if len(params["m0"]) != n_joints:
+        default = config.parameters()["arm.initial_motor_state"].default
+        params["m0"] = tuple(default) if len(default) == n_joints else (0.0,) * n_joints
+    return exploration.build_world(cfg["seed"], params)

@@ -1,10 +1,11 @@
-"""A body of one's own (docs/own-body.md): tests/ros/own_body.py, two joints in
-degrees and three receptors, written with rclpy and sensor_msgs alone, in
-place of the project's simulator. The project's environment and agent, each
-a process of its own on a private domain, take it as it describes itself: the
-agent sends 2-column commands, gets 3-column sensations, settles change
-after change and ends the run with its totals. It need not find any spatial
-structure in such a body."""
+"""A body of one's own (docs/own-body.md): examples/own_body.py, a two-joint
+arm in degrees with three receptors, written with rclpy and sensor_msgs
+alone, in place of the project's simulator, run by the doc's commands with
+the project's environment, agent and representation, each a process of its
+own on a private domain, on config/smoke.yaml. Given a start of two values,
+or none (every joint at 0: a straight arm, singular, which the agent leaves
+by itself), every process exits by itself, the agent finds points of view
+and the representation is written in a run directory of its own."""
 from __future__ import annotations
 
 import os
@@ -15,64 +16,15 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from .conftest import SMOKE
+from .conftest import REPO, SMOKE
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
-OWN_BODY = Path(__file__).resolve().parent / "own_body.py"
-
-
-class Observer:
-    """A participant of the test's own: the fields of every command and
-    sensation, the changes the agent settled and its /agent/done totals."""
-
-    def __init__(self, domain_id: int):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-        from sensor_msgs.msg import PointCloud2
-        from std_msgs.msg import UInt64
-
-        from sensorispace_ros import contracts
-
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("own_body_observer", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.fields = {"/body/motor_command": set(), "/body/sensation": set()}
-        self.settled: list[int] = []
-        self.done: dict | None = None
-        for topic, seen in self.fields.items():
-            self.node.create_subscription(
-                PointCloud2, topic,
-                lambda msg, seen=seen: seen.add(tuple(f.name for f in msg.fields)),
-                contracts.subscription_qos(topic))
-        self.node.create_subscription(UInt64, "/agent/settled",
-                                      lambda msg: self.settled.append(msg.data),
-                                      contracts.subscription_qos("/agent/settled"))
-        self.node.create_subscription(PointCloud2, "/agent/done", self.on_done,
-                                      contracts.subscription_qos("/agent/done"))
-
-    def on_done(self, msg) -> None:
-        from sensorispace_ros import contracts, messages
-
-        table = messages.cloud_to_table(msg, contracts.contract("/agent/done").columns)
-        self.done = {name: int(table[name][0]) for name in table.dtype.names}
-
-    def spin_until(self, done, timeout_s: float) -> None:
-        deadline = time.monotonic() + timeout_s
-        while not done() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.context.try_shutdown()
+OWN_BODY = REPO / "examples" / "own_body.py"
+NODES = ("agent", "representation", "environment")
 
 
 def _stop(process: subprocess.Popen) -> None:
@@ -86,46 +38,67 @@ def _stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
-def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id):
+def run_own_body(tmp_path: Path, domain_id: int, extra: list[str]) -> dict:
+    """The doc's commands; returns each process's exit code and log, once all have exited."""
     from sensorispace_ros.graph.dds_environment import graph_environment
 
     env = graph_environment(domain_id)            # this test's domain, localhost only
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
-    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
-    graph = ["-p", f"graph.results_dir:={tmp_path / 'results'}"]
-    commands = {
-        "own_body": [str(OWN_BODY)],
-        "agent": ["-m", "sensorispace_ros.graph.nodes.agent", "--ros-args",
-                  "--params-file", str(SMOKE), *graph],
-        "environment": ["-m", "sensorispace_ros.graph.nodes.environment", "--ros-args",
-                        "--params-file", str(SMOKE), *graph,
-                        "-p", "graph.wait_for_nodes:=[own_body,agent]"]}
+    env["PYTHONPATH"] = str(REPO)
+    params = ["--ros-args", "--params-file", str(SMOKE), "-p",
+              f"graph.results_dir:={tmp_path / 'results' / '{run}'}", *extra]
+    commands = {"own_body": [str(OWN_BODY)],
+                **{name: ["-m", f"sensorispace_ros.graph.nodes.{name}", *params]
+                   for name in NODES}}
+    commands["environment"] += ["-p", "graph.wait_for_nodes:=[own_body,agent,representation]"]
     processes, logs = {}, {name: tmp_path / f"{name}.log" for name in commands}
-    observer = Observer(domain_id)
     try:
         for name, command in commands.items():
             with open(logs[name], "wb") as log:
                 processes[name] = subprocess.Popen(
                     [sys.executable, *command], env=env, stdout=log, stderr=subprocess.STDOUT,
-                    start_new_session=True)
-        observer.spin_until(lambda: observer.done is not None or any(
-            p.poll() is not None for p in processes.values()), timeout_s=240)
-        exited = {name: p.returncode for name, p in processes.items() if p.poll() is not None}
+                    cwd=tmp_path, start_new_session=True)
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and any(p.poll() is None for p in processes.values()):
+            time.sleep(0.2)
+        running = [name for name, p in processes.items() if p.poll() is None]
     finally:
-        observer.close()
         for process in processes.values():
             _stop(process)
-    agent_log = logs["agent"].read_text()
-    assert not exited, (exited, agent_log[-3000:])
-    assert observer.done is not None, agent_log[-3000:]
-    n_changes = int(re.search(r"(\d+) environmental changes scheduled",
-                              logs["environment"].read_text()).group(1))
-    # Every change was settled (the observer may join late: the last ones at
-    # least), and the end came through the body's passive sensation.
-    assert observer.done["changes"] == n_changes + 1 and observer.done["calls"] > 0
-    assert len(set(observer.settled)) > 1 and max(observer.settled) >= n_changes
-    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in agent_log
-    assert observer.fields["/body/motor_command"] == {("m0", "m1")}
-    assert observer.fields["/body/sensation"] == {("s0", "s1", "s2")}
-    assert not re.search(r"dropped a message", agent_log), agent_log[-3000:]
-    assert all(process.poll() is not None for process in processes.values())
+    return {"running": running, "codes": {n: p.returncode for n, p in processes.items()},
+            "logs": {name: path.read_text() for name, path in logs.items()}}
+
+
+def check_run(tmp_path: Path, run: dict) -> str:
+    logs = run["logs"]
+    assert not run["running"], (run["running"], logs["agent"][-3000:])
+    assert set(run["codes"].values()) == {0}, (run["codes"], logs["agent"][-3000:])
+    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in logs["agent"]
+    assert "measured body: pose rank 2 of 2 joints" in logs["agent"], logs["agent"][-3000:]
+    found = re.search(r"run over: found (\d+) points of view", logs["agent"])
+    assert found and int(found.group(1)) > 20, logs["agent"][-3000:]
+    assert not re.search(r"dropped a message|Traceback", logs["agent"]), logs["agent"][-3000:]
+    [written] = (tmp_path / "results").glob("run-*/representation.npz")
+    assert f"representation written to {written}" in logs["representation"]
+    with np.load(written) as stored:
+        assert "reason" not in stored
+        assert len(stored["pov_ids"]) == int(found.group(1))
+        assert stored["povs"].shape[2] == 2 and "embedding_2d_before" in stored
+    assert (written.parent / "agent_records.npz").is_file()
+    return logs["agent"]
+
+
+def test_an_own_body_with_its_own_start(tmp_path, domain_id):
+    run = run_own_body(tmp_path, domain_id, ["-p", "arm.initial_motor_state:=[30.0,60.0]"])
+    agent_log = check_run(tmp_path, run)
+    assert "start kept" not in agent_log and "instead" not in agent_log
+
+
+def test_an_own_body_with_the_default_start_which_is_straight(tmp_path, domain_id):
+    run = run_own_body(tmp_path, domain_id, [])
+    agent_log = check_run(tmp_path, run)
+    # smoke.yaml's start is the simulated arm's (4 values): every joint at 0, a
+    # straight arm whose rank the agent measures as lower than elsewhere.
+    assert "starting with every joint at 0" in agent_log
+    assert re.search(r"the given start has pose rank 1, 2 is measured elsewhere .*"
+                     r"started at a state of rank 2 instead", agent_log), agent_log[-3000:]
