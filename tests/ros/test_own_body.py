@@ -102,3 +102,37 @@ def test_an_own_body_with_the_default_start_which_is_straight(tmp_path, domain_i
     assert "starting with every joint at 0" in agent_log
     assert re.search(r"the given start has pose rank 1, 2 is measured elsewhere .*"
                      r"started at a state of rank 2 instead", agent_log), agent_log[-3000:]
+
+
+def test_sensorispace_launch_no_body_runs_with_the_own_body(tmp_path, domain_id):
+    """``sensorispace launch --no-body``: the project's nodes without the
+    simulated body, the user's body started beside; the run ends, it is not
+    evaluated, and the representation is in the run's directory."""
+    from sensorispace_ros.graph.dds_environment import graph_environment
+
+    env = graph_environment(domain_id)
+    env["PYTHONPATH"] = str(REPO)
+    launch = [sys.executable, "-m", "sensorispace_ros.cli", "launch", "--config", str(SMOKE),
+              "--no-body", "--no-record", "--run", "own", "--domain-id", str(domain_id),
+              "--results", str(tmp_path / "results"), "--timeout", "300"]
+    processes = {}
+    try:
+        with open(tmp_path / "own_body.log", "wb") as log:
+            processes["own_body"] = subprocess.Popen(
+                [sys.executable, str(OWN_BODY)], env=env, stdout=log,
+                stderr=subprocess.STDOUT, cwd=tmp_path, start_new_session=True)
+        processes["launch"] = subprocess.Popen(launch, env=env, stdout=subprocess.PIPE,
+                                               stderr=subprocess.STDOUT, text=True, cwd=tmp_path,
+                                               start_new_session=True)
+        output, _ = processes["launch"].communicate(timeout=360)
+        processes["own_body"].wait(timeout=30)
+    finally:
+        for process in processes.values():
+            _stop(process)
+    assert processes["launch"].returncode == 0, output[-3000:]
+    assert processes["own_body"].returncode == 0
+    assert "started body" not in output and "not evaluated" in output, output[-3000:]
+    results = tmp_path / "results" / "own"
+    with np.load(results / "representation.npz") as stored:
+        assert stored["povs"].shape[2] == 2 and len(stored["pov_ids"]) > 20
+    assert not (results / "logs" / "body.log").exists()
