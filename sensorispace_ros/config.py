@@ -191,6 +191,9 @@ NAIVE = SCHEMA["naive"]
 # (neither in metrics.json nor in a bag's stored configuration).
 GRAPH_PREFIX = "graph."
 GRAPH_SCHEMA: dict[str, Param] = _table(_TABLES["graph"])
+# The recorder's own parameters (``recorder.*``), not part of the run configuration either.
+RECORDER_PREFIX = "recorder."
+RECORDER_SCHEMA: dict[str, Param] = _table(_TABLES["recorder"])
 
 
 def _is_spec(node: Any) -> bool:
@@ -308,6 +311,13 @@ def load_graph(overrides: dict | None = None) -> dict:
     values = _defaults_of(GRAPH_SCHEMA)
     values.update(copy.deepcopy(overrides or {}))
     return _validate_section(values, GRAPH_SCHEMA, GRAPH_PREFIX)
+
+
+def load_recorder(overrides: dict | None = None) -> dict:
+    """The ``recorder.*`` parameters, as ``load_graph`` the ``graph.*`` ones."""
+    values = _defaults_of(RECORDER_SCHEMA)
+    values.update(copy.deepcopy(overrides or {}))
+    return _validate_section(values, RECORDER_SCHEMA, RECORDER_PREFIX)
 
 
 # ---------------------------------------------------------------------------

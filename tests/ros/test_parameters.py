@@ -19,6 +19,9 @@ from .conftest import SMOKE
     ("agent", "naive.lm_restart:=3", "naive.lm_restart: unknown parameter"),
     ("representation", "naive.remember_sensations:=1",
      "naive.remember_sensations: must be true or false, got 1"),
+    # only the simulated body checks the start against the simulated arm
+    ("body", "arm.initial_motor_state:=[0.1,0.2]",
+     "arm.initial_motor_state: must hold one value per joint (4: 3 links"),
 ])
 def test_invalid_parameter_stops_node_with_its_name(node, override, name, node_env):
     done = subprocess.run(
@@ -28,3 +31,23 @@ def test_invalid_parameter_stops_node_with_its_name(node, override, name, node_e
     assert done.returncode != 0
     assert name in done.stderr
     assert "Traceback" not in done.stderr + done.stdout
+
+
+def test_a_start_of_another_body_is_not_checked_against_the_simulated_arm(context):
+    """A body of one's own of 2 joints: the agent, the environment and the
+    representation take a start of 2 values (the agent checks it against the
+    body's description); the simulated body refuses it."""
+    from sensorispace_ros import config
+    from sensorispace_ros.graph import in_process
+    from sensorispace_ros.graph.nodes.body import BodyNode
+    from sensorispace_ros.graph.nodes.environment import EnvironmentNode
+
+    overrides = in_process.parameter_overrides(SMOKE, {"arm.initial_motor_state": [0.5, 1.0]})
+    environment = EnvironmentNode(context=context, parameter_overrides=overrides)
+    try:
+        assert environment.cfg["arm"]["initial_motor_state"] == [0.5, 1.0]
+        assert environment.n_changes > 0
+    finally:
+        environment.destroy_node()
+    with pytest.raises(config.ConfigError, match="arm.initial_motor_state"):
+        BodyNode(context=context, parameter_overrides=overrides)
