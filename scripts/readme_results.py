@@ -1,13 +1,13 @@
 """The README's result table, rendered from the metrics.json of one run of each strategy.
 
-  .venv/bin/python scripts/readme_results.py            # run both (seed 0, config/paper.yaml), write
-                                                        # docs/results/*/metrics.json and the README table
-  .venv/bin/python scripts/readme_results.py --render   # the README table from docs/results/ only
-  .venv/bin/python scripts/readme_results.py --check    # exit 1 if the README's table differs
+  .venv/bin/python scripts/readme_results.py           # run both strategies, then render
+  .venv/bin/python scripts/readme_results.py --render  # render from docs/readme-metrics/ only
+  .venv/bin/python scripts/readme_results.py --check   # exit 1 if the README's table differs
 
-The runs are ``sensorispace reproduce --strategy <paper|naive> --config
-config/paper.yaml --no-figures``; only their metrics.json is kept, in
-docs/results/<strategy>-seed0/. tests/test_readme_results.py checks that the
+The runs (seed 0, about 7 minutes of one core) are ``sensorispace reproduce
+--strategy <paper|naive> --config config/paper.yaml --no-figures``; only
+their metrics.json is kept, in
+docs/readme-metrics/<strategy>-seed0/. tests/test_readme_results.py checks that the
 README's table is the one rendered from those files and that they were made
 with the current config/paper.yaml.
 """
@@ -23,7 +23,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
-RESULTS = REPO / "docs" / "results"
+RESULTS = REPO / "docs" / "readme-metrics"
 CONFIG = REPO / "config" / "paper.yaml"
 STRATEGIES = ("paper", "naive")
 HEADER = "| result | paper | `paper` strategy | `naive` strategy |"
@@ -120,7 +120,8 @@ def run_strategies(results: Path = RESULTS) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--render", action="store_true", help="render only, from docs/results/")
+    mode.add_argument("--render", action="store_true",
+                      help="render only, from docs/readme-metrics/")
     mode.add_argument("--check", action="store_true", help="exit 1 if the README differs")
     args = parser.parse_args(argv)
     if not (args.render or args.check):
@@ -128,7 +129,7 @@ def main(argv=None) -> int:
     before, after = rendered_readme()
     if args.check:
         if before != after:
-            print("README.md's result table differs from docs/results/: run "
+            print("README.md's result table differs from docs/readme-metrics/: run "
                   "scripts/readme_results.py", file=sys.stderr)
             return 1
         return 0

@@ -1,5 +1,5 @@
 """The README's result table is the one scripts/readme_results.py renders from
-docs/results/<strategy>-seed0/metrics.json, and those files were made with
+docs/readme-metrics/<strategy>-seed0/metrics.json, and those files were made with
 the current config/paper.yaml (a run of both strategies takes minutes of a
 core, too long for the suite: the script makes them again in one command)."""
 from __future__ import annotations

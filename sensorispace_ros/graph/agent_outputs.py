@@ -101,8 +101,8 @@ def account(agent, n_povs: int, n_rows: int, changes: int) -> str:
 def transport(body, late_answers: int, stats: dict, slow_reads: int) -> str:
     """How the run's commands and answers travelled (``BodyOverTopics``' counters,
     the checkpoint's), in one line."""
-    return (f"{body.requests} commands ({body.ahead_used} sent ahead with a settle), "
-            f"{1e3 * body.round_trip_s / max(body.requests, 1):.3f} ms waited for each, "
+    return (f"transport: {body.requests} commands ({body.ahead_used} sent ahead with a "
+            f"settle), {1e3 * body.round_trip_s / max(body.requests, 1):.3f} ms waited for each, "
             f"{body.retransmits} commands re-sent, {late_answers} late answers, "
             f"{body.replayed} answers and {stats['replayed_passives']} passive sensations "
             f"replayed, {stats['snapshots']} snapshots ({stats['snapshot_s']:.2f} s, last "
