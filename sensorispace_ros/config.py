@@ -194,6 +194,8 @@ GRAPH_SCHEMA: dict[str, Param] = _table(_TABLES["graph"])
 # The recorder's own parameters (``recorder.*``), not part of the run configuration either.
 RECORDER_PREFIX = "recorder."
 RECORDER_SCHEMA: dict[str, Param] = _table(_TABLES["recorder"])
+# The replay node's own parameters, named without a prefix (``rate``, ``topics``, ...).
+REPLAY_SCHEMA: dict[str, Param] = _table(_TABLES["replay"])
 
 
 def _is_spec(node: Any) -> bool:
@@ -318,6 +320,13 @@ def load_recorder(overrides: dict | None = None) -> dict:
     values = _defaults_of(RECORDER_SCHEMA)
     values.update(copy.deepcopy(overrides or {}))
     return _validate_section(values, RECORDER_SCHEMA, RECORDER_PREFIX)
+
+
+def load_replay(overrides: dict | None = None) -> dict:
+    """The replay node's parameters, as ``load_graph`` the ``graph.*`` ones."""
+    values = _defaults_of(REPLAY_SCHEMA)
+    values.update(copy.deepcopy(overrides or {}))
+    return _validate_section(values, REPLAY_SCHEMA, "")
 
 
 # ---------------------------------------------------------------------------

@@ -24,6 +24,7 @@ from .conftest import SMOKE
      "recorder.chunk_interval_s: must be a finite number > 0.0, got 0.0"),
     ("recorder", "recorder.write_ahead:=1", "recorder.write_ahead: must be true or false"),
     ("recorder", "recorder.topicz:=[/agent/done]", "recorder.topicz: unknown parameter"),
+    ("replay", "match_timeout_s:=0.0", "match_timeout_s: must be a finite number > 0.0, got 0.0"),
     # only the simulated body checks the start against the simulated arm
     ("body", "arm.initial_motor_state:=[0.1,0.2]",
      "arm.initial_motor_state: must hold one value per joint (4: 3 links"),
