@@ -13,7 +13,7 @@ from sensorispace_ros.graph.nodes.representation import RESULT_FILE, Representat
 from .conftest import SMOKE
 
 BODY = BodyDescription.revolute(2, 3)
-END_STAMP_NS = 1_796_000_000_123_000_000        # 2026-11-30 ... .123 UTC
+END_STAMP_NS = 1_796_000_000_123_000_000        # 2026-11-30 00:53:20.123 UTC
 
 
 def _table(topic, frame_id, stamp_ns=0, **columns):
@@ -43,3 +43,15 @@ def test_three_povs_give_a_result_with_the_reason_and_a_clean_exit(context, tmp_
             assert int(stored["agent_changes"]) == 5 and "hausdorff" not in stored
     finally:
         node.destroy_node()
+
+
+def test_a_second_run_gets_a_directory_of_its_own():
+    from pathlib import Path
+
+    from sensorispace_ros.graph.framework import run_directory
+
+    first = run_directory("results/graph/{run}", END_STAMP_NS)
+    second = run_directory("results/graph/{run}", END_STAMP_NS + 1_000_000)
+    assert first.parent == second.parent == Path("results/graph") and first != second
+    assert first.name == "run-20261130-005320-123"
+    assert run_directory("results/mine", END_STAMP_NS) == Path("results/mine")
