@@ -120,7 +120,7 @@ def run_pair(args, legacy: bool = False) -> float:
             mode = "processes (launch: start-up included, evaluation not)"
             round_trip = None
             for line in (result.results_dir / "logs" / "agent.log").read_text().splitlines():
-                if "run over" in line:
+                if "run over" in line or "transport:" in line:
                     print("agent:", line.split("]: ", 1)[-1])
         else:
             result = in_process.run_graph_in_process(args.config, dds_environment.free_domain_id(),

@@ -60,9 +60,9 @@ def end_to_end(config: Path, work: Path, graph_timeout_s: float) -> dict:
                          timeout_s=graph_timeout_s + 120)
     agent_log = work / "graph" / "bench" / "logs" / "agent.log"
     if agent_log.is_file():
-        graph["agent_summary"] = next((line.split("]: ", 1)[-1] for line in
-                                       agent_log.read_text().splitlines() if "run over" in line),
-                                      None)
+        graph["agent_summary"] = " ".join(
+            line.split("]: ", 1)[-1] for line in agent_log.read_text().splitlines()
+            if "run over" in line or "transport:" in line) or None
     # wait4's rusage covers the child and the descendants it waited for: the
     # node processes the launcher stopped and reaped.
     graph["note"] = ("cpu_s sums the launcher and its node processes; peak_rss_mib is the "

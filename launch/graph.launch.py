@@ -14,6 +14,11 @@ whole run) or when a node fails. Metrics from the bag:
   ros2 launch sensorispace_ros graph.launch.py run:=seed0
   ros2 launch sensorispace_ros graph.launch.py config:=my.yaml record:=false domain_id:=42
   ros2 launch sensorispace_ros graph.launch.py view_port:=8765   # + the viewer, live in Foxglove
+  ros2 launch sensorispace_ros graph.launch.py body:=false record:=false  # your body, node own_body
+
+With ``body:=false`` the simulated body is left out and a body of your own
+(docs/own-body.md), started by you, takes its place; the environment waits
+for its node, named by ``body_node:=`` (default ``own_body``).
 """
 import asyncio
 import os
@@ -55,6 +60,11 @@ def generate_launch_description():
                               description='start the recorder (true|false)'),
         DeclareLaunchArgument('domain_id', default_value='',
                               description='ROS_DOMAIN_ID (default: a free one in 1..100)'),
+        DeclareLaunchArgument('body', default_value='true',
+                              description='start the simulated body (false: a body of your '
+                                          'own takes its place, docs/own-body.md)'),
+        DeclareLaunchArgument('body_node', default_value='own_body',
+                              description='with body:=false, the node name of your body'),
         DeclareLaunchArgument('view_port', default_value='0',
                               description='start the viewer, serving the run to the Foxglove '
                                           'app on ws://127.0.0.1:<port> (0: no viewer)'),
@@ -66,6 +76,7 @@ def graph(context):
     """The nodes and their environment, once the launch arguments are known."""
     arg = context.launch_configurations
     record = arg['record'].strip().lower() in ('true', '1', 'yes')
+    simulated_body = arg['body'].strip().lower() in ('true', '1', 'yes')
     run = arg['run'] or time.strftime('graph-%Y%m%d-%H%M%S')
     results = Path(arg['results_dir']) / run
     bag = Path(arg['bags_dir']) / run
@@ -77,24 +88,28 @@ def graph(context):
     except ValueError:
         raise ValueError(f"domain_id: must be an integer, got {arg['domain_id']!r}") from None
     config = arg['config']
-    own = {'graph.results_dir': str(results), 'graph.checkpoint_dir': str(checkpoints)}
+    # The representation's exit ends the launch; the others are stopped then.
+    own = {'graph.results_dir': str(results), 'graph.checkpoint_dir': str(checkpoints),
+           'graph.exit_when_done': False}
     try:
         view_port = int(arg['view_port'])
     except ValueError:
         raise ValueError(f"view_port: must be an integer, got {arg['view_port']!r}") from None
-    waited_for = (['body', 'agent', 'representation'] + (['recorder'] if record else [])
+    body = 'body' if simulated_body else arg['body_node']
+    waited_for = ([body, 'agent', 'representation'] + (['recorder'] if record else [])
                   + (['viewer'] if view_port else []))
 
     nodes = [
         Node(package=PACKAGE, executable='environment', output='screen',
              parameters=[config, {**own, 'graph.wait_for_nodes': waited_for}]),
-        Node(package=PACKAGE, executable='body', output='screen',
-             parameters=[config, own]),
         Node(package=PACKAGE, executable='agent', output='screen',
              parameters=[config, own]),
         Node(package=PACKAGE, executable='representation', output='screen',
              parameters=[config, {**own, 'graph.exit_when_done': True}]),
     ]
+    if simulated_body:
+        nodes.append(Node(package=PACKAGE, executable='body', output='screen',
+                          parameters=[config, own]))
     if record:
         nodes.append(Node(package=PACKAGE, executable='recorder', output='screen',
                           parameters=[config, {'bag_path': str(bag)}]))

@@ -191,6 +191,11 @@ NAIVE = SCHEMA["naive"]
 # (neither in metrics.json nor in a bag's stored configuration).
 GRAPH_PREFIX = "graph."
 GRAPH_SCHEMA: dict[str, Param] = _table(_TABLES["graph"])
+# The recorder's own parameters (``recorder.*``), not part of the run configuration either.
+RECORDER_PREFIX = "recorder."
+RECORDER_SCHEMA: dict[str, Param] = _table(_TABLES["recorder"])
+# The replay node's own parameters, named without a prefix (``rate``, ``topics``, ...).
+REPLAY_SCHEMA: dict[str, Param] = _table(_TABLES["replay"])
 
 
 def _is_spec(node: Any) -> bool:
@@ -223,11 +228,13 @@ def parameters(schema: dict = SCHEMA, prefix: str = "") -> dict[str, Param]:
 # ---------------------------------------------------------------------------
 
 
-def validate_config(cfg: dict) -> dict:
+def validate_config(cfg: dict, simulated_body: bool = True) -> dict:
     """Check every value of ``cfg``; return a normalised copy.
 
     ``cfg`` must be complete (as ``load_config`` makes it). Raises
-    ``ConfigError`` naming the first bad parameter.
+    ``ConfigError`` naming the first bad parameter. ``arm.initial_motor_state``
+    is checked against the simulated arm only with ``simulated_body``: a body
+    of one's own is checked against its own description, by the agent.
     """
     if not isinstance(cfg, dict):
         raise ConfigError(f"configuration must be a mapping, got {type(cfg).__name__}")
@@ -240,11 +247,11 @@ def validate_config(cfg: dict) -> dict:
         raise ConfigError("world.lights.min_in_view: must be <= world.lights.count "
                           f"({lights['count']}), got {lights['min_in_view']}")
     _check_naive_relations(out["naive"])
-    _check_body(out)
+    _check_body(out, simulated_body)
     return out
 
 
-def _check_body(cfg: dict) -> None:
+def _check_body(cfg: dict, simulated_body: bool) -> None:
     """The arm and the sensor code make sense together (``core.arm.Arm`` and
     ``core.sensor_code.SensorCode`` name the parameter in their errors)."""
     from sensorispace_ros.core.arm import Arm
@@ -259,7 +266,7 @@ def _check_body(cfg: dict) -> None:
                       dropout=retina["dropout"], motor_noise=arm_cfg["motor_noise"])
     except ValueError as error:
         raise ConfigError(str(error)) from None
-    if len(arm_cfg["initial_motor_state"]) != body_arm.n_joints:
+    if simulated_body and len(arm_cfg["initial_motor_state"]) != body_arm.n_joints:
         raise ConfigError(f"arm.initial_motor_state: must hold one value per joint "
                           f"({body_arm.n_joints}: {body_arm.n_links} links, eye "
                           f"{body_arm.eye!r}), got {arm_cfg['initial_motor_state']!r}")
@@ -311,11 +318,27 @@ def load_graph(overrides: dict | None = None) -> dict:
     return _validate_section(values, GRAPH_SCHEMA, GRAPH_PREFIX)
 
 
+def load_recorder(overrides: dict | None = None) -> dict:
+    """The ``recorder.*`` parameters, as ``load_graph`` the ``graph.*`` ones."""
+    values = _defaults_of(RECORDER_SCHEMA)
+    values.update(copy.deepcopy(overrides or {}))
+    return _validate_section(values, RECORDER_SCHEMA, RECORDER_PREFIX)
+
+
+def load_replay(overrides: dict | None = None) -> dict:
+    """The replay node's parameters, as ``load_graph`` the ``graph.*`` ones."""
+    values = _defaults_of(REPLAY_SCHEMA)
+    values.update(copy.deepcopy(overrides or {}))
+    return _validate_section(values, REPLAY_SCHEMA, "")
+
+
 # ---------------------------------------------------------------------------
 
 
-def load_config(path: str | Path | None = None, overrides: dict | None = None) -> dict:
-    """Paper defaults, then the file at ``path``, then ``overrides``; validated.
+def load_config(path: str | Path | None = None, overrides: dict | None = None,
+                simulated_body: bool = True) -> dict:
+    """Paper defaults, then the file at ``path``, then ``overrides``; validated
+    (``validate_config``, which says what ``simulated_body`` checks).
 
     ``overrides`` may be nested (``{"world": {"grid_count": 16}}``) or dotted
     (``{"world.grid_count": 16}``).
@@ -325,7 +348,7 @@ def load_config(path: str | Path | None = None, overrides: dict | None = None) -
         _merge(cfg, read_parameter_file(path), "")
     if overrides:
         _merge(cfg, unflatten(overrides), "")
-    return validate_config(cfg)
+    return validate_config(cfg, simulated_body)
 
 
 def read_parameter_file(path: str | Path) -> dict:

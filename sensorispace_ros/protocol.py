@@ -9,6 +9,9 @@ rclpy.
 """
 from __future__ import annotations
 
+import time
+from pathlib import Path
+
 from sensorispace_ros.core.world import REDISTRIBUTION, TRANSLATION
 
 FRAME_KINDS = ("change", "end", "cmd", "next")
@@ -22,6 +25,10 @@ KIND_OF_CODE = {code: kind for kind, code in KIND_CODES.items()}
 # Files in graph.results_dir: the representation node's arrays, the agent's records.
 RESULT_FILE = "representation.npz"
 AGENT_RECORDS_FILE = "agent_records.npz"
+# In graph.results_dir: the run's own directory, named by the time the agent
+# ended the run (the stamp of /agent/done, which the agent and the
+# representation both have), so that a second run does not overwrite a first.
+RUN_PLACEHOLDER = "{run}"
 # Files in graph.checkpoint_dir (state/): the agent's snapshot and journal, the
 # environment's progress record (the launcher polls it).
 SNAPSHOT_FILE = "agent.snapshot"
@@ -46,3 +53,12 @@ def parse_frame(frame_id: str) -> tuple[str, int] | None:
     if len(number) > 19 or int(number) > MAX_FRAME_NUMBER:
         return None
     return kind, int(number)
+
+
+def run_directory(results_dir: str, end_stamp_ns: int) -> Path:
+    """``graph.results_dir`` with ``{run}`` replaced by the run's name:
+    ``run-<UTC date>-<time>-<ms>`` of the end's stamp; a path without
+    ``{run}`` is the run directory itself."""
+    seconds, ns = divmod(int(end_stamp_ns), 1_000_000_000)
+    name = time.strftime("run-%Y%m%d-%H%M%S", time.gmtime(seconds)) + f"-{ns // 1_000_000:03d}"
+    return Path(results_dir.replace(RUN_PLACEHOLDER, name))

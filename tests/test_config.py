@@ -216,7 +216,8 @@ def test_naive_params_are_the_naive_section():
 
 
 def test_every_parameter_has_a_default_that_passes_its_check_and_a_meaning():
-    for schema, prefix in ((config.SCHEMA, ""), (config.GRAPH_SCHEMA, "graph.")):
+    for schema, prefix in ((config.SCHEMA, ""), (config.GRAPH_SCHEMA, "graph."),
+                           (config.RECORDER_SCHEMA, "recorder."), (config.REPLAY_SCHEMA, "")):
         entries = config.parameters(schema, prefix)
         for name, param in entries.items():
             assert param.check(name, param.default) == param.default, name

@@ -31,6 +31,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="start a node killed by a signal again, up to N times per node "
                              "(N = 3 if omitted; default 0: the run fails at once); it "
                              "resumes from results/<run>/checkpoints")
+    parser.add_argument("--no-body", action="store_true",
+                        help="leave the simulated body out: a body of your own, started by "
+                             "you, takes its place (docs/own-body.md); not evaluated")
+    parser.add_argument("--body-node", default="own_body", metavar="NAME",
+                        help="with --no-body, the node name of your body (default own_body)")
     parser.add_argument("--view", action="store_true",
                         help="also start the viewer and serve the run to the Foxglove app on "
                              "ws://localhost:<--view-port> (docs/viewing.md)")
@@ -55,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = launch_graph(args.config, args.run, args.domain_id, record=not args.no_record,
                               results_root=args.results, timeout_s=args.timeout,
-                              respawn=args.respawn, view_port=view_port)
+                              respawn=args.respawn, view_port=view_port,
+                              own_body=args.body_node if args.no_body else "")
     except ConfigError as exc:
         print(f"sensorispace launch: invalid configuration: {exc}", file=sys.stderr)
         return 2

@@ -26,7 +26,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from sensorispace_ros.core import arm, retina
+from sensorispace_ros.core import retina
 from sensorispace_ros.core.arm import LEVEL_DIRECTION as _LEVEL_DIRECTION
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.body_description import BodyDescription

@@ -39,7 +39,16 @@ def world_params(cfg: dict) -> dict:
 
 def run_world(cfg: dict, seed: int | None = None) -> World:
     """The world (ground truth and schedule) of a run of the validated
-    configuration ``cfg``, seeded by ``seed`` (``cfg["seed"]`` by default)."""
+    configuration ``cfg``, seeded by ``seed`` (``cfg["seed"]`` by default).
+    A start of another length than the simulated arm's joints (a body of
+    one's own) is replaced, for the draw, by the simulated arm's default."""
     from sensorispace_ros.core.paper import exploration   # numba and scipy: on first use
 
-    return exploration.build_world(int(cfg["seed"] if seed is None else seed), world_params(cfg))
+    params = world_params(cfg)
+    n_joints = exploration.Arm.from_config(cfg["arm"]).n_joints
+    if len(params["m0"]) != n_joints:
+        # A start given for a body of one's own, not the simulated arm: the
+        # lights are drawn for the simulated arm's own default start.
+        default = exploration.PAPER_PARAMS["m0"]
+        params["m0"] = tuple(default) if len(default) == n_joints else (0.0,) * n_joints
+    return exploration.build_world(int(cfg["seed"] if seed is None else seed), params)

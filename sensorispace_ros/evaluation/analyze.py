@@ -56,7 +56,8 @@ from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from
 from sensorispace_ros.evaluation.naive import naive_metrics
 from sensorispace_ros.evaluation.run_files import run_arrays
 from sensorispace_ros.evaluation.runs import evaluate_graph_run
-from sensorispace_ros.offline.representation import assemble_points_of_view, build_representation
+from sensorispace_ros.offline.pov_assembly import assemble_points_of_view, equality_pairs
+from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
 from sensorispace_ros.protocol import KIND_OF_CODE, parse_frame
 from sensorispace_ros.recording.bag_format import SESSION_CONFIG_TOPIC, BagError
@@ -130,14 +131,12 @@ def agent_data(bag_dir, description=None) -> dict:
     ids, povs = assemble_points_of_view(list(pov_tables.values()), description.n_motors)
     rows = (np.concatenate(list(row_tables.values())) if row_tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))
-    pairs = np.stack([np.searchsorted(ids, rows["pov_from"]),
-                      np.searchsorted(ids, rows["pov_to"])], axis=-1).astype(np.int64)
+    pairs, set_ids = equality_pairs(ids, rows)
     change_of_pov = {}
     for frame_id, table in pov_tables.items():
         for pov in np.unique(table["pov"]):
             change_of_pov.setdefault(int(pov), frame_id)
-    return {"ids": ids, "povs": povs, "pairs": pairs.reshape(-1, 2),
-            "set_ids": rows["set"].astype(np.int64),
+    return {"ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
             "pov_frames": [change_of_pov[int(i)] for i in ids]}
 
 

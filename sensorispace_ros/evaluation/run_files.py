@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros import config as config_mod
+from sensorispace_ros.offline.pov_assembly import embedding_arrays
 from sensorispace_ros.offline.representation import DIMENSIONS, Representation
 
 from typing import TYPE_CHECKING
@@ -42,11 +43,7 @@ def run_arrays(produced: StrategyOutput, representation: Representation, cfg: di
         "config_json": np.asarray(json.dumps(cfg, sort_keys=True)),
         "seed": np.int64(seed),
     }
-    for dim in representation.before:
-        arrays[f"embedding_{dim}_before"] = representation.before[dim]
-        arrays[f"embedding_{dim}_iterations"] = representation.iterations[dim]
-        arrays[f"set_spread_{dim}"] = representation.set_spread[dim]
-    return arrays
+    return {**arrays, **embedding_arrays(representation)}
 
 
 def representation_from_arrays(arrays) -> Representation:

@@ -86,8 +86,18 @@ def _seed_list(seeds: list[int]) -> str:
     return ", ".join(parts)
 
 
+# Metrics whose name alone misleads, explained under the table that shows them.
+METRIC_NOTES = {
+    "naive.coverage_of_paper_positions":
+        "the fraction of the paper strategy's very sensor positions the naive agent reaches, "
+        "not its coverage (`naive.coverage`): its anchors usually sit a lattice offset away "
+        "from them, so a value near 0 beside a coverage near 1 is expected",
+}
+
+
 def summary_markdown(summary: dict) -> str:
-    """One table per configuration: metric, mean, sd, min (seed), max (seed)."""
+    """One table per configuration: metric, mean, sd, min (seed), max (seed); then
+    the notes (``METRIC_NOTES``) of the metrics it shows."""
     lines = [f"# Sweep summary: strategy `{summary['strategy']}`", ""]
     for name, entry in summary["configs"].items():
         lines += [f"## `{name}`: seeds {_seed_list(entry['seeds'])} ({len(entry['seeds'])} runs)",
@@ -98,4 +108,7 @@ def summary_markdown(summary: dict) -> str:
                          f"{_number(s['min'])} ({s['seed_min']}) | "
                          f"{_number(s['max'])} ({s['seed_max']}) |")
         lines.append("")
+        lines += [f"`{key}`: {note}." for key, note in METRIC_NOTES.items()
+                  if key in entry["metrics"]]
+        lines += [""] * any(key in entry["metrics"] for key in METRIC_NOTES)
     return "\n".join(lines)

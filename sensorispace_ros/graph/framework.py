@@ -24,7 +24,8 @@ from rclpy.publisher import Publisher
 
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.run_world import run_world as build_world  # noqa: F401 (the nodes' name)
-from sensorispace_ros.protocol import MAX_FRAME_NUMBER, frame, parse_frame  # noqa: F401
+from sensorispace_ros.protocol import (MAX_FRAME_NUMBER, RUN_PLACEHOLDER, frame,  # noqa: F401
+                                       parse_frame, run_directory)
 from sensorispace_ros.graph import tracing
 
 # Parameters of the graph itself (not of the science): config.GRAPH_SCHEMA.
@@ -53,8 +54,12 @@ class GraphNode(Node):
     Parameters are declared from the parameter file
     (``automatically_declare_parameters_from_overrides``) so that every one,
     typos included, reaches ``config.load_config`` / ``config.load_graph``,
-    which name the bad parameter.
+    which name the bad parameter. Only the simulated body checks
+    ``arm.initial_motor_state`` against the simulated arm
+    (``simulated_body``); a body of one's own says what it is itself.
     """
+
+    simulated_body = False
 
     def __init__(self, name: str, *, context=None, parameter_overrides=None):
         super().__init__(name, context=context, parameter_overrides=parameter_overrides,
@@ -74,7 +79,7 @@ class GraphNode(Node):
                 graph[pname[len(GRAPH_PREFIX):]] = value
             else:
                 flat[pname] = value
-        self.cfg = config.load_config(None, overrides=flat)
+        self.cfg = config.load_config(None, overrides=flat, simulated_body=self.simulated_body)
         self.graph = config.load_graph(graph)
         self.dropped: dict[str, int] = {}
         self._cloud_readers: dict[str, messages.CloudCdrReader] = {}

@@ -110,6 +110,7 @@ def run_graph_in_process(config_path: str | Path, domain_id: int, results_dir: s
                signal_handler_options=SignalHandlerOptions.NO)
     overrides = parameter_overrides(config_path, {"graph.results_dir": str(results_dir),
                                                   "graph.resend_period_s": 0.5,
+                                                  "graph.exit_when_done": False,
                                                   **(parameters or {})})
     graph = _InProcessGraph(context, overrides, {**_graph_nodes(), **(node_factories or {})})
     try:

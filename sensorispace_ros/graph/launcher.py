@@ -224,6 +224,7 @@ class RunPlan:
     record: bool
     total_changes: int
     view_port: int = 0              # 0: no viewer
+    own_body: str = ""              # the node name of a body of one's own ("": the simulated one)
 
     @property
     def log_dir(self) -> Path:
@@ -235,7 +236,8 @@ class RunPlan:
 
     @property
     def nodes(self) -> list[str]:
-        return (list(GRAPH_NODES) + ([RECORDER] if self.record else [])
+        return ([n for n in GRAPH_NODES if not (self.own_body and n == "body")]
+                + ([RECORDER] if self.record else [])
                 + ([VIEWER] if self.view_port else []))
 
     def node_parameters(self, name: str) -> dict:
@@ -245,28 +247,33 @@ class RunPlan:
         parameters = {"graph.results_dir": str(self.results_dir),
                       "graph.checkpoint_dir": str(self.checkpoint_dir)}
         if name == "environment":
-            parameters["graph.wait_for_nodes"] = [n for n in self.nodes if n != "environment"]
-        if name == "representation":
-            parameters["graph.exit_when_done"] = True
+            parameters["graph.wait_for_nodes"] = [n for n in self.nodes if n != "environment"] \
+                + ([self.own_body] if self.own_body else [])
+        # The representation's exit ends the run; the others are stopped by PID
+        # once the recorder holds everything (an exit would count as a death).
+        parameters["graph.exit_when_done"] = name == "representation"
         if name == VIEWER:
             parameters["graph.view_port"] = self.view_port
         return parameters
 
 
 def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root,
-             view_port: int = 0) -> RunPlan:
+             view_port: int = 0, own_body: str = "") -> RunPlan:
     """Load the configuration, name the run, make its log directory and remove what
-    an earlier run of the same name persisted (a fresh run must not resume it)."""
+    an earlier run of the same name persisted (a fresh run must not resume it).
+    ``own_body``: the node name of a body of one's own, started by its user,
+    in place of the simulated body."""
     from sensorispace_ros import config
     from sensorispace_ros.core.run_world import run_world
 
     config_path = Path(config_path) if config_path else default_config()
-    cfg = config.load_config(config_path)
+    cfg = config.load_config(config_path, simulated_body=not own_body)
     run = run or time.strftime(f"graph-seed{cfg['seed']}-%Y%m%d-%H%M%S")
     domain_id = free_domain_id() if domain_id is None else int(domain_id)
     plan = RunPlan(cfg, config_path, run, Path(results_root) / run, Path(bags_root) / run,
                    domain_id, graph_environment(domain_id), record,
-                   total_changes=len(run_world(cfg).events) + 1, view_port=int(view_port))
+                   total_changes=len(run_world(cfg).events) + 1, view_port=int(view_port),
+                   own_body=own_body)
     plan.log_dir.mkdir(parents=True, exist_ok=True)
     shutil.rmtree(plan.checkpoint_dir, ignore_errors=True)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = plan.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
@@ -344,7 +351,7 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
                  domain_id: int | None = None, record: bool = True,
                  results_root: str | Path = "results", bags_root: str | Path = "bags",
                  timeout_s: float | None = None, stream=None, on_started=None,
-                 respawn: int = 0, view_port: int = 0) -> LaunchResult:
+                 respawn: int = 0, view_port: int = 0, own_body: str = "") -> LaunchResult:
     """Start every node as a process, follow the run, stop the children, evaluate.
 
     ``on_started(graph)`` is called once every child runs (tests use it to
@@ -355,13 +362,16 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     error code is never respawned, except one that asks for it
     (``framework.RESTART_EXIT_CODE``), up to ASKED_RESTARTS times a node.
     ``view_port``: also start the viewer, serving the run to the Foxglove app on
-    ws://127.0.0.1:<view_port> (0: no viewer).
+    ws://127.0.0.1:<view_port> (0: no viewer). ``own_body``: the node name of
+    a body of one's own that takes the simulated body's place (not evaluated:
+    the ground truth is the simulated world's).
     """
     from sensorispace_ros.graph.framework import RESTART_EXIT_CODE
 
     policy = RespawnPolicy(respawn, RESTART_EXIT_CODE)
     stream = sys.stderr if stream is None else stream
-    plan = plan_run(config_path, run, domain_id, record, results_root, bags_root, view_port)
+    plan = plan_run(config_path, run, domain_id, record, results_root, bags_root, view_port,
+                    own_body)
     print(f"[launch] run {plan.run}: ROS_DOMAIN_ID={plan.domain_id}, discovery "
           f"{plan.env['ROS_AUTOMATIC_DISCOVERY_RANGE']}, config {plan.config_path}, "
           f"logs {plan.log_dir}" + (f", bag {plan.bag_dir}" if record else ", not recording"),
@@ -389,7 +399,10 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
     print(f"[launch] graph {'finished' if result.exit_code == 0 else 'stopped'} after "
           f"{result.wall_s:.1f} s" + (f": {result.message}" if result.message else ""),
           file=stream, flush=True)
-    if result.exit_code == 0:
+    if result.exit_code == 0 and own_body:
+        print(f"[launch] results in {plan.results_dir} (a body of one's own: not evaluated)",
+              file=stream, flush=True)
+    elif result.exit_code == 0:
         result.metrics = evaluate_run(plan.cfg, plan.results_dir, plan.bag_dir if record else None)
         print_summary(result.metrics, plan.results_dir, stream)
     return result

@@ -214,21 +214,3 @@ def _dimension_chain(distance: np.ndarray, pairs: np.ndarray, set_ids: np.ndarra
             "spread": spread,
             "timings_s": {"cca": cca_s,
                           "regularization": time.perf_counter() - started - cca_s}}
-
-
-def assemble_points_of_view(tables: list[np.ndarray], n_motors: int
-                            ) -> tuple[np.ndarray, np.ndarray]:
-    """POV ids (sorted) and motor samples ``(n_povs, n_samples, n_motors)`` from
-    row tables (columns pov, sample, m0..m{n_motors-1})."""
-    if not tables:
-        return np.zeros(0, dtype=np.int64), np.zeros((0, 0, n_motors))
-    rows = np.concatenate(tables)
-    ids = np.unique(rows["pov"]).astype(np.int64)
-    n_samples = int(rows["sample"].max()) + 1
-    motor = np.full((len(ids), n_samples, n_motors), np.nan)
-    where = np.searchsorted(ids, rows["pov"])
-    for j in range(n_motors):
-        motor[where, rows["sample"], j] = rows[f"m{j}"]
-    if np.isnan(motor).any():
-        raise ValueError("some point of view misses samples")
-    return ids, motor

@@ -202,3 +202,26 @@ def read_snapshot(path: str | Path) -> dict | None:
     if not isinstance(state, dict) or state.get("format") != SNAPSHOT_FORMAT:
         raise CheckpointError(f"{path}: not an agent snapshot of format {SNAPSHOT_FORMAT}")
     return state
+
+
+# The agent node's own counters in a snapshot (beside NaiveAgent.state()):
+# on the node, and on its BodyOverTopics.
+NODE_FIELDS = ("last_passive", "last_settled", "n_povs", "n_rows", "run_over")
+BODY_FIELDS = ("requests", "retransmits", "round_trip_s")
+
+
+def node_snapshot(node, body) -> dict:
+    """The node's and its body link's counters and queued passive sensations."""
+    return {**{name: getattr(node, name) for name in NODE_FIELDS},
+            **{name: getattr(body, name) for name in BODY_FIELDS},
+            "passive": list(node.passive)}
+
+
+def restore_node(saved: dict, node, body) -> None:
+    """``node_snapshot``'s counters back on ``node`` and ``body`` (KeyError if one is missing)."""
+    values = {name: saved[name] for name in NODE_FIELDS + BODY_FIELDS + ("passive",)}
+    for name in NODE_FIELDS:
+        setattr(node, name, values[name])
+    for name in BODY_FIELDS:
+        setattr(body, name, values[name])
+    node.passive.extend(values["passive"])

@@ -154,3 +154,16 @@ def test_a_sweep_on_a_scheduler_with_two_separate_workers(reference, tmp_path):
     for task in outcome.done:
         assert _results(Path(task.run_dir) / METRICS_FILE) == reference["naive", task.seed]
     assert all(p.returncode is not None for p in processes)
+
+
+def test_a_misleading_metric_is_explained_under_its_table():
+    from sensorispace_ros.offline.sweep_summary import summary_markdown
+
+    def summary(keys):
+        stats = {"mean": 0.1, "sd": 0.0, "min": 0.0015, "max": 1.0, "seed_min": 0, "seed_max": 1}
+        return {"strategy": "naive",
+                "configs": {"paper": {"seeds": [0, 1], "metrics": {k: stats for k in keys}}}}
+
+    shown = summary_markdown(summary(["naive.coverage", "naive.coverage_of_paper_positions"]))
+    assert "`naive.coverage_of_paper_positions`: the fraction of the paper strategy's" in shown
+    assert "lattice offset" not in summary_markdown(summary(["naive.coverage"]))

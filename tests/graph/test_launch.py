@@ -110,13 +110,13 @@ def test_launch_runs_the_smoke_config_and_the_agent_is_naive(smoke_launch):
     assert "after" in metrics["quality"]["2d"]
     # The snapshot's wait for its reactions to be acknowledged ends with the
     # acknowledgements (the graph's writers heartbeat every 100 ms), not at its 1 s timeout.
-    run_over = [line for line in (smoke_launch["results"] / "logs" / "agent.log").read_text()
-                .splitlines() if "run over" in line]
-    assert run_over and re.search(r"\b[1-9]\d* snapshots", run_over[0]), run_over
-    assert " 0 acknowledgement waits timed out" in run_over[0], run_over
+    transport = [line for line in (smoke_launch["results"] / "logs" / "agent.log").read_text()
+                 .splitlines() if "transport:" in line]
+    assert transport and re.search(r"\b[1-9]\d* snapshots", transport[0]), transport
+    assert " 0 acknowledgement waits timed out" in transport[0], transport
     # Every probe message took CloudCdrReader's fast path both ways (between
     # processes the payloads arrive padded; the general path read them all once).
-    assert run_over[0].endswith(" 0 sensations not read by the fast path"), run_over
+    assert transport[0].endswith(" 0 sensations not read by the fast path"), transport
     # The recorder said it held the agent's whole run before the launcher stopped
     # it (recording.completeness), and took its marker away with the bag closed.
     recorder_log = (smoke_launch["results"] / "logs" / "recorder.log").read_text()

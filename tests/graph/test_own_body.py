@@ -1,10 +1,12 @@
-"""A body of one's own (docs/own-body.md): tests/graph/own_body.py, two joints in
-degrees and three receptors, written with rclpy and sensor_msgs alone, in
-place of the project's simulator. The project's environment and agent, each
-a process of its own on a private domain, take it as it describes itself: the
-agent sends 2-column commands, gets 3-column sensations, settles change
-after change and ends the run with its totals. It need not find any spatial
-structure in such a body."""
+"""A body of one's own (docs/own-body.md): examples/own_body.py, a two-joint
+arm in degrees with three receptors, written with rclpy and sensor_msgs
+alone, in place of the project's simulator, run by the doc's commands with
+the project's environment, agent and representation, each a process of its
+own on a private domain, on config/smoke.yaml. Given a start of two values,
+or none (every joint at 0: a straight arm, singular, which the agent leaves
+by itself), every process exits by itself, the agent finds points of view
+and the representation is written in a run directory of its own. Publishing
+UINT16 counts (a 16-bit sensor), the run goes to its end as well."""
 from __future__ import annotations
 
 import re
@@ -13,151 +15,132 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from shared import SMOKE, stop_by_pid
+from shared import REPO, SMOKE, stop_by_pid
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
-OWN_BODY = Path(__file__).resolve().parent / "own_body.py"
+OWN_BODY = REPO / "examples" / "own_body.py"
+NODES = ("agent", "representation", "environment")
 
 
-class Observer:
-    """A participant of the test's own: the fields of every command and
-    sensation, the changes the agent settled and its /agent/done totals."""
-
-    def __init__(self, domain_id: int):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-        from sensor_msgs.msg import PointCloud2
-        from std_msgs.msg import UInt64
-
-        from sensorispace_ros import contracts
-
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("own_body_observer", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.fields = {"/body/motor_command": set(), "/body/sensation": set()}
-        self.datatypes = {topic: set() for topic in self.fields}      # PointField datatypes
-        self.settled: list[int] = []
-        self.done: dict | None = None
-        for topic, seen in self.fields.items():
-            self.node.create_subscription(
-                PointCloud2, topic,
-                lambda msg, seen=seen, types=self.datatypes[topic]: (
-                    seen.add(tuple(f.name for f in msg.fields)),
-                    types.update(f.datatype for f in msg.fields)),
-                contracts.subscription_qos(topic))
-        self.node.create_subscription(UInt64, "/agent/settled",
-                                      lambda msg: self.settled.append(msg.data),
-                                      contracts.subscription_qos("/agent/settled"))
-        self.node.create_subscription(PointCloud2, "/agent/done", self.on_done,
-                                      contracts.subscription_qos("/agent/done"))
-
-    def on_done(self, msg) -> None:
-        from sensorispace_ros import contracts, messages
-
-        table = messages.cloud_to_table(msg, contracts.contract("/agent/done").columns)
-        self.done = {name: int(table[name][0]) for name in table.dtype.names}
-
-    def spin_until(self, done, timeout_s: float) -> None:
-        deadline = time.monotonic() + timeout_s
-        while not done() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.context.try_shutdown()
-
-
-def _run(tmp_path, domain_id, body_options=(), representation=False):
-    """The own body, the project's agent and environment (and representation),
-    each a process; returns the observer, the logs' text and the processes
-    that exited before the observer saw the end (and, with the representation,
-    before that wrote its result or said why not)."""
+def run_own_body(tmp_path: Path, domain_id: int, extra: list[str], body_args=()) -> dict:
+    """The doc's commands; returns each process's exit code and log, once all have exited."""
     from sensorispace_ros.graph.dds_environment import graph_environment
 
     env = graph_environment(domain_id)            # this test's domain, localhost only
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
-    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
-    graph = ["-p", f"graph.results_dir:={tmp_path / 'results'}"]
-    commands = {
-        "own_body": [str(OWN_BODY), *body_options],
-        "agent": ["-m", "sensorispace_ros.graph.nodes.agent", "--ros-args",
-                  "--params-file", str(SMOKE), *graph],
-        "environment": ["-m", "sensorispace_ros.graph.nodes.environment", "--ros-args",
-                        "--params-file", str(SMOKE), *graph,
-                        "-p", "graph.wait_for_nodes:=[own_body,agent]"]}
-    if representation:
-        commands["representation"] = ["-m", "sensorispace_ros.graph.nodes.representation",
-                                      "--ros-args", "--params-file", str(SMOKE), *graph]
+    env["PYTHONPATH"] = str(REPO)
+    params = ["--ros-args", "--params-file", str(SMOKE), "-p",
+              f"graph.results_dir:={tmp_path / 'results' / '{run}'}", *extra]
+    commands = {"own_body": [str(OWN_BODY), *body_args],
+                **{name: ["-m", f"sensorispace_ros.graph.nodes.{name}", *params]
+                   for name in NODES}}
+    commands["environment"] += ["-p", "graph.wait_for_nodes:=[own_body,agent,representation]"]
     processes, logs = {}, {name: tmp_path / f"{name}.log" for name in commands}
-    observer = Observer(domain_id)
-
-    def ended():
-        if representation:
-            return processes["representation"].poll() is not None or observer.done is not None \
-                and re.search(r"representation (written|failed)", logs["representation"].read_text())
-        return observer.done is not None or any(p.poll() is not None for p in processes.values())
     try:
         for name, command in commands.items():
             with open(logs[name], "wb") as log:
                 processes[name] = subprocess.Popen(
                     [sys.executable, *command], env=env, stdout=log, stderr=subprocess.STDOUT,
-                    start_new_session=True)
-        observer.spin_until(ended, timeout_s=240)
-        exited = {name: p.returncode for name, p in processes.items() if p.poll() is not None}
+                    cwd=tmp_path, start_new_session=True)
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and any(p.poll() is None for p in processes.values()):
+            time.sleep(0.2)
+        running = [name for name, p in processes.items() if p.poll() is None]
     finally:
-        observer.close()
         for process in processes.values():
             stop_by_pid(process)
-    return observer, {name: path.read_text() for name, path in logs.items()}, exited, processes
+    return {"running": running, "codes": {n: p.returncode for n, p in processes.items()},
+            "logs": {name: path.read_text() for name, path in logs.items()}}
 
 
-def test_the_agent_sizes_itself_from_a_body_it_does_not_know(tmp_path, domain_id):
-    observer, logs, exited, processes = _run(tmp_path, domain_id)
-    agent_log = logs["agent"]
-    assert not exited, (exited, agent_log[-3000:])
-    assert observer.done is not None, agent_log[-3000:]
-    n_changes = int(re.search(r"(\d+) environmental changes scheduled",
-                              logs["environment"]).group(1))
-    # Every change was settled (the observer may join late: the last ones at
-    # least), and the end came through the body's passive sensation.
-    assert observer.done["changes"] == n_changes + 1 and observer.done["calls"] > 0
-    assert len(set(observer.settled)) > 1 and max(observer.settled) >= n_changes
-    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in agent_log
-    assert observer.fields["/body/motor_command"] == {("m0", "m1")}
-    assert observer.fields["/body/sensation"] == {("s0", "s1", "s2")}
-    assert not re.search(r"dropped a message", agent_log), agent_log[-3000:]
-    assert all(process.poll() is not None for process in processes.values())
+def check_run(tmp_path: Path, run: dict) -> str:
+    logs = run["logs"]
+    assert not run["running"], (run["running"], logs["agent"][-3000:])
+    assert set(run["codes"].values()) == {0}, (run["codes"], logs["agent"][-3000:])
+    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in logs["agent"]
+    assert "measured body: pose rank 2 of 2 joints" in logs["agent"], logs["agent"][-3000:]
+    found = re.search(r"run over: found (\d+) points of view", logs["agent"])
+    assert found and int(found.group(1)) > 20, logs["agent"][-3000:]
+    assert not re.search(r"dropped a message|Traceback", logs["agent"]), logs["agent"][-3000:]
+    [written] = (tmp_path / "results").glob("run-*/representation.npz")
+    assert f"representation written to {written}" in logs["representation"]
+    with np.load(written) as stored:
+        assert "reason" not in stored
+        assert len(stored["pov_ids"]) == int(found.group(1))
+        assert stored["povs"].shape[2] == 2 and "embedding_2d_before" in stored
+    assert (written.parent / "agent_records.npz").is_file()
+    return logs["agent"]
 
 
-def test_the_agent_takes_the_uint16_sensations_of_a_16_bit_sensor(tmp_path, domain_id):
-    """The own body publishing what a 16-bit ADC gives (UINT16 columns): the
-    agent reads them (as float64, none dropped), the run ends, and the
-    representation writes its result or says why it has none."""
-    from sensor_msgs.msg import PointField
+def test_an_own_body_with_its_own_start(tmp_path, domain_id):
+    run = run_own_body(tmp_path, domain_id, ["-p", "arm.initial_motor_state:=[30.0,60.0]"])
+    agent_log = check_run(tmp_path, run)
+    assert "start kept" not in agent_log and "instead" not in agent_log
 
-    observer, logs, exited, _ = _run(tmp_path, domain_id, ("--sensor-type", "uint16"),
-                                     representation=True)
-    agent_log = logs["agent"]
-    assert observer.datatypes["/body/sensation"] == {PointField.UINT16}
-    assert observer.done is not None, agent_log[-3000:]
-    assert not exited.keys() - {"representation"}, (exited, agent_log[-3000:])
-    n_changes = int(re.search(r"(\d+) environmental changes scheduled",
-                              logs["environment"]).group(1))
-    assert observer.done["changes"] == n_changes + 1 and observer.done["calls"] > 0
-    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in agent_log
-    assert not re.search(r"dropped a message", agent_log), agent_log[-3000:]
-    written = (tmp_path / "results" / "representation.npz").is_file()
-    said_why = re.search(r"representation failed: (.+)|no representation: (.+)",
-                         logs["representation"])
-    assert written or said_why, logs["representation"][-3000:]
-    print(f"the agent on the UINT16 body: {observer.done}; representation "
-          + ("written" if written else f"not written: {said_why.group(0)}"))
+
+def test_an_own_body_with_the_default_start_which_is_straight(tmp_path, domain_id):
+    run = run_own_body(tmp_path, domain_id, [])
+    agent_log = check_run(tmp_path, run)
+    # smoke.yaml's start is the simulated arm's (4 values): every joint at 0, a
+    # straight arm whose rank the agent measures as lower than elsewhere.
+    assert "starting with every joint at 0" in agent_log
+    assert re.search(r"the given start has pose rank 1, 2 is measured elsewhere .*"
+                     r"started at a state of rank 2 instead", agent_log), agent_log[-3000:]
+
+
+def test_an_own_body_publishing_uint16_counts_runs_to_the_end(tmp_path, domain_id):
+    """The body publishing what a 16-bit ADC gives: the agent reads every
+    sensation (none dropped), every process exits by itself, and the
+    representation writes its result or the reason it has none."""
+    run = run_own_body(tmp_path, domain_id, ["-p", "arm.initial_motor_state:=[30.0,60.0]"],
+                       body_args=("--sensor-type", "uint16"))
+    logs = run["logs"]
+    assert not run["running"], (run["running"], logs["agent"][-3000:])
+    assert set(run["codes"].values()) == {0}, (run["codes"], logs["agent"][-3000:])
+    assert "body: 2 joints (hip, knee) in deg, 3 receptors" in logs["agent"]
+    assert not re.search(r"dropped a message|Traceback", logs["agent"]), logs["agent"][-3000:]
+    found = re.search(r"run over: found (\d+) points of view", logs["agent"])
+    assert found, logs["agent"][-3000:]
+    [written] = (tmp_path / "results").glob("run-*/representation.npz")
+    with np.load(written) as stored:
+        assert len(stored["pov_ids"]) == int(found.group(1))
+        assert ("reason" in stored) == (int(found.group(1)) < 4)
+    print(f"the agent on the UINT16 body: {found.group(0)}")
+
+
+def test_sensorispace_launch_no_body_runs_with_the_own_body(tmp_path, domain_id):
+    """``sensorispace launch --no-body``: the project's nodes without the
+    simulated body, the user's body started beside; the run ends, it is not
+    evaluated, and the representation is in the run's directory."""
+    from sensorispace_ros.graph.dds_environment import graph_environment
+
+    env = graph_environment(domain_id)
+    env["PYTHONPATH"] = str(REPO)
+    launch = [sys.executable, "-m", "sensorispace_ros.cli", "launch", "--config", str(SMOKE),
+              "--no-body", "--no-record", "--run", "own", "--domain-id", str(domain_id),
+              "--results", str(tmp_path / "results"), "--timeout", "300"]
+    processes = {}
+    try:
+        with open(tmp_path / "own_body.log", "wb") as log:
+            processes["own_body"] = subprocess.Popen(
+                [sys.executable, str(OWN_BODY)], env=env, stdout=log,
+                stderr=subprocess.STDOUT, cwd=tmp_path, start_new_session=True)
+        processes["launch"] = subprocess.Popen(launch, env=env, stdout=subprocess.PIPE,
+                                               stderr=subprocess.STDOUT, text=True, cwd=tmp_path,
+                                               start_new_session=True)
+        output, _ = processes["launch"].communicate(timeout=360)
+        processes["own_body"].wait(timeout=30)
+    finally:
+        for process in processes.values():
+            stop_by_pid(process)
+    assert processes["launch"].returncode == 0, output[-3000:]
+    assert processes["own_body"].returncode == 0
+    assert "started body" not in output and "not evaluated" in output, output[-3000:]
+    results = tmp_path / "results" / "own"
+    with np.load(results / "representation.npz") as stored:
+        assert stored["povs"].shape[2] == 2 and len(stored["pov_ids"]) > 20
+    assert not (results / "logs" / "body.log").exists()

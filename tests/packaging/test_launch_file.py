@@ -1,9 +1,12 @@
 """launch/graph.launch.py, read as source (no launch/launch_ros here): it starts
-console scripts that exist, the nodes the graph runs, with parameter files that exist."""
+console scripts that exist, the nodes the graph runs, with parameter files that exist;
+and run with stand-ins for launch and launch_ros: ``body:=false`` leaves the
+simulated body out."""
 from __future__ import annotations
 
 import ast
 import importlib
+import importlib.util
 
 from packaging_support import CONFIG_DIR, LAUNCH_FILE, PACKAGE, console_scripts
 
@@ -111,3 +114,61 @@ def module_constants_tuple(name: str) -> tuple:
                if isinstance(node, ast.Assign)
                and any(getattr(t, "id", None) == name for t in node.targets)]
     return value
+
+
+class _Recorded:
+    """Stands for a launch action: keeps what it was given."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+def _launch_module(monkeypatch):
+    """The launch file imported with stand-ins for launch, launch_ros and
+    ament_index_python (not installable from pip wheels)."""
+    import sys
+    import types
+
+    stand_ins = {
+        "ament_index_python": {}, "launch_ros": {},
+        "ament_index_python.packages": {"get_package_share_directory": lambda name: "/share"},
+        "launch": {"LaunchDescription": _Recorded},
+        "launch.actions": {name: type(name, (_Recorded,), {}) for name in (
+            "DeclareLaunchArgument", "LogInfo", "OpaqueCoroutine", "OpaqueFunction",
+            "RegisterEventHandler", "SetEnvironmentVariable", "Shutdown")},
+        "launch.event_handlers": {"OnProcessExit": _Recorded},
+        "launch.events": {"Shutdown": _Recorded},
+        "launch_ros.actions": {"Node": type("Node", (_Recorded,), {})}}
+    for name, attributes in stand_ins.items():
+        module = types.ModuleType(name)
+        vars(module).update(attributes)
+        monkeypatch.setitem(sys.modules, name, module)
+    spec = importlib.util.spec_from_file_location("graph_launch", LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _started_nodes(monkeypatch, tmp_path, **arguments):
+    module = _launch_module(monkeypatch)
+    declared = {action.args[0]: action.kwargs["default_value"]
+                for action in module.generate_launch_description().args[0]
+                if type(action).__name__ == "DeclareLaunchArgument"}
+    values = {**declared, "results_dir": str(tmp_path / "results"),
+              "bags_dir": str(tmp_path / "bags"), "run": "r", "domain_id": "7", **arguments}
+    context = type("Context", (), {"launch_configurations": values})()
+    return {action.kwargs["executable"]: action.kwargs["parameters"]
+            for action in module.graph(context) if type(action).__name__ == "Node"}
+
+
+def test_body_false_leaves_the_simulated_body_out_and_waits_for_the_users(monkeypatch, tmp_path):
+    simulated = _started_nodes(monkeypatch, tmp_path, record="false")
+    assert set(simulated) == {"environment", "body", "agent", "representation"}
+    own = _started_nodes(monkeypatch, tmp_path, record="false", body="false",
+                         body_node="my_arm")
+    assert set(own) == {"environment", "agent", "representation"}
+    waited = own["environment"][1]["graph.wait_for_nodes"]
+    assert waited == ["my_arm", "agent", "representation"]
+    # Only the representation's exit ends the launch; the others wait to be stopped.
+    assert [own[name][1]["graph.exit_when_done"] for name in ("agent", "representation")] \
+        == [False, True]

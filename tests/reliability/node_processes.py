@@ -26,8 +26,9 @@ def node_parameters(name: str, results_dir: Path, bag_dir: Path, nodes=NODES) ->
                   "graph.checkpoint_dir": str(Path(results_dir) / "checkpoints")}
     if name == "environment":
         parameters["graph.wait_for_nodes"] = [n for n in nodes if n != "environment"]
-    if name == "representation":
-        parameters["graph.exit_when_done"] = True
+    # The representation's exit ends the run; the others are stopped by PID
+    # once the recorder holds everything (an exit would count as a death).
+    parameters["graph.exit_when_done"] = name == "representation"
     return parameters
 
 

@@ -64,6 +64,7 @@ from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecor
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
+from sensorispace_ros.core.naive.start import choose_start
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances, measure_structure
 
 EXPLORING = "exploring"
@@ -221,8 +222,9 @@ class NaiveAgent(SearchAndSample):
             agent._sweep.sets = agent._sets
         return agent
 
-    def start(self, initial_motor_state) -> Reaction:
-        """Move to ``initial_motor_state``, sample its POV, record the first anchor."""
+    def start(self, initial_motor_state, seed: int = 0) -> Reaction:
+        """Move to ``initial_motor_state`` (or a better start, seeded:
+        ``start.choose_start``), sample its POV, record the first anchor."""
         if self._event >= 0:
             raise RuntimeError("start() was already called")
         m0 = np.asarray(initial_motor_state, dtype=float).reshape(-1)
@@ -238,6 +240,8 @@ class NaiveAgent(SearchAndSample):
         self.structure = measure_structure(self._body, m0, fd_step=p.fd_step,
                                            probes=p.structure_probes,
                                            radius=p.structure_radius, min_gap=p.rank_min_gap)
+        m0, self.structure, self.start_choice = choose_start(self._body, m0, self.structure,
+                                                             p, seed)
         self._tol = Tolerances.of(p, self.structure)
         self._store = PovStore(self.n_samples, self.n_motors)
         new, sensations = self._sample_povs(m0[None])

@@ -70,7 +70,7 @@ def explore_naive(world, params: NaiveParams | None = None, *, progress=None,
     centers = [np.asarray(world.initial_center, float)]
     layout = [0]                    # light layout version: +1 at each redistribution
     kinds = ["initial"]
-    agent.start(world.m0)
+    agent.start(world.m0, seed=world.seed)
     n_events = len(world.events)
     for k, event in enumerate(world.events):
         body.set_lights(event.lights)

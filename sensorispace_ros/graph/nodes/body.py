@@ -27,13 +27,15 @@ applied before the kill is back, commands are dropped (the agent re-sends
 them), so none is answered in an old layout. Every well-formed command is
 answered, duplicates too (the answer depends only on the commanded rows and
 the lights); the third answer to one command ends the process with
-RESTART_EXIT_CODE, to be started again (``note_repeated_command``).
+RESTART_EXIT_CODE, to be started again (``note_repeated_command``). It
+exits after the end's passive sensation unless ``graph.exit_when_done`` is false.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+from rclpy.duration import Duration
 
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.graph import tracing
@@ -42,6 +44,8 @@ from sensorispace_ros.state.resting_state import RestingStateFile
 
 
 class BodyNode(GraphNode):
+
+    simulated_body = True
 
     def __init__(self, **kwargs):
         super().__init__("body", **kwargs)
@@ -120,6 +124,11 @@ class BodyNode(GraphNode):
             self.resting_file.save((*self.body.motor_state.tolist(), number))
         self.publish_passive(cloud.frame_id, cloud.stamp_ns, number)
         tracing.stamp("body.passive", number)
+        if kind == "end" and self.graph["exit_when_done"]:
+            # The run is over once the agent has this passive sensation.
+            self.sensation_pub.wait_for_all_acked(Duration(seconds=2.0))
+            self.get_logger().info(f"run over after {number - 1} changes")
+            self.finished = True
         if self.held is not None and number >= self.held_for \
                 and self.lights_before_kill is None:
             held, self.held = self.held, None

@@ -47,12 +47,12 @@ from sensorispace_ros.recording.bag_format import (
     session_config_cdr,
 )
 from sensorispace_ros.recording.bag_recovery import recover_bag
-from sensorispace_ros.recording.bag_writer import DEFAULT_CHUNK_INTERVAL_S, BagWriter
-from sensorispace_ros import contracts
+from sensorispace_ros.recording.bag_writer import BagWriter
+from sensorispace_ros import config, contracts
 
 # Parameters that are not the run's configuration: the launcher's plumbing
-# (graph.*: graph.bag_dir is where to record), the recorder's own (recorder.*)
-# and rclpy's built-ins. Everything else the recorder is given is stored.
+# (graph.*: graph.bag_dir is where to record), the recorder's own (recorder.*,
+# parameters.yaml) and rclpy's built-ins. Everything else it is given is stored.
 NOT_RUN_CONFIG_PREFIXES = ("graph.", "recorder.")
 NOT_RUN_CONFIG_NAMES = ("use_sim_time", "start_type_description_service", "bag_path")  # rclpy, alias
 BATCH_TAKE = 1000  # messages taken per callback at most, so timers still run
@@ -87,8 +87,6 @@ def default_bag_path() -> str:
 
 def config_yaml(parameters: dict) -> str:
     """ROS params-file text (``/**: ros__parameters:``) of dotted parameter values."""
-    from sensorispace_ros import config
-
     return config.to_parameter_file(config.unflatten(parameters))
 
 
@@ -122,43 +120,52 @@ class Recorder(Node):
     def __init__(self, **kwargs):
         super().__init__("recorder", automatically_declare_parameters_from_overrides=True,
                          **kwargs)
+        given = {name: (list(p.value) if isinstance(p.value, (list, tuple))
+                        or hasattr(p.value, "tolist") else p.value)
+                 for name, p in self._parameters.items()}
+        own = config.load_recorder({
+            name[len(config.RECORDER_PREFIX):]: value for name, value in given.items()
+            if name.startswith(config.RECORDER_PREFIX)
+            and not (name.endswith(".topics") and value in ([], [""]))})
         # graph.bag_dir (the launcher's graph.* plumbing) or bag_path (same meaning)
-        bag_path = (self._own("graph.bag_dir", "") or self._own("bag_path", "")
-                    or default_bag_path())
-        chunk_interval_s = float(self._own("recorder.chunk_interval_s",
-                                           DEFAULT_CHUNK_INTERVAL_S))
-        self.stats_period_s = float(self._own("recorder.stats_period_s", 5.0))
-        write_ahead = self._own("recorder.write_ahead", True)
-        if not isinstance(write_ahead, bool):
-            raise ValueError(f"recorder.write_ahead must be true or false, got {write_ahead!r}")
-        wanted = [t for t in self._own("recorder.topics", [""]) if t]
-        if chunk_interval_s <= 0:
-            raise ValueError(f"recorder.chunk_interval_s must be > 0, got {chunk_interval_s}")
-        if self.stats_period_s <= 0:
-            raise ValueError(f"recorder.stats_period_s must be > 0, got {self.stats_period_s}")
-
+        bag_path = given.get("graph.bag_dir") or given.get("bag_path") or default_bag_path()
         available = contracts.load_contracts()
-        unknown = sorted(set(wanted) - set(available))
+        unknown = sorted(set(own["topics"]) - set(available))
         if unknown:
             raise ValueError(f"recorder.topics: {', '.join(unknown)} not in the topic contract")
-        self.contracts = {name: c for name, c in available.items() if not wanted or name in wanted}
+        self.contracts = {name: c for name, c in available.items()
+                          if not own["topics"] or name in own["topics"]}
+        run_config = {name: value for name, value in given.items() if is_run_config(name)}
+        self.open_bag(Path(bag_path), run_config, own)
+        self.received = 0
+        self.stats_period_s = own["stats_period_s"]
+        self._window_start, self._window_count = time.monotonic(), 0
+        self.first_message_at: float | None = None
+        self.last_message_at: float | None = None
+        self.subscriptions_ = {
+            name: self.create_subscription(contract.msg_type, name, self._recorder_for(name),
+                                           lossless(contract.qos), raw=True)
+            for name, contract in self.contracts.items()}
+        # an idle graph still gets its last chunk onto disk within chunk_interval_s
+        self.create_timer(min(0.25, own["chunk_interval_s"]), self.writer.flush_if_due)
+        self.create_timer(self.stats_period_s, self._log_rate)
+        self.get_logger().info(f"recording {len(self.contracts)} topics into {bag_path}")
 
-        run_config = {
-            name: (list(p.value) if isinstance(p.value, (list, tuple)) or hasattr(p.value, "tolist")
-                   else p.value)
-            for name, p in self._parameters.items() if is_run_config(name)
-        }
+    def open_bag(self, bag_path: Path, run_config: dict, own: dict) -> None:
+        """The bag's writer (after a restart, the earlier recording set aside),
+        with the run's configuration as its first message."""
         topics = {name: c.type_name for name, c in self.contracts.items()}
         qos = {name: qos_spec(c.qos) for name, c in self.contracts.items()}
         if run_config:
             topics[SESSION_CONFIG_TOPIC] = SESSION_CONFIG_TYPE
-        self.earlier_parts = set_aside_earlier_recording(Path(bag_path))
+        self.earlier_parts = set_aside_earlier_recording(bag_path)
         if self.earlier_parts:
             self.get_logger().warning(
                 f"{bag_path} exists (recorder restarted): recovered it; it is merged with "
                 f"this recording when the bag is closed")
-        self.writer = BagWriter(bag_path, topics, qos=qos, chunk_interval_s=chunk_interval_s,
-                                write_ahead=write_ahead)
+        self.writer = BagWriter(bag_path, topics, qos=qos,
+                                chunk_interval_s=own["chunk_interval_s"],
+                                write_ahead=own["write_ahead"])
         # Counted from this process's own messages: a restarted recorder gets the
         # agent's whole TRANSIENT_LOCAL history again.
         self.completeness = completeness.RunCompleteness()
@@ -174,24 +181,6 @@ class Recorder(Node):
             self.get_logger().warning(
                 "started without a params file: the bag will hold no /session/config, "
                 "so `sensorispace analyze` cannot rebuild this run")
-
-        self.received = 0
-        self._window_start, self._window_count = time.monotonic(), 0
-        self.first_message_at: float | None = None
-        self.last_message_at: float | None = None
-        self.subscriptions_ = {
-            name: self.create_subscription(contract.msg_type, name, self._recorder_for(name),
-                                           lossless(contract.qos), raw=True)
-            for name, contract in self.contracts.items()}
-        # an idle graph still gets its last chunk onto disk within chunk_interval_s
-        self.create_timer(min(0.25, chunk_interval_s), self.writer.flush_if_due)
-        self.create_timer(self.stats_period_s, self._log_rate)
-        self.get_logger().info(f"recording {len(self.contracts)} topics into {bag_path}")
-
-    def _own(self, name, default):
-        if self.has_parameter(name):
-            return self.get_parameter(name).value
-        return self.declare_parameter(name, default).value
 
     def _recorder_for(self, topic: str):
         # Two parameters, so rclpy passes the message info (receive timestamp).

@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from sensorispace_ros.recording.bag_format import BagError
 from sensorispace_ros.recording.bag_reader import check_contract, message_class, read_bag
-from sensorispace_ros import contracts
+from sensorispace_ros import config, contracts
 from sensorispace_ros.graph.nodes.recorder import lossless
 
 # /session/config is not in the contract: a late subscriber should still get it
@@ -58,13 +58,21 @@ class Replay(Node):
 
     def __init__(self, bag_path: str | None = None, rate: float | None = None,
                  topics: list[str] | None = None, **kwargs):
-        super().__init__("replay", **kwargs)
-        bag_path = self.declare_parameter("bag_path", bag_path or "").value
-        # rate <= 0 means as fast as possible
-        self.rate = float(self.declare_parameter("rate", 1.0 if rate is None else rate).value)
-        wanted = list(self.declare_parameter("topics", topics or [""]).value)
-        self.match_timeout_s = float(self.declare_parameter("match_timeout_s", 10.0).value)
-        wanted = [t for t in wanted if t]
+        super().__init__("replay", automatically_declare_parameters_from_overrides=True,
+                         **kwargs)
+        # Its own parameters (parameters.yaml replay:), the ROS ones over the
+        # arguments; others (a run's parameter file) are not its business.
+        given = {name: value for name, value in
+                 (("bag_path", bag_path), ("rate", rate), ("topics", topics))
+                 if value is not None}
+        given.update({name: (list(p.value) if isinstance(p.value, (list, tuple))
+                             or hasattr(p.value, "tolist") else p.value)
+                      for name, p in self._parameters.items() if name in config.REPLAY_SCHEMA})
+        if given.get("topics") in ([], [""]):
+            del given["topics"]
+        own = config.load_replay(given)
+        bag_path, self.rate, wanted = own["bag_path"], own["rate"], own["topics"]
+        self.match_timeout_s = own["match_timeout_s"]
         if not bag_path:
             raise ValueError("bag_path: required (the bag directory to replay)")
         self.bag_path = bag_path

@@ -13,39 +13,40 @@ reaction of the change it died in); once ``/agent/done`` has arrived and
 the totals match, runs ``offline.representation.build_representation`` in a worker
 thread, publishes ``/representation/embedding`` for every dimension and
 regularisation iteration, and writes its arrays to
-``<graph.results_dir>/representation.npz``. Ground truth is joined later,
-by the evaluator, never here.
+``<run directory>/representation.npz`` (``framework.run_directory``: the
+stamp of ``/agent/done`` names it); with fewer than 4 POVs none is built and
+the file holds the agent's outputs and the ``reason``. Ground truth is joined
+later, by the evaluator, never here. It exits then, unless
+``graph.exit_when_done`` is false.
 
 The 2-D and 3-D chains run in two worker processes of a forkserver pool
 (``offline.chain_pool.start_chain_pool``; a process with DDS threads must not fork),
 started with the node so that their start-up overlaps the exploration, and
 stopped with it (``destroy_node``), on SIGTERM too.
 
-The Hausdorff matrix grows while the POVs arrive (``core.hausdorff.
-GrowingHausdorffMatrix``, one thread): at /agent/done only the last POVs'
-distances are left to compute (paper config: ~1.6 s of the final build was
-the whole matrix). The same bits as computing it at the end; without numba,
-or if a POV message did not hold whole POVs, it is computed at the end.
+The Hausdorff matrix grows while the POVs arrive
+(``graph.nodes.growing_hausdorff``).
 """
 from __future__ import annotations
 
 import json
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.graph.framework import GraphNode, run_node
-from sensorispace_ros.offline.representation import assemble_points_of_view
+from sensorispace_ros.graph.framework import GraphNode, run_directory, run_node
+from sensorispace_ros.graph.nodes.growing_hausdorff import GrowingHausdorff
 from sensorispace_ros.protocol import RESULT_FILE
+from sensorispace_ros.offline.pov_assembly import (  # noqa: F401  (re-exported)
+    MIN_POVS, assemble_points_of_view, embedding_arrays, equality_pairs)
 
 CHAIN_POOL_DELAY_S = 3.0
 
 
-class RepresentationNode(GraphNode):
+class RepresentationNode(GrowingHausdorff, GraphNode):
 
     def __init__(self, **kwargs):
         super().__init__("representation", **kwargs)
@@ -66,19 +67,14 @@ class RepresentationNode(GraphNode):
         self.result: dict | None = None
         self.finished = False
         self.exit_code = 0
-        self.results_dir = Path(self.graph["results_dir"])
+        self.results_dir: Path | None = None     # the run directory, from /agent/done
         self.chain_pool = None
         self.closing = False
         self._start_pool_now = threading.Event()
         self.chain_pool_starter = threading.Thread(target=self._start_chain_pool,
                                                    name="chain-pool", daemon=True)
         self.chain_pool_starter.start()
-        # The growing Hausdorff matrix: POV ids in the order added, and the one
-        # thread that adds them (in order); None once given up (computed at the end).
-        self.hausdorff = None
-        self.hausdorff_ids: list[int] = []
-        self.hausdorff_worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hausdorff")
-        self.hausdorff_failed = False
+        self.init_hausdorff()
 
     def _start_chain_pool(self) -> None:
         from sensorispace_ros.offline import chain_pool
@@ -130,60 +126,6 @@ class RepresentationNode(GraphNode):
         self.grow_hausdorff(table)
         self.maybe_start()
 
-    def grow_hausdorff(self, table: np.ndarray) -> None:
-        """Queue the distances of this table's POVs to those held (see the module
-        docstring); gives the growing matrix up for one computed at the end when
-        the table does not hold whole POVs or numba is missing."""
-        from sensorispace_ros.core.hausdorff import GrowingHausdorffMatrix, numba_available
-        if self.hausdorff_failed:
-            return
-        try:
-            ids, povs = assemble_points_of_view([table], self.description.n_motors)
-        except ValueError as exc:
-            self.give_up_hausdorff(f"a message holds part of a POV ({exc})")
-            return
-        if self.hausdorff is None:
-            if not numba_available():
-                self.give_up_hausdorff("numba is not installed")
-                return
-            self.hausdorff = GrowingHausdorffMatrix(povs.shape[1], povs.shape[2])
-        elif povs.shape[1:] != (self.hausdorff.n_samples, self.hausdorff.n_motors):
-            self.give_up_hausdorff(f"POVs of {povs.shape[1]} samples after POVs of "
-                                   f"{self.hausdorff.n_samples}")
-            return
-        try:
-            self.hausdorff_worker.submit(self._add_to_hausdorff,
-                                         self.description.to_radians(povs))
-        except RuntimeError:                # after the build took the matrix (shut down)
-            self.give_up_hausdorff("a POV arrived after the representation was started")
-            return
-        self.hausdorff_ids.extend(ids.tolist())
-
-    def _add_to_hausdorff(self, povs: np.ndarray) -> None:
-        if self.hausdorff_failed or self.closing:
-            return
-        try:
-            self.hausdorff.add(povs)
-        except Exception as exc:            # computed at the end instead
-            self.give_up_hausdorff(f"{type(exc).__name__}: {exc}")
-
-    def give_up_hausdorff(self, reason: str) -> None:
-        self.hausdorff_failed = True
-        self.get_logger().warning(f"the Hausdorff matrix will be computed at the end: {reason}")
-
-    def grown_hausdorff(self, ids: np.ndarray) -> np.ndarray | None:
-        """The grown matrix for POVs ``ids`` (sorted), once every add is done;
-        None if it was given up or does not hold exactly those POVs."""
-        self.hausdorff_worker.shutdown(wait=True)
-        if self.hausdorff_failed or self.hausdorff is None:
-            return None
-        added = np.asarray(self.hausdorff_ids, dtype=np.int64)
-        if len(added) != self.hausdorff.count or not np.array_equal(np.sort(added), ids):
-            self.get_logger().warning("the grown Hausdorff matrix does not hold the POVs "
-                                      "received; computing it at the end")
-            return None
-        return self.hausdorff.matrix(np.argsort(added, kind="stable"))
-
     def on_compensations(self, msg) -> None:
         table = self._decode("/agent/compensations", msg)
         if table is None or not len(table):
@@ -202,6 +144,8 @@ class RepresentationNode(GraphNode):
             self.drop("/agent/done", f"{len(table)} rows")
             return
         self.totals = {name: int(table[name][0]) for name in table.dtype.names}
+        self.results_dir = run_directory(self.graph["results_dir"],
+                                         messages.stamp_ns(msg.header))
         self._start_pool_now.set()
         self.maybe_start()
 
@@ -221,32 +165,21 @@ class RepresentationNode(GraphNode):
                                                 self.description.n_motors)
             rows = (np.concatenate(list(self.row_tables.values())) if self.row_tables
                     else np.zeros(0, dtype=messages.record_dtype(self.columns["/agent/compensations"])))
-            # Equality rows name POVs by id; the representation indexes them by position.
-            pairs = np.stack([np.searchsorted(ids, rows["pov_from"]),
-                              np.searchsorted(ids, rows["pov_to"])], axis=-1).astype(np.int64)
-            set_ids = rows["set"].astype(np.int64)
-            self.get_logger().info(f"building the representation of {len(ids)} points of view, "
-                                   f"{len(rows)} equality rows")
-            distance = self.grown_hausdorff(ids)
-            self.chain_pool_starter.join()
-            representation = self._build_representation(
-                self.description.to_radians(povs), pairs, set_ids, distance)
+            pairs, set_ids = equality_pairs(ids, rows)
             # Same array names as evaluation.run_files.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
-                      "hausdorff": representation.distance}
-            for dim in sorted(representation.before):
-                stages = [representation.before[dim], *representation.iterations[dim]]
-                for k, embedding in enumerate(stages):
-                    self.publish_embedding(ids, embedding, f"{dim}/iteration/{k}")
-                arrays[f"embedding_{dim}_before"] = representation.before[dim]
-                arrays[f"embedding_{dim}_iterations"] = representation.iterations[dim]
-                arrays[f"set_spread_{dim}"] = representation.set_spread[dim]
-            arrays["timings_s_json"] = np.asarray(json.dumps(representation.timings_s))
-            arrays.update({f"agent_{key}": np.int64(value) for key, value in self.totals.items()})
+                      **{f"agent_{key}": np.int64(value) for key, value in self.totals.items()}}
+            if len(ids) < MIN_POVS:
+                arrays["reason"] = np.asarray(f"{len(ids)} points of view: a representation "
+                                              f"needs at least {MIN_POVS}")
+            else:
+                arrays.update(self.representation_arrays(ids, povs, pairs, set_ids, len(rows)))
             self.results_dir.mkdir(parents=True, exist_ok=True)
             np.savez(self.results_dir / RESULT_FILE, **arrays)
             self.result = arrays
-            self.get_logger().info(f"representation written to {self.results_dir / RESULT_FILE}")
+            reason = f" ({arrays['reason']}: none built)" if "reason" in arrays else ""
+            self.get_logger().info(f"representation written to "
+                                   f"{self.results_dir / RESULT_FILE}{reason}")
         except Exception as exc:
             if self.closing:                # stopped mid-build: the pool was ended under it
                 return
@@ -255,6 +188,21 @@ class RepresentationNode(GraphNode):
             self.finished = True
             raise
         self.finished = bool(self.graph["exit_when_done"])
+
+    def representation_arrays(self, ids, povs, pairs, set_ids, n_rows: int) -> dict:
+        """Build the representation, publish its embeddings; its arrays."""
+        self.get_logger().info(f"building the representation of {len(ids)} points of view, "
+                               f"{n_rows} equality rows")
+        distance = self.grown_hausdorff(ids)
+        self.chain_pool_starter.join()
+        representation = self._build_representation(
+            self.description.to_radians(povs), pairs, set_ids, distance)
+        for dim in sorted(representation.before):
+            stages = [representation.before[dim], *representation.iterations[dim]]
+            for k, embedding in enumerate(stages):
+                self.publish_embedding(ids, embedding, f"{dim}/iteration/{k}")
+        return {"hausdorff": representation.distance, **embedding_arrays(representation),
+                "timings_s_json": np.asarray(json.dumps(representation.timings_s))}
 
     def _build_representation(self, angles: np.ndarray, pairs: np.ndarray,
                               set_ids: np.ndarray, distance: np.ndarray | None = None):

@@ -1,14 +1,19 @@
-"""A body of one's own, outside the project:
-``python tests/graph/own_body.py [--sensor-type float64|uint16]``.
+"""A body of one's own, outside the project: ``.venv/bin/python examples/own_body.py``.
 
-Two hinges, ``hip`` and ``knee``, commanded in degrees, and three receptors
-whose outputs are smooth functions of the joint angles and of where the
-lights are: s = [cos(hip + u), sin(hip + u), cos(knee + v)], with (u, v) a
-tenth of the lights' mean position (rad). It honours the topics a body
-honours (docs/own-body.md) with rclpy, sensor_msgs and numpy alone, nothing
-of sensorispace_ros, as a body in another process or language would.
-``--sensor-type uint16`` publishes what a 16-bit ADC would: UINT16 columns,
-round((s + 1) / 2 * 65535).
+A planar arm of two links of 2.5, hinges ``hip`` (at the origin) and ``knee``
+commanded in degrees, with three receptors at the tip, on a small frame that
+keeps its world orientation: receptor i sits at tip + OFFSETS[i] and
+outputs the lights' summed brightness there, sum_l 1 / (1 + |p_i - l|^2).
+The sensation pins where the tip is (two numbers for two joints): the agent
+finds points of view of dimension 0, except where the arm is straight
+(every joint at 0), where it is singular. The node is named ``own_body``.
+
+It honours the topics a body honours (docs/own-body.md) with rclpy,
+sensor_msgs and numpy alone, nothing of sensorispace_ros, as a body in
+another process or language would.
+
+``--sensor-type uint16`` publishes what a 16-bit ADC would: UINT16 counts,
+round(s / FULL_SCALE * 65535), clipped to the ADC's range.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ import sys
 
 import numpy as np
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -25,7 +31,10 @@ from std_msgs.msg import Header
 
 JOINTS = ("hip", "knee")
 UNIT, PERIOD = "deg", 360.0
-RECEPTORS = 3
+LINKS = (2.5, 2.5)
+OFFSETS = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 0.5]])      # one receptor each
+RECEPTORS = len(OFFSETS)
+FULL_SCALE = 4.0                  # the brightness a 16-bit reading's 65535 stands for
 
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                      reliability=ReliabilityPolicy.RELIABLE,
@@ -79,9 +88,10 @@ class OwnBody(Node):
     def __init__(self, sensor_type: str = "float64"):
         super().__init__("own_body")
         self.sensor_type = sensor_type
-        self.rest = np.zeros(len(JOINTS))
-        self.offset = np.zeros(2)
+        self.rest = np.zeros(len(JOINTS))    # where the arm rests before its first command
+        self.lights = np.zeros((0, 2))
         self.applied = -1                 # the number of the last change applied
+        self.over = False                 # end/<k> answered: the run is over
         self.held = None                  # a next/<k> command, before change k
         self.sensation_pub = self.create_publisher(PointCloud2, "/body/sensation", DATA)
         description = self.create_publisher(JointState, "/body/description", LATCHED)
@@ -92,14 +102,20 @@ class OwnBody(Node):
         self.create_subscription(PointCloud2, "/body/motor_command", self.on_command, DATA)
 
     def sense(self, motor: np.ndarray) -> np.ndarray:
-        angles = np.deg2rad(motor) + self.offset
-        s = np.column_stack([np.cos(angles[:, 0]), np.sin(angles[:, 0]), np.cos(angles[:, 1])])
+        """One row of receptor outputs per row of motor states (degrees)."""
+        hip, knee = np.deg2rad(motor[:, 0]), np.deg2rad(motor[:, 0] + motor[:, 1])
+        tip = np.column_stack([LINKS[0] * np.cos(hip) + LINKS[1] * np.cos(knee),
+                               LINKS[0] * np.sin(hip) + LINKS[1] * np.sin(knee)])
+        receptors = tip[:, None, :] + OFFSETS[None]                       # (B, R, 2)
+        squared = ((receptors[:, :, None, :] - self.lights[None, None]) ** 2).sum(axis=-1)
+        brightness = (1.0 / (1.0 + squared)).sum(axis=-1)                 # (B, R)
         if self.sensor_type == "uint16":
-            return np.round((s + 1.0) / 2.0 * 65535.0)
-        return s
+            return np.round(np.clip(brightness / FULL_SCALE, 0.0, 1.0) * 65535)
+        return brightness
 
     def answer(self, motor: np.ndarray, header: Header) -> None:
-        self.sensation_pub.publish(table_cloud(self.sense(motor), "s", header, self.sensor_type))
+        self.sensation_pub.publish(table_cloud(self.sense(motor), "s", header,
+                                                     self.sensor_type))
         self.rest = motor[-1].copy()
 
     def on_lights(self, msg: PointCloud2) -> None:
@@ -109,9 +125,10 @@ class OwnBody(Node):
             return
         kind, number = frame
         if kind == "change" and len(lights):
-            self.offset = 0.1 * lights.mean(axis=0)
+            self.lights = lights                         # the end keeps the last lights
         self.applied = max(self.applied, number)
         self.answer(self.rest[None], msg.header)         # the passive sensation
+        self.over = self.over or kind == "end"
         if self.held is not None and self.held[0] <= self.applied:
             _, motor, header = self.held
             self.held = None
@@ -128,14 +145,19 @@ class OwnBody(Node):
         self.answer(motor, msg.header)
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sensor-type", choices=sorted(SENSOR_TYPES), default="float64")
-    options, ros_args = parser.parse_known_args()
-    rclpy.init(args=[sys.argv[0], *ros_args])
-    node = OwnBody(options.sensor_type)
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description="a body of one's own (docs/own-body.md)")
+    parser.add_argument("--sensor-type", choices=sorted(SENSOR_TYPES), default="float64",
+                        help="what the receptors publish (default float64)")
+    args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
+    rclpy.init(args=ros_args)
+    node = OwnBody(args.sensor_type)
     try:
-        rclpy.spin(node)
+        while rclpy.ok() and not node.over:
+            rclpy.spin_once(node, timeout_sec=0.2)
+        if node.over:                    # the agent must get the end's passive sensation
+            node.sensation_pub.wait_for_all_acked(Duration(seconds=2.0))
+            node.get_logger().info("run over")
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
