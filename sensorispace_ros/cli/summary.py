@@ -39,6 +39,8 @@ def summary_table(metrics: dict, out: Path | None = None) -> str:
     get = partial(metric, metrics)
     head = f"{metrics.get('strategy', '?')} strategy, seed {metrics.get('seed', '?')}"
     lines = [head + (f" -> {out}" if out is not None else "")]
+    if "outcome" in metrics:
+        lines.append(f"  {metrics['outcome']}")
     lines.append(f"  exploration: {fmt(get('exploration.events'))} events, "
                  f"{fmt(get('exploration.state_changes'))} state changes, "
                  f"{fmt(get('exploration.compensated'))} compensated, "

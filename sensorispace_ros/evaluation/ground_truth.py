@@ -48,7 +48,7 @@ class NaiveGroundTruth:
     grid position (-1 at the start); ``true_poses`` ``(P, 3)`` the sensor
     pose of each POV's first sample; ``initial_motor_state``;
     ``paper_positions`` ``(Q, 2)`` the coverage denominator
-    (``paper_compensated_positions``)."""
+    (``paper_compensated_positions``); ``spacing`` the object grid's step."""
 
     centers: np.ndarray
     layout: np.ndarray
@@ -58,6 +58,13 @@ class NaiveGroundTruth:
     initial_motor_state: np.ndarray
     paper_positions: np.ndarray
     arm: Arm = PAPER_ARM
+    spacing: float = 1.0      # the grid step: a quarter of it tells poses apart
+
+    @property
+    def pose_tolerance(self) -> float:
+        """A compensation further than this from the pose its anchor asks for
+        is wrong; two POVs closer than this are one sensor position."""
+        return self.spacing / 4
 
     @staticmethod
     def layout_of(kinds) -> np.ndarray:
@@ -107,10 +114,15 @@ def compensable_grid(world) -> np.ndarray:
 
 def body_truth(world: World) -> dict:
     """``body.*`` of a run's world: joints, the eye pose's rank, the points
-    of view's dimension, receptors and the compensable grid positions."""
+    of view's dimension, receptors, the compensable grid positions, and the
+    imperfections the body was given (to set beside what the agent measured)."""
+    imperfect = world.imperfections
     return {"body.joints": world.arm.n_joints, "body.pose_rank": world.arm.pose_rank,
             "body.pov_dim": world.arm.pov_dim, "body.receptors": int(len(world.receptors)),
-            "body.compensable_positions": int(len(compensable_grid(world)))}
+            "body.compensable_positions": int(len(compensable_grid(world))),
+            "body.sensor_noise": imperfect.noise, "body.sensor_quantum": imperfect.quantum,
+            "body.sensor_dropout": imperfect.dropout,
+            "body.motor_noise": imperfect.motor_noise}
 
 
 def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
@@ -130,7 +142,7 @@ def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
         true_poses=world.arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
         initial_motor_state=np.asarray(world.m0, dtype=float),
         paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2),
-        arm=world.arm)
+        arm=world.arm, spacing=float(world.spacing))
 
 
 def naive_truth_of_changes(truth: RunTruth, n_changes: int, poses: np.ndarray,
@@ -160,4 +172,4 @@ def naive_truth_of_changes(truth: RunTruth, n_changes: int, poses: np.ndarray,
         centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
         grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
         initial_motor_state=np.asarray(world.m0, dtype=float),
-        paper_positions=truth.paper_positions, arm=world.arm)
+        paper_positions=truth.paper_positions, arm=world.arm, spacing=float(world.spacing))

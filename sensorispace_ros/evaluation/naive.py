@@ -18,10 +18,6 @@ from sensorispace_ros.evaluation.ground_truth import (NaiveGroundTruth, RunTruth
                                                       naive_truth_of_changes, naive_truth_of_run)
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
 
-# A compensating pose further than this from the pose its anchor asks for is wrong;
-# two POVs closer than this are one sensor position.
-WRONG_POSE_TOL = 1e-3
-
 
 @dataclass
 class NaiveEvaluation:
@@ -123,6 +119,9 @@ def _query_numbers(records: NaiveAgentRecords) -> dict:
         "naive.calls_total": int(records.calls_total),
         "naive.queries_per_pov": float(pov_q.mean()) if len(pov_q) else 0.0,
         "naive.queries_per_pov_max": int(pov_q.max()) if len(pov_q) else 0,
+        # Every motor state probed, per POV found: on a robot, every one is a move.
+        "naive.queries_total_per_pov":
+            records.queries_total / len(pov_q) if len(pov_q) else float(records.queries_total),
         # Every row of an event that found a compensation except its POV walks
         # (sweep, rank tests, searches, rest command), averaged over those events.
         "naive.queries_per_compensation":
@@ -151,16 +150,17 @@ def _compensation_numbers(records: NaiveAgentRecords, truth: NaiveGroundTruth) -
     events = records.compensation_event
     anchors = records.compensation_anchor_event
     n_comp = len(events)
-    worst, wrong = 0.0, 0
+    error = np.zeros(0)
     if n_comp:
         target = truth.arm.forward(records.compensation_anchor_motor_state)
         target[:, :2] += truth.centers[events] - truth.centers[anchors]
         error = arm.pose_error(truth.arm.forward(records.compensation_motor_state), target)
-        worst = float(np.max(error))
-        wrong = int(np.sum(error > WRONG_POSE_TOL))
     return {
-        "naive.wrong_poses": wrong,
-        "naive.worst_pose_error": worst,
+        "naive.wrong_poses": int(np.sum(error > truth.pose_tolerance)),
+        "naive.worst_pose_error": float(np.max(error)) if n_comp else 0.0,
+        # Pose precision of the accepted compensations (right or wrong).
+        "naive.pose_error_median": float(np.median(error)) if n_comp else 0.0,
+        "naive.pose_error_p95": float(np.percentile(error, 95)) if n_comp else 0.0,
         "naive.state_changes_accepted": int(sum(truth.kinds[t] == REDISTRIBUTION
                                                 for t in events)),
         "naive.accepted_across_redistribution": int(np.sum(truth.layout[events]
@@ -185,13 +185,14 @@ def _coverage_numbers(true_poses: np.ndarray, truth: NaiveGroundTruth) -> dict:
     paper_positions = truth.paper_positions
     distinct, covered, orientation_error = 0, 0, 0.0
     if len(true_poses):
-        pairs_close = cKDTree(true_poses[:, :2]).query_pairs(WRONG_POSE_TOL, output_type="ndarray")
+        pairs_close = cKDTree(true_poses[:, :2]).query_pairs(truth.pose_tolerance,
+                                                             output_type="ndarray")
         duplicate = np.zeros(len(true_poses), dtype=bool)
         duplicate[pairs_close.max(axis=1) if len(pairs_close) else []] = True
         distinct = int(np.sum(~duplicate))
         if len(paper_positions):
             distance, _ = cKDTree(true_poses[:, :2]).query(paper_positions, k=1)
-            covered = int(np.sum(distance <= WRONG_POSE_TOL))
+            covered = int(np.sum(distance <= truth.pose_tolerance))
         pose0 = truth.arm.forward(truth.initial_motor_state)
         orientation_error = float(np.max(np.abs(arm.wrap_angle(true_poses[:, 2] - pose0[2]))))
     return {

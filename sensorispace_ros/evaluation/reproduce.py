@@ -8,7 +8,8 @@ from sensorispace_ros import config as config_mod
 from sensorispace_ros.core.arm import Arm
 from sensorispace_ros.evaluation.ground_truth import RunTruth
 from sensorispace_ros.evaluation.naive import join_naive_run
-from sensorispace_ros.evaluation.runs import evaluate_output
+from sensorispace_ros.evaluation.runs import evaluate_output, write_without_representation
+from sensorispace_ros.offline.pov_assembly import MIN_POVS
 from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import STRATEGIES, run_strategy
 
@@ -39,6 +40,8 @@ def reproduce(cfg: dict, strategy: str = "paper", seed: int | None = None,
     truth = RunTruth(cfg, produced.world)
     if produced.naive_run is not None:
         join_naive_run(produced, truth)
+    if len(produced.povs) < MIN_POVS:
+        return write_without_representation(produced, cfg, out_dir, strategy, truth, started)
     # The Hausdorff metric reads motor values as angles (a period = 2 pi).
     angles = Arm.from_config(cfg["arm"]).to_radians(produced.povs)
     representation = build_representation(angles, produced.pairs, produced.set_ids, cfg,

@@ -20,6 +20,7 @@ from sensorispace_ros.evaluation.ground_truth import RunTruth, body_truth, groun
 from sensorispace_ros.evaluation.run_files import (ARRAYS_FILE, FIGURES_DIR, METRICS_FILE, nest,
                                                    representation_from_arrays, run_arrays,
                                                    write_metrics)
+from sensorispace_ros.offline.pov_assembly import MIN_POVS
 from sensorispace_ros.offline.representation import Representation
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
 from sensorispace_ros.offline.timing import timed_stage
@@ -50,6 +51,33 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
         timings["total"] = time.perf_counter() - started
     arrays = {**produced.arrays, **run_arrays(produced, representation, cfg, cfg["seed"])}
     return write_run(out_dir, flat, arrays, cfg, strategy, timings, progress)
+
+
+def write_without_representation(produced: StrategyOutput, cfg: dict, out_dir: str | Path,
+                                 strategy: str, truth: RunTruth, started: float) -> dict:
+    """The run directory of a run that found too few POVs for a representation:
+    metrics.json with what it found and ``outcome``, a one-line account of why
+    there is no representation (no figures)."""
+    flat = {**body_truth(truth.world), **produced.metrics}
+    flat["outcome"] = outcome_line(flat, len(produced.povs))
+    arrays = {**produced.arrays, "povs": np.asarray(produced.povs),
+              "pairs": np.asarray(produced.pairs).reshape(-1, 2),
+              "set_ids": np.asarray(produced.set_ids)}
+    timings = {**produced.timings_s, "total": time.perf_counter() - started}
+    return write_run(out_dir, flat, arrays, {**cfg, "output": {**cfg["output"], "figures": False}},
+                     strategy, timings)
+
+
+def outcome_line(flat: dict, n_povs: int) -> str:
+    """What the agent found, in one line, when it is too little for a representation."""
+    found = [f"{n_povs} points of view (a representation needs at least {MIN_POVS})"]
+    for key, name in (("naive.pose_rank", "pose rank"), ("naive.pov_dim", "POV dimension"),
+                      ("naive.noise_estimate", "sensory noise"),
+                      ("exploration.compensated", "compensations")):
+        if key in flat:
+            found.append(f"{name} {flat[key]:.3g}" if isinstance(flat[key], float)
+                         else f"{name} {flat[key]}")
+    return "no representation: the agent found " + ", ".join(found)
 
 
 def _space_numbers(representation: Representation, strategy: str) -> dict:
