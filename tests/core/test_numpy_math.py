@@ -39,7 +39,7 @@ def test_the_probe_agrees_with_a_wider_sample():
 def test_numpy_calls_c_math_in_the_child_environment():
     out = run_child(f"""
 import sys
-sys.path.insert(0, {str(Path(__file__).parent)!r})
+sys.path[:0] = [{str(Path(__file__).parent)!r}, {str(Path(__file__).parents[1])!r}]
 from test_numpy_math import numpy_calls_c_math, wide_sample_differences
 print(numpy_calls_c_math(), wide_sample_differences())
 """)
