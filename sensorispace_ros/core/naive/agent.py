@@ -57,14 +57,15 @@ from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.core.naive.anchors import (Snapshot, anchor_requests,
     full_rank_matches)
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
-    EqualitySetCollection, EqualitySetSweep, check_pose_rank, match_sensations)
+    EqualitySetCollection, EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import PovStore, jacobian_stencil
 from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
-from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances, measure_structure
+from sensorispace_ros.core.naive.sizing import jacobian_noise, measure_body
+from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
 EXPLORING = "exploring"
 
@@ -101,7 +102,8 @@ class NaiveAgent(SearchAndSample):
                              f"joints, got {description!r}")
         self.description = description
         self._phase = MotorPhase(description.periods)
-        self._body = CountingBody(body, bool(self.params.remember_sensations), self._phase)
+        self._body = CountingBody(body, bool(self.params.remember_sensations), self._phase,
+                                  self.params.lost_row_retries)
         self.n_motors = self._body.n_motors
         self.structure: BodyStructure | None = None     # measured by start()
         self._tol: Tolerances | None = None
@@ -233,12 +235,10 @@ class NaiveAgent(SearchAndSample):
         self._event = 0
         self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
-        p = self.params
         self._body.stage = "rank"
-        self.structure = measure_structure(self._body, m0, fd_step=p.fd_step,
-                                           probes=p.structure_probes,
-                                           radius=p.structure_radius, min_gap=p.rank_min_gap)
-        self._tol = Tolerances.of(p, self.structure)
+        self.structure, self.params = measure_body(self._body, m0, self.params)
+        self._tol = Tolerances.of(self.params, self.structure,
+                                  jacobian_noise(self.structure, self._body.n_sensors))
         self._store = PovStore(self.n_samples, self.n_motors)
         new, sensations = self._sample_povs(m0[None])
         self._rest = m0.copy()
@@ -262,8 +262,10 @@ class NaiveAgent(SearchAndSample):
         if self._event < 0:
             raise RuntimeError("react() before start()")
         passive = np.asarray(passive_sensation, dtype=float).reshape(-1)
-        if passive.shape != (self._body.n_sensors,) or not np.all(np.isfinite(passive)):
-            raise ValueError(f"passive_sensation: must be {self._body.n_sensors} finite numbers")
+        # Not used as a value (the sweep senses the resting POV again): a lost
+        # frame (non-finite) is accepted.
+        if passive.shape != (self._body.n_sensors,):
+            raise ValueError(f"passive_sensation: must be {self._body.n_sensors} numbers")
         self._event += 1
         self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
@@ -333,7 +335,7 @@ class NaiveAgent(SearchAndSample):
         # This event's memory of (motor, sensation): the sweep of the known POVs.
         self._body.stage = "sweep"
         current, split_now = self._sweep_known()
-        tree = cKDTree(current) if len(current) else None
+        tree = cKDTree(finite_rows(current, -1.0)) if len(current) else None
         matches, rest_hits, rank_now = self._match_snapshots(current, tree)
         matches = self._test_ranks(matches, rest_hits, rank_now, current)
         known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)

@@ -92,6 +92,8 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
             continue
         unmatched = np.setdiff1d(np.flatnonzero(snap.rank != RANK_DEFICIENT), before)
         unmatched = unmatched[unmatched != snap.rest_pov]
+        # A lost sensation (non-finite) is no target.
+        unmatched = unmatched[np.all(np.isfinite(snap.sensations[unmatched]), axis=1)]
         if len(unmatched) == 0 or attempts == 0:
             return []
         distance, nearest = cKDTree(snap.sensations[before]).query(

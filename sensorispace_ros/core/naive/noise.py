@@ -1,0 +1,145 @@
+"""How noisy the naive agent's sensations are, measured by the agent itself.
+
+A real sensor adds noise, rounds its outputs (float32, an ADC's steps) and
+loses frames; a real joint lands near, not at, the commanded value, which
+shows in the sensations as more noise. The agent is told none of this. It
+senses, once, in one ``sense`` call:
+
+* the start state several times: the spread of the repeats is the random
+  part of the noise (joint imprecision included);
+* short straight lines through the start with steps on a ladder from tiny
+  to coarse: second differences along a line remove the smooth signal (up
+  to the step squared times its curvature) and keep the errors. A
+  deterministic error (rounding to a quantum, to float32) repeats
+  exactly, so the repeats miss it; along a line whose steps move the
+  signal over several quanta it looks like noise of about quantum/sqrt(12).
+  Steps that leave most outputs unchanged (all within one quantum) say
+  nothing and are skipped; the finest informative step gives the estimate.
+
+Every spread is robust (median absolute deviation): heavy tails, a few wild
+outputs and lost rows (non-finite, left out and counted) do not move it.
+The estimate is a per-receptor standard deviation in the units of the
+sensations; float64 round-off of the outputs is its floor, so a noiseless
+body measures ~1e-16 and nothing the agent sizes from it changes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# MAD -> standard deviation of a normal distribution.
+_MAD_TO_SD = 1.482602218505602
+# Fixed direction of the ladder's lines (any body's motor space).
+_GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
+
+
+@dataclass(frozen=True)
+class SensoryNoise:
+    """The agent's measure of its sensory noise (``measure_noise``).
+
+    ``sd`` per-receptor standard deviation of one sensation (sensation
+    units): the larger of ``repeat_sd`` (the same motor state sensed again)
+    and ``ladder_sd`` (second differences along short lines), at least the
+    float64 round-off of the outputs. ``lost_fraction`` the share of
+    sensed rows that came back non-finite; ``slope`` how fast the sensation
+    changes along the ladder's line (sensation per phase radian, at its
+    coarser steps), a first measure of the sensory gain."""
+
+    sd: float
+    repeat_sd: float
+    ladder_sd: float
+    lost_fraction: float
+    slope: float = 0.0
+
+    def metrics(self) -> dict:
+        return {"naive.noise_estimate": float(self.sd),
+                "naive.noise_repeat_sd": float(self.repeat_sd),
+                "naive.noise_ladder_sd": float(self.ladder_sd),
+                "naive.lost_fraction": float(self.lost_fraction)}
+
+
+def ladder_steps() -> np.ndarray:
+    """Line steps (phase) of the ladder: half decades from 1e-8 to 0.1."""
+    return 10.0 ** np.arange(-8.0, -0.99, 0.5)
+
+
+def noise_rows(center: np.ndarray, repeats: int, line_rows: int) -> np.ndarray:
+    """The rows ``measure_noise`` senses: ``repeats`` copies of ``center``,
+    then one line of ``line_rows`` states per ladder step."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    direction = np.cos(2.0 * np.pi * ((np.arange(1, len(center) + 1) * _GOLDEN) % 1.0))
+    direction /= np.linalg.norm(direction)
+    k = np.arange(line_rows)[None, :, None]
+    lines = center + ladder_steps()[:, None, None] * k * direction
+    return np.vstack([np.repeat(center[None], repeats, axis=0),
+                      lines.reshape(-1, len(center))])
+
+
+def robust_sd(deviations: np.ndarray) -> float:
+    """``1.4826 * median |deviation|`` of the finite entries (0 if none)."""
+    values = np.abs(np.asarray(deviations, dtype=float))
+    values = values[np.isfinite(values)]
+    return float(_MAD_TO_SD * np.median(values)) if len(values) else 0.0
+
+
+def repeat_spread(repeats: np.ndarray) -> float:
+    """Robust sd of sensations of one motor state sensed ``R`` times ``(R, S)``
+    (non-finite rows left out), corrected for the median's own spread."""
+    rows = repeats[np.all(np.isfinite(repeats), axis=1)]
+    if len(rows) < 3:
+        return 0.0
+    spread = robust_sd(rows - np.median(rows, axis=0))
+    return spread * np.sqrt(len(rows) / (len(rows) - 1.0))
+
+
+def ladder_spread(lines: np.ndarray) -> float:
+    """The noise seen by second differences along the ladder's lines
+    ``(L, K, S)``: for each step, ``robust_sd(d2) / sqrt(6)`` over the
+    outputs that move along the line; steps where most of those second
+    differences are exactly 0 (outputs within one quantum) are skipped. The
+    finest informative step's value; 0 if none is."""
+    d2 = lines[:, 2:] - 2.0 * lines[:, 1:-1] + lines[:, :-2]
+    for step in range(len(lines)):
+        line = lines[step]
+        finite = np.all(np.isfinite(line), axis=1)
+        moving = np.ptp(line[finite], axis=0) > 0 if finite.sum() >= 3 else np.zeros(0, bool)
+        if not moving.any():
+            continue
+        values = d2[step][:, moving]
+        values = values[np.all(np.isfinite(values), axis=1)]
+        if len(values) == 0 or np.mean(values == 0.0) > 0.5:
+            continue
+        return robust_sd(values) / np.sqrt(6.0)
+    return 0.0
+
+
+def line_slope(lines: np.ndarray) -> float:
+    """Largest ``|y_last - y_0| / length`` of the ladder's lines ``(L, K, S)``
+    with steps of at least 1e-3 (finite ends only; 0 if none)."""
+    slopes = [0.0]
+    for step, line in zip(ladder_steps(), lines):
+        finite = np.flatnonzero(np.all(np.isfinite(line), axis=1))
+        if step >= 1e-3 and len(finite) >= 2:
+            slopes.append(float(np.linalg.norm(line[finite[-1]] - line[finite[0]])
+                                / (step * (finite[-1] - finite[0]))))
+    return max(slopes)
+
+
+def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
+                  line_rows: int = 16) -> SensoryNoise:
+    """``SensoryNoise`` of ``body`` around ``center`` (phases), from ONE
+    ``sense`` call of ``repeats + line_rows * len(ladder_steps())`` rows."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    for name, value in (("repeats", repeats), ("line_rows", line_rows)):
+        if int(value) != value or value < 3:
+            raise ValueError(f"{name} must be an integer >= 3, got {value}")
+    sensed = np.asarray(body.sense(noise_rows(center, repeats, line_rows)), dtype=float)
+    lost = float(np.mean(~np.all(np.isfinite(sensed), axis=1)))
+    repeat_sd = repeat_spread(sensed[:repeats])
+    lines = sensed[repeats:].reshape(len(ladder_steps()), line_rows, -1)
+    ladder_sd = ladder_spread(lines)
+    finite = sensed[np.isfinite(sensed)]
+    roundoff = np.finfo(float).eps * (float(np.max(np.abs(finite))) if len(finite) else 0.0)
+    return SensoryNoise(max(repeat_sd, ladder_sd, roundoff), repeat_sd, ladder_sd, lost,
+                        line_slope(lines))

@@ -1,0 +1,101 @@
+"""The naive agent's measure of itself, and the tolerances it sizes from it.
+
+Before it explores, the agent senses its start state and the states around
+it (``noise.measure_noise``, then ``structure.measure_structure``): how
+noisy a sensation is, which finite-difference step rises clearly above that
+noise, its pose rank and its sensory gain. Every tolerance that would
+otherwise expect exact repeats is then the larger of its parameter (the
+float64 round-off regime: a noiseless body keeps its parameters exactly)
+and what the measured noise explains:
+
+* the finite-difference step: the motor-equivalent noise of one sensation
+  is at most ``fd_noise_ratio`` of it (up to ``fd_max_step``);
+* compensation acceptance and sweep matching: two sensings of one motor
+  state differ by a residual whose squared norm over ``2 sd^2`` is
+  chi-square with ``S`` degrees of freedom; its ``noise_confidence``
+  quantile, in motor-equivalent units (over the gain), is the accepted
+  sensory error and the match tolerance;
+* the Gauss-Newton step such a residual asks for, through the weakest of the
+  pose's singular values: the accepted motor residual and the POV samples'
+  tolerance; the walk's predictor aims above it;
+* the smallest accepted singular value of a rank test: above the spectral
+  norm of a forward-difference Jacobian's noise, so a blank sensation
+  (a Jacobian of pure noise) never passes.
+
+When the noise hides the pose rank at one sensing per row, the rank probes
+are sensed again and averaged (``structure_max_repeats`` at most).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.stats import chi2
+
+from sensorispace_ros.core.naive.noise import measure_noise
+from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.structure import BodyStructure, measure_structure
+
+
+def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
+    """The finite-difference step (phase) for a per-receptor noise
+    ``noise_sd`` and a sensory ``slope`` (sensation per phase)."""
+    if slope <= 0 or noise_sd <= 0:
+        return params.fd_step
+    wanted = noise_sd * np.sqrt(n_sensors) / (slope * params.fd_noise_ratio)
+    return float(max(params.fd_step, min(params.fd_max_step, wanted)))
+
+
+def measure_body(body, center: np.ndarray, params: NaiveParams):
+    """Noise, then structure (at the step sized from the noise, probes
+    averaged while the noise hides the rank). Returns ``(BodyStructure,
+    sized NaiveParams)``; every row goes through ``body.sense``."""
+    n_sensors = int(body.n_sensors)
+    noise = measure_noise(body, center, repeats=params.noise_repeats,
+                          line_rows=params.noise_repeats)
+    step = sized_fd_step(params, noise.sd, noise.slope, n_sensors)
+    noisy = step > params.fd_step
+    repeats = 1
+    while True:
+        structure = measure_structure(body, center, fd_step=step,
+                                      probes=params.structure_probes,
+                                      radius=params.structure_radius,
+                                      min_gap=params.rank_min_gap, repeats=repeats,
+                                      noise_sd=noise.sd if noisy else None)
+        if not noisy or structure.votes == structure.probes or \
+                4 * repeats > params.structure_max_repeats:
+            break
+        repeats *= 4
+    structure = replace(structure, noise=noise.sd, fd_step=step)
+    return structure, sized_params(params, structure, n_sensors)
+
+
+def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) -> NaiveParams:
+    """``params`` with every exact-repeat tolerance raised to what the
+    measured noise explains (the module docstring)."""
+    sd, rank = structure.noise, structure.pose_rank
+    if sd <= 0 or rank < 1 or structure.gain <= 0:
+        return replace(params, fd_step=max(params.fd_step, structure.fd_step))
+    quantile = params.noise_confidence
+    residual = sd * np.sqrt(2.0 * chi2.ppf(quantile, n_sensors))
+    sensory = 2.0 * residual / structure.gain
+    weakest = structure.weakest if structure.weakest > 0 else structure.gain
+    motor = 2.0 * sd * np.sqrt(2.0 * chi2.ppf(quantile, rank)) / weakest
+    match_tol = max(params.match_tol, sensory)
+    return replace(
+        params, fd_step=max(params.fd_step, structure.fd_step),
+        lm_error_tol=max(params.lm_error_tol, sensory),
+        lm_motor_tol=max(params.lm_motor_tol, motor),
+        pov_sample_tol=max(params.pov_sample_tol, motor),
+        pov_predictor_tol=max(params.pov_predictor_tol, 2.0 * motor),
+        match_tol=match_tol, match_separation=max(params.match_separation, 4.0 * match_tol))
+
+
+def jacobian_noise(structure: BodyStructure, n_sensors: int) -> float:
+    """Expected spectral norm of a forward-difference Jacobian's noise
+    (sensation per phase) at the agent's step."""
+    if structure.fd_step <= 0:
+        return 0.0
+    return float(structure.noise * np.sqrt(2.0) * (np.sqrt(n_sensors)
+                                                    + np.sqrt(structure.n_motors))
+                 / structure.fd_step)
