@@ -30,7 +30,7 @@ class NaiveParams:
     fd_step: float = _default("fd_step")
     noise_repeats: int = _default("noise_repeats")
     noise_confidence: float = _default("noise_confidence")
-    fd_noise_ratio: float = _default("fd_noise_ratio")
+    fd_curvature_scale: float = _default("fd_curvature_scale")
     fd_max_step: float = _default("fd_max_step")
     structure_max_repeats: int = _default("structure_max_repeats")
     lost_row_retries: int = _default("lost_row_retries")

@@ -8,16 +8,18 @@ otherwise expect exact repeats is then the larger of its parameter (the
 float64 round-off regime: a noiseless body keeps its parameters exactly)
 and what the measured noise explains:
 
-* the finite-difference step: the motor-equivalent noise of one sensation
-  is at most ``fd_noise_ratio`` of it (up to ``fd_max_step``);
-* compensation acceptance and sweep matching: two sensings of one motor
-  state differ by a residual whose squared norm over ``2 sd^2`` is
-  chi-square with ``S`` degrees of freedom; its ``noise_confidence``
-  quantile, in motor-equivalent units (over the gain), is the accepted
-  sensory error and the match tolerance;
+* the finite-difference step: where the truncation error of a forward
+  difference and the noise it divides by the step are alike
+  (``sized_fd_step``);
+* compensation acceptance: two sensings of one motor state differ by a
+  residual whose squared norm over ``2 sd^2`` is chi-square with ``S``
+  degrees of freedom; its ``noise_confidence`` quantile, in
+  motor-equivalent units (over the gain), is the accepted sensory error;
 * the Gauss-Newton step such a residual asks for, through the weakest of the
   pose's singular values: the accepted motor residual and the POV samples'
-  tolerance; the walk's predictor aims above it;
+  tolerance; the walk's predictor aims above it. It is how well one
+  search pins a pose, so sweep matching and dedupe (which compare poses
+  found by different searches) accept four times it;
 * the smallest accepted singular value of a rank test: above the spectral
   norm of a forward-difference Jacobian's noise, so a blank sensation
   (a Jacobian of pure noise) never passes.
@@ -38,11 +40,14 @@ from sensorispace_ros.core.naive.structure import BodyStructure, measure_structu
 
 
 def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
-    """The finite-difference step (phase) for a per-receptor noise
-    ``noise_sd`` and a sensory ``slope`` (sensation per phase)."""
+    """The forward-difference step (phase) for a per-receptor noise
+    ``noise_sd`` and a sensory ``slope`` (sensation per phase): the step
+    where truncation (``step / fd_curvature_scale``, relative) and noise
+    (the motor-equivalent noise over the step) are alike."""
     if slope <= 0 or noise_sd <= 0:
         return params.fd_step
-    wanted = noise_sd * np.sqrt(n_sensors) / (slope * params.fd_noise_ratio)
+    motor_noise = noise_sd * np.sqrt(n_sensors) / slope
+    wanted = np.sqrt(2.0 * motor_noise * params.fd_curvature_scale)
     return float(max(params.fd_step, min(params.fd_max_step, wanted)))
 
 
@@ -81,7 +86,9 @@ def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) 
     sensory = 2.0 * residual / structure.gain
     weakest = structure.weakest if structure.weakest > 0 else structure.gain
     motor = 2.0 * sd * np.sqrt(2.0 * chi2.ppf(quantile, rank)) / weakest
-    match_tol = max(params.match_tol, sensory)
+    # Matches and dedupe compare poses found by different searches: each is
+    # known to the motor precision (``motor``), and chains of them drift.
+    match_tol = max(params.match_tol, sensory, 4.0 * motor)
     return replace(
         params, fd_step=max(params.fd_step, structure.fd_step),
         lm_error_tol=max(params.lm_error_tol, sensory),
