@@ -108,7 +108,9 @@ def ladder_spread(lines: np.ndarray) -> float:
             continue
         values = d2[step][:, moving]
         values = values[np.all(np.isfinite(values), axis=1)]
-        if len(values) == 0 or np.mean(values == 0.0) > 0.5:
+        # "Unchanged" up to the round-off of the subtraction itself.
+        tiny = 16.0 * np.finfo(float).eps * np.max(np.abs(line[finite]))
+        if len(values) == 0 or np.mean(np.abs(values) <= tiny) > 0.5:
             continue
         return robust_sd(values) / np.sqrt(6.0)
     return 0.0

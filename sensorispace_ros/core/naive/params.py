@@ -32,6 +32,7 @@ class NaiveParams:
     noise_confidence: float = _default("noise_confidence")
     fd_curvature_scale: float = _default("fd_curvature_scale")
     fd_max_step: float = _default("fd_max_step")
+    rank_noise_gap: float = _default("rank_noise_gap")
     structure_max_repeats: int = _default("structure_max_repeats")
     lost_row_retries: int = _default("lost_row_retries")
     structure_probes: int = _default("structure_probes")

@@ -128,6 +128,7 @@ class CountingBody:
         self._lookahead: np.ndarray | None = None
         self.phase = phase if phase is not None else MotorPhase([2.0 * np.pi] * self.n_motors)
         self.retries = int(retries)
+        self._fresh = False
 
     @property
     def stage(self) -> str | None:
@@ -162,8 +163,20 @@ class CountingBody:
         finally:
             self._lookahead = None
 
+    @contextlib.contextmanager
+    def fresh(self):
+        """Inside the block every call goes to the body, remembered or not:
+        sensing a state again to average its noise."""
+        self._fresh = True
+        try:
+            yield
+        finally:
+            self._fresh = False
+
     def _recall(self, motor_states: np.ndarray) -> np.ndarray | None:
-        return None if self._sensed is None else self._sensed.recall(motor_states)
+        if self._sensed is None or self._fresh:
+            return None
+        return self._sensed.recall(motor_states)
 
     def _count(self, n_rows: int) -> None:
         self.rows[self.stage] = self.rows.get(self.stage, 0) + n_rows

@@ -29,6 +29,7 @@ are sensed again and averaged (``structure_max_repeats`` at most).
 """
 from __future__ import annotations
 
+import contextlib
 from dataclasses import replace
 
 import numpy as np
@@ -60,19 +61,33 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
                           line_rows=params.noise_repeats)
     step = sized_fd_step(params, noise.sd, noise.slope, n_sensors)
     noisy = step > params.fd_step
-    repeats = 1
+    repeats, revealed = 1, -1
     while True:
-        structure = measure_structure(body, center, fd_step=step,
-                                      probes=params.structure_probes,
-                                      radius=params.structure_radius,
-                                      min_gap=params.rank_min_gap, repeats=repeats,
-                                      noise_sd=noise.sd if noisy else None)
-        if not noisy or structure.votes == structure.probes or \
-                4 * repeats > params.structure_max_repeats:
+        # Repeats are sensed anew, not recalled from what was sensed before.
+        with getattr(body, "fresh", contextlib.nullcontext)():
+            structure = measure_structure(body, center, fd_step=step,
+                probes=params.structure_probes, radius=params.structure_radius,
+                min_gap=params.rank_min_gap, repeats=repeats,
+                noise_sd=averaged_sd(noise, repeats) if noisy else None,
+                noise_gap=params.rank_noise_gap)
+        # Averaging removes only the part of the noise that repeats do not
+        # repeat; noise hides the weakest directions, so averaging goes on
+        # while it reveals more of them (or the probes disagree).
+        if not noisy or noise.repeat_sd == 0 or 4 * repeats > params.structure_max_repeats \
+                or (structure.votes == structure.probes and structure.pose_rank <= revealed):
             break
-        repeats *= 4
+        revealed, repeats = structure.pose_rank, 4 * repeats
     structure = replace(structure, noise=noise.sd, fd_step=step)
     return structure, sized_params(params, structure, n_sensors)
+
+
+def averaged_sd(noise, repeats: int) -> float:
+    """Per-receptor sd of a sensation averaged over ``repeats`` sensings: the
+    random part (``repeat_sd``) shrinks, the part that repeats exactly
+    (rounding, quantisation) stays."""
+    # Repeats that spread about as much as the ladder sees: all of it random.
+    fixed = 0.0 if noise.repeat_sd >= 0.5 * noise.sd else noise.sd ** 2 - noise.repeat_sd ** 2
+    return float(np.sqrt(noise.repeat_sd ** 2 / repeats + fixed))
 
 
 def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) -> NaiveParams:

@@ -90,14 +90,15 @@ class Tolerances:
 
     @classmethod
     def of(cls, params, structure: BodyStructure, jacobian_noise: float = 0.0) -> "Tolerances":
-        """``jacobian_noise``: the spectral norm of a finite-difference
-        Jacobian's noise; a rank test's smallest singular value stays 3x
-        above it (a Jacobian of pure noise never passes)."""
+        """``jacobian_noise``: the expected spectral norm of a
+        finite-difference Jacobian's noise; a rank test's smallest singular
+        value stays above it (the r-th singular value of a Jacobian of pure
+        noise, a blank sensation's, lies below its first)."""
         # A body that showed nothing (rank 0) has no gain; no sensation of it
         # passes a rank test, so any positive scale will do.
         gain = structure.gain if structure.gain > 0 else 1.0
         return cls(match=params.match_tol * gain, separation=params.match_separation * gain,
-                   min_singular=max(params.min_singular * gain, 3.0 * jacobian_noise))
+                   min_singular=max(params.min_singular * gain, jacobian_noise))
 
 
 def probe_states(center: np.ndarray, count: int, radius: float) -> np.ndarray:
@@ -142,9 +143,10 @@ def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: 
 
     Without ``noise_sd`` the floor is the larger of the truncation error
     (the difference of the estimates at ``h`` and ``2h``) and float64
-    round-off. With it (a step sized from measured noise) the floor is the
-    noise's: the expected spectral norm of the averaged differences'
-    noise, ``sd (sqrt(S) + sqrt(M)) / (sqrt(2 repeats) h)``. Truncation
+    round-off. With it (the sd left in a row averaged over its repeats, at a
+    step sized from measured noise) the floor is the noise's: the expected
+    spectral norm of the differences' noise, ``sd (sqrt(S) + sqrt(M)) /
+    (sqrt(2) h)``. Truncation
     error is then left out: it is smooth in the motor state and lies in the
     range of the Jacobian, so it does not lift the singular values of the
     level set's tangents the rank test looks at."""
@@ -165,17 +167,37 @@ def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: 
         floor = np.maximum(np.linalg.norm(jac - jac2, ord=2, axis=(1, 2)), rounding)
     else:
         n_sensors = rows.shape[2]
-        noise = noise_sd * (np.sqrt(n_sensors) + np.sqrt(n_motors)) / (
-            np.sqrt(2.0 * repeats) * step)
+        noise = noise_sd * (np.sqrt(n_sensors) + np.sqrt(n_motors)) / (np.sqrt(2.0) * step)
         floor = np.maximum(rounding, noise)
     # A probe with a lost row has no Jacobian: J = 0 against a floor of 1 has gap 1 (no vote).
     return jac, np.where(finite, floor, 1.0)
 
 
+def noise_rank(singular: np.ndarray, floor: np.ndarray, factor: float):
+    """Rank and gap of each row of singular values ``(B, k)`` against a
+    floor ``(B,)`` that is the expected spectral norm of the Jacobian's
+    noise: the rank counts the values at least ``factor`` times the floor
+    (noise alone stays below it); the gap is the ``rank``-th value over the
+    larger of the next one and the floor (1 for rank 0)."""
+    floor = np.maximum(np.asarray(floor, dtype=float), 1e-300)
+    rank = np.sum(singular >= factor * floor[:, None], axis=1)
+    padded = np.concatenate([singular, np.zeros((len(singular), 1))], axis=1)
+    rows = np.arange(len(singular))
+    above = np.where(rank > 0, padded[rows, np.maximum(rank - 1, 0)], floor)
+    below = np.maximum(padded[rows, rank], floor)
+    return rank, np.where(rank > 0, above / below, 1.0)
+
+
 def structure_from_probes(singular: np.ndarray, floor: np.ndarray, n_motors: int,
-                          min_gap: float) -> BodyStructure:
-    """The vote of ``gap_rank`` over probe states (see the module docstring)."""
-    rank, gap = gap_rank(singular, floor)
+                          min_gap: float, noise_gap: float | None = None) -> BodyStructure:
+    """The vote of ``gap_rank`` over probe states (see the module docstring);
+    with ``noise_gap`` (a floor that is the measured noise's) of
+    ``noise_rank``, a probe voting when its gap reaches ``noise_gap``."""
+    if noise_gap is None:
+        rank, gap = gap_rank(singular, floor)
+    else:
+        rank, gap = noise_rank(singular, floor, noise_gap)
+        min_gap = noise_gap
     decided = gap >= min_gap
     if not decided.any():
         return BodyStructure(n_motors, 0, float(np.max(gap, initial=1.0)), 0.0,
@@ -191,11 +213,13 @@ def structure_from_probes(singular: np.ndarray, floor: np.ndarray, n_motors: int
 
 def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int = 8,
                       radius: float = 0.1, min_gap: float = 100.0, repeats: int = 1,
-                      noise_sd: float | None = None) -> BodyStructure:
+                      noise_sd: float | None = None, noise_gap: float = 4.0) -> BodyStructure:
     """Pose rank, POV dimension and sensory gain of ``body`` around
     ``center`` (phases), from ``probes`` states in ONE ``sense`` call of
-    ``probes * (1 + 4M) * repeats`` rows. ``noise_sd``: the measured sensory
-    noise when ``fd_step`` was sized from it (``jacobians_and_floor``)."""
+    ``probes * (1 + 4M) * repeats`` rows. ``noise_sd``: the sd left in a
+    row averaged over its ``repeats`` when ``fd_step`` was sized from the
+    measured noise (``jacobians_and_floor``); the rank is then
+    ``noise_rank``'s at ``noise_gap``."""
     center = np.asarray(center, dtype=float).reshape(-1)
     n_motors = len(center)
     if int(probes) != probes or probes < 1:
@@ -209,4 +233,5 @@ def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int =
     jac, floor = jacobians_and_floor(sensed, len(states), n_motors, fd_step, int(repeats),
                                      noise_sd)
     singular = np.linalg.svd(jac, compute_uv=False)
-    return structure_from_probes(singular, floor, n_motors, min_gap)
+    return structure_from_probes(singular, floor, n_motors, min_gap,
+                                 None if noise_sd is None else noise_gap)
