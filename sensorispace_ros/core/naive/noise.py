@@ -10,17 +10,18 @@ senses, once, in one ``sense`` call:
 * short straight lines through the start with steps on a ladder from tiny
   to coarse: second differences along a line remove the smooth signal (up
   to the step squared times its curvature) and keep the errors. A
-  deterministic error (rounding to a quantum, to float32) repeats
+  deterministic error (rounding to fixed steps, to float32) repeats
   exactly, so the repeats miss it; along a line whose steps move the
-  signal over several quanta it looks like noise of about quantum/sqrt(12).
-  Steps that leave most outputs unchanged (all within one quantum) say
-  nothing and are skipped; the finest informative step gives the estimate.
+  signal over several rounding steps it looks like noise of about
+  step/sqrt(12). Line steps that leave most outputs unchanged (within one
+  rounding step) say nothing and are skipped; the finest informative line
+  step gives the estimate.
 
 Every spread is robust (median absolute deviation): heavy tails, a few wild
 outputs and lost rows (non-finite, left out and counted) do not move it.
 The estimate is a per-receptor standard deviation in the units of the
 sensations; float64 round-off of the outputs is its floor, so a noiseless
-body measures ~1e-16 and nothing the agent sizes from it changes.
+body measures 1e-16 to 1e-14 and nothing the agent sizes from it changes.
 """
 from __future__ import annotations
 
@@ -97,7 +98,7 @@ def ladder_spread(lines: np.ndarray) -> float:
     """The noise seen by second differences along the ladder's lines
     ``(L, K, S)``: for each step, ``robust_sd(d2) / sqrt(6)`` over the
     outputs that move along the line; steps where most of those second
-    differences are exactly 0 (outputs within one quantum) are skipped. The
+    differences are 0 (outputs within one rounding step) are skipped. The
     finest informative step's value; 0 if none is."""
     d2 = lines[:, 2:] - 2.0 * lines[:, 1:-1] + lines[:, :-2]
     for step in range(len(lines)):

@@ -47,8 +47,8 @@ def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors:
     (the motor-equivalent noise over the step) are alike."""
     if slope <= 0 or noise_sd <= 0:
         return params.fd_step
-    motor_noise = noise_sd * np.sqrt(n_sensors) / slope
-    wanted = np.sqrt(2.0 * motor_noise * params.fd_curvature_scale)
+    motor_equivalent = noise_sd * np.sqrt(n_sensors) / slope
+    wanted = np.sqrt(2.0 * motor_equivalent * params.fd_curvature_scale)
     return float(max(params.fd_step, min(params.fd_max_step, wanted)))
 
 
