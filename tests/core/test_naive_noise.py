@@ -124,7 +124,7 @@ def _smoke_agent(**imperfections):
 @pytest.mark.parametrize("imperfections", [
     {"laplace": 1e-8},                 # heavy-tailed noise the agent was never told about
     {"float32": True},
-    {"quantum": 1e-4},
+    {"quantum": 1e-5},
     {"dropout": 2e-3, "noise": 1e-9},
 ], ids=["laplace", "float32", "quantum", "dropout"])
 def test_the_agent_finds_its_structure_and_povs_through_imperfections(imperfections):

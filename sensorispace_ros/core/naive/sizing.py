@@ -17,9 +17,11 @@ and what the measured noise explains:
   motor-equivalent units (over the gain), is the accepted sensory error;
 * the Gauss-Newton step such a residual asks for, through the weakest of the
   pose's singular values: the accepted motor residual and the POV samples'
-  tolerance; the walk's predictor aims above it. It is how well one
-  search pins a pose, so sweep matching and dedupe (which compare poses
-  found by different searches) accept four times it;
+  tolerance; the walk's predictor aims above it;
+* sweep matching and dedupe compare sensations of poses found by different
+  searches, in chains whose accepted errors add up: ``_CHAIN`` times the
+  accepted sensory error (a chain's sum of random errors grows as the
+  square root of its length);
 * the smallest accepted singular value of a rank test: above the spectral
   norm of a forward-difference Jacobian's noise, so a blank sensation
   (a Jacobian of pure noise) never passes.
@@ -38,6 +40,10 @@ from scipy.stats import chi2
 from sensorispace_ros.core.naive.noise import measure_noise
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.structure import BodyStructure, measure_structure
+
+# Accepted sensory errors a match may add up: chains of a few hundred
+# compensations (their random errors grow as the square root of the length).
+_CHAIN = 16.0
 
 
 def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
@@ -101,9 +107,10 @@ def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) 
     sensory = 2.0 * residual / structure.gain
     weakest = structure.weakest if structure.weakest > 0 else structure.gain
     motor = 2.0 * sd * np.sqrt(2.0 * chi2.ppf(quantile, rank)) / weakest
-    # Matches and dedupe compare poses found by different searches: each is
-    # known to the motor precision (``motor``), and chains of them drift.
-    match_tol = max(params.match_tol, sensory, 4.0 * motor)
+    # Matches and dedupe compare sensations of poses found by different
+    # searches, each within the accepted error of its target, in chains
+    # (an anchor is an earlier compensation) whose errors add up.
+    match_tol = max(params.match_tol, _CHAIN * sensory)
     return replace(
         params, fd_step=max(params.fd_step, structure.fd_step),
         lm_error_tol=max(params.lm_error_tol, sensory),
