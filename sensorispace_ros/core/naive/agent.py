@@ -64,7 +64,7 @@ from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noq
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
 from sensorispace_ros.core.naive.snapshot_matching import SnapshotMatching
-from sensorispace_ros.core.naive.sizing import jacobian_noise, measure_body
+from sensorispace_ros.core.naive.sizing import jacobian_noise, measure_body, noise_step
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
 EXPLORING = "exploring"
@@ -238,7 +238,8 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._body.stage = "rank"
         self.structure, self.params = measure_body(self._body, m0, self.params)
         self._tol = Tolerances.of(self.params, self.structure,
-                                  jacobian_noise(self.structure, self._body.n_sensors))
+                                  jacobian_noise(self.structure, self._body.n_sensors),
+                                  noise_step(self.params, self.structure))
         self._store = PovStore(self.n_samples, self.n_motors)
         new, sensations = self._sample_povs(m0[None])
         self._rest = m0.copy()

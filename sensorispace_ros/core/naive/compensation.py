@@ -81,7 +81,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
                rank_ratio: float = 1e-3, max_step: float = 0.5,
                initial_damping: float = 1e-3, stall_iterations: int = 6,
                stall_factor: float = 0.5, stationary_ratio: float = 0.2,
-               stop_found_targets: bool = True) -> CompensationSearch:
+               stop_found_targets: bool = True, noise_step: float = 0.0) -> CompensationSearch:
     """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
     from ``starts[k]`` for every search ``k`` at once.
 
@@ -90,7 +90,9 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     sensation units, ``pattern_ratio`` for the gain-free part). Each iteration
     is a damped Gauss-Newton step (``_damped_step``, capped at ``max_step``).
     A search stops when accepted (``sensory_error <= error_tol * gain`` and
-    ``motor_residual <= motor_tol``), after ``max_iterations``, when its
+    ``motor_residual <= motor_tol``, or below ``noise_step`` over the
+    ``rank``-th singular value there: the step measured noise asks for), after
+    ``max_iterations``, when its
     error has not fallen below ``stall_factor`` times its value
     ``stall_iterations`` iterations earlier (a local minimum), or at the two
     stops of the module docstring.
@@ -101,7 +103,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         rank_ratio=rank_ratio, max_step=max_step, initial_damping=initial_damping,
         stall_iterations=stall_iterations, stall_factor=stall_factor,
         stationary_ratio=stationary_ratio)
-    accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=motor_tol,
+    accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
     n_search, rows_per_state = len(point), point.shape[1] + 1
     queries, iterations = np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int)
@@ -169,7 +171,8 @@ def _outcome(point, jac, sensation, residual, error, queries, iterations, calls,
     singular = np.linalg.svd(jac, compute_uv=False)
     ratio = singular[:, rank - 1] / np.maximum(singular[:, 0], 1e-300)
     motor_residual = _step_norm(jac, residual, rank)
-    accepted = ((error <= error_tol * singular[:, 0]) & (motor_residual <= motor_tol)
+    accepted = ((error <= error_tol * singular[:, 0])
+                & (motor_residual <= _motor_tolerance(singular, rank, *motor_tol))
                 & has_full_pose_rank(jac, rank, rank_ratio, min_singular, sensation,
                                      pattern_ratio))
     return CompensationSearch(motor_states=point, sensory_error=error, gain=singular[:, 0],
@@ -237,12 +240,23 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     damping[worse] = damping[worse] * 4.0
 
 
+def _motor_tolerance(singular, rank, motor_tol, noise_step):
+    """Accepted Gauss-Newton step per search: ``motor_tol``, or the step a
+    residual of measured noise asks for through the ``rank``-th singular
+    value (``noise_step`` in sensation units)."""
+    if noise_step <= 0:
+        return motor_tol
+    with np.errstate(divide="ignore"):
+        return np.maximum(motor_tol, noise_step / singular[:, rank - 1])
+
+
 def _converged(jac, residual, error, error_tol, motor_tol, rank):
     converged = error <= error_tol * np.linalg.norm(jac, ord=2, axis=(1, 2))
     if converged.any():
         idx = np.flatnonzero(converged)
         gn = _step_norm(jac[idx], residual[idx], rank)
-        converged[idx] = gn <= motor_tol
+        singular = np.linalg.svd(jac[idx], compute_uv=False) if motor_tol[1] > 0 else None
+        converged[idx] = gn <= _motor_tolerance(singular, rank, *motor_tol)
     return converged
 
 

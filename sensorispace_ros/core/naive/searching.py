@@ -88,7 +88,8 @@ class SearchAndSample:
                             motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio,
                             max_step=p.lm_max_step, initial_damping=p.lm_initial_damping,
                             stall_iterations=p.lm_stall_iterations,
-                            stop_found_targets=not isolated)
+                            stop_found_targets=not isolated,
+                            noise_step=self._tol.noise_step)
         solution: dict[int, np.ndarray] = {}
         others: dict[int, np.ndarray] = {}
         gain: dict[int, float] = {}

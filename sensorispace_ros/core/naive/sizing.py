@@ -15,9 +15,10 @@ and what the measured noise explains:
   residual whose squared norm over ``2 sd^2`` is chi-square with ``S``
   degrees of freedom; its ``noise_confidence`` quantile, in
   motor-equivalent units (over the gain), is the accepted sensory error;
-* the Gauss-Newton step such a residual asks for, through the weakest of the
-  pose's singular values: the accepted motor residual and the POV samples'
-  tolerance; the walk's predictor aims above it;
+* the Gauss-Newton step such a residual asks for, through the pose's
+  weakest singular value at the state in question: the accepted motor
+  residual of a search (``noise_step``); through the median one measured at
+  the start, the POV samples' tolerance; the walk's predictor aims above it;
 * sweep matching and dedupe compare sensations of poses found by different
   searches, in chains whose accepted errors add up: ``_CHAIN`` times the
   accepted sensory error (a chain's sum of random errors grows as the
@@ -114,10 +115,20 @@ def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) 
     return replace(
         params, fd_step=max(params.fd_step, structure.fd_step),
         lm_error_tol=max(params.lm_error_tol, sensory),
-        lm_motor_tol=max(params.lm_motor_tol, motor),
         pov_sample_tol=max(params.pov_sample_tol, motor),
         pov_predictor_tol=max(params.pov_predictor_tol, 2.0 * motor),
         match_tol=match_tol, match_separation=max(params.match_separation, 4.0 * match_tol))
+
+
+def noise_step(params: NaiveParams, structure: BodyStructure) -> float:
+    """Twice the ``noise_confidence`` quantile of the part of a residual
+    between two sensings that lies in the pose's ``rank`` directions
+    (sensation units): over a state's ``rank``-th singular value, the
+    Gauss-Newton step a search may keep there."""
+    if structure.noise <= 0 or structure.pose_rank < 1:
+        return 0.0
+    chi = chi2.ppf(params.noise_confidence, structure.pose_rank)
+    return float(2.0 * structure.noise * np.sqrt(2.0 * chi))
 
 
 def jacobian_noise(structure: BodyStructure, n_sensors: int) -> float:
