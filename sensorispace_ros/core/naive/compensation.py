@@ -90,9 +90,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     sensation units, ``pattern_ratio`` for the gain-free part). Each iteration
     is a damped Gauss-Newton step (``_damped_step``, capped at ``max_step``).
     A search stops when accepted (``sensory_error <= error_tol * gain`` and
-    ``motor_residual <= motor_tol``, or below ``noise_step`` over the
-    ``rank``-th singular value there: the step measured noise asks for), after
-    ``max_iterations``, when its
+    ``motor_residual <= _motor_tolerance``), after ``max_iterations``, when its
     error has not fallen below ``stall_factor`` times its value
     ``stall_iterations`` iterations earlier (a local minimum), or at the two
     stops of the module docstring.
