@@ -54,7 +54,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.body_description import BodyDescription
-from sensorispace_ros.core.naive.anchors import Snapshot
+from sensorispace_ros.core.naive.anchors import Snapshot, SnapshotMatching
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetCollection, EqualitySetSweep, check_pose_rank, finite_rows)
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -63,8 +63,7 @@ from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecor
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
-from sensorispace_ros.core.naive.snapshot_matching import SnapshotMatching
-from sensorispace_ros.core.naive.sizing import jacobian_noise, measure_body, noise_step
+from sensorispace_ros.core.naive.noise import jacobian_noise, measure_body, noise_step
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
 EXPLORING = "exploring"
