@@ -79,7 +79,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
     ``react`` and may be a round trip to another process. Every ``start``/
     ``react`` ends with a one-row command: the arm rests at
     ``rest_motor_state``. The policy draws no random numbers: the same
-    sensations give the same run.
+    sensations give the same run. ``params`` are the given parameters until
+    ``start``, then those sized from the noise it measured
+    (``noise.measure_body``; unchanged on a noiseless body).
     """
 
     def __init__(self, body, params: NaiveParams | None = None):
