@@ -160,9 +160,12 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
                         line_slope(lines))
 
 
-# Accepted sensory errors a match may add up: chains of a few hundred
-# compensations (their random errors grow as the square root of the length).
-_CHAIN = 16.0
+# Accepted sensory errors a match may add up: an anchor is an earlier
+# compensation, so poses drift along chains of them, each step by a random
+# error within the accepted one. 256 such errors still lie far below the
+# sensation step between neighbouring positions at the noise levels the
+# agent copes with (a smaller allowance found positions twice).
+_CHAIN = 256.0
 
 
 def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
