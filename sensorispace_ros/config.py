@@ -284,6 +284,9 @@ def _check_naive_relations(naive: dict) -> None:
         raise ConfigError("naive.pov_initial_step: must lie in [naive.pov_min_step "
                           f"({naive['pov_min_step']!r}), naive.pov_max_step "
                           f"({naive['pov_max_step']!r})], got {naive['pov_initial_step']!r}")
+    if not naive["noise_confidence"] < 1.0:
+        raise ConfigError("naive.noise_confidence: must be < 1, got "
+                          f"{naive['noise_confidence']!r}")
     if not naive["match_tol"] < naive["match_separation"]:
         raise ConfigError("naive.match_tol: must be < naive.match_separation "
                           f"({naive['match_separation']!r}), got {naive['match_tol']!r}")

@@ -23,7 +23,8 @@ PACKAGE = Path(__file__).resolve().parents[2] / "sensorispace_ros"
 NAIVE = PACKAGE / "core" / "naive"
 # The agent's own modules; core/naive/run.py drives it against the simulator.
 NAIVE_MODULES = ("agent", "anchors", "compensation", "equality_sets", "jacobians", "loop_walk",
-                 "points_of_view", "searching", "sense_memory", "structure", "surface")
+                 "noise", "points_of_view", "searching", "sense_memory", "structure",
+                 "surface")
 # Modules that know the arm, the retina, the lights or the events.
 GROUND_TRUTH = ("sensorispace_ros.core.arm", "sensorispace_ros.core.retina",
                 "sensorispace_ros.core.world", "sensorispace_ros.core.body",

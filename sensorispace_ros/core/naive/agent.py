@@ -54,23 +54,23 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.body_description import BodyDescription
-from sensorispace_ros.core.naive.anchors import (Snapshot, anchor_requests,
-    full_rank_matches)
+from sensorispace_ros.core.naive.anchors import Snapshot, SnapshotMatching
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
-    EqualitySetCollection, EqualitySetSweep, check_pose_rank, match_sensations)
+    EqualitySetCollection, EqualitySetSweep, check_pose_rank, finite_rows)
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.points_of_view import PovStore, jacobian_stencil
+from sensorispace_ros.core.naive.points_of_view import PovStore
 from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
+from sensorispace_ros.core.naive.noise import jacobian_noise, measure_body, noise_step
 from sensorispace_ros.core.naive.start import choose_start
-from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances, measure_structure
+from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
 EXPLORING = "exploring"
 
 
-class NaiveAgent(SearchAndSample):
+class NaiveAgent(SnapshotMatching, SearchAndSample):
     """Event-driven naive explorer (see the module docstring).
 
     ``body`` needs ``sense(motor_states (B, M)) -> (B, S)``, ``n_motors`` and
@@ -80,7 +80,9 @@ class NaiveAgent(SearchAndSample):
     ``react`` and may be a round trip to another process. Every ``start``/
     ``react`` ends with a one-row command: the arm rests at
     ``rest_motor_state``. The policy draws no random numbers: the same
-    sensations give the same run.
+    sensations give the same run. ``params`` are the given parameters until
+    ``start``, then those sized from the noise it measured
+    (``noise.measure_body``; unchanged on a noiseless body).
     """
 
     def __init__(self, body, params: NaiveParams | None = None):
@@ -102,7 +104,8 @@ class NaiveAgent(SearchAndSample):
                              f"joints, got {description!r}")
         self.description = description
         self._phase = MotorPhase(description.periods)
-        self._body = CountingBody(body, bool(self.params.remember_sensations), self._phase)
+        self._body = CountingBody(body, bool(self.params.remember_sensations), self._phase,
+                                  self.params.lost_row_retries)
         self.n_motors = self._body.n_motors
         self.structure: BodyStructure | None = None     # measured by start()
         self._tol: Tolerances | None = None
@@ -222,6 +225,21 @@ class NaiveAgent(SearchAndSample):
             agent._sweep.sets = agent._sets
         return agent
 
+    def _measure_body(self, m0: np.ndarray, seed: int) -> np.ndarray:
+        """Noise and structure at the start (``noise.measure_body``), the
+        start left for one of full measured rank where it is degenerate
+        (``start.choose_start``), the tolerances sized from both; returns
+        the start (phases)."""
+        given = self.params
+        self.structure, self.params = measure_body(self._body, m0, given)
+        m0, _, self.start_choice = choose_start(self._body, m0, self.structure, self.params, seed)
+        if self.start_choice is not None and self.start_choice.moved:
+            self.structure, self.params = measure_body(self._body, m0, given)
+        self._tol = Tolerances.of(self.params, self.structure,
+                                  jacobian_noise(self.structure, self._body.n_sensors),
+                                  noise_step(self.params, self.structure))
+        return m0
+
     def start(self, initial_motor_state, seed: int = 0) -> Reaction:
         """Move to ``initial_motor_state`` (or a better start, seeded:
         ``start.choose_start``), sample its POV, record the first anchor."""
@@ -235,14 +253,8 @@ class NaiveAgent(SearchAndSample):
         self._event = 0
         self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
-        p = self.params
         self._body.stage = "rank"
-        self.structure = measure_structure(self._body, m0, fd_step=p.fd_step,
-                                           probes=p.structure_probes,
-                                           radius=p.structure_radius, min_gap=p.rank_min_gap)
-        m0, self.structure, self.start_choice = choose_start(self._body, m0, self.structure,
-                                                             p, seed)
-        self._tol = Tolerances.of(p, self.structure)
+        m0 = self._measure_body(m0, seed)
         self._store = PovStore(self.n_samples, self.n_motors)
         new, sensations = self._sample_povs(m0[None])
         self._rest = m0.copy()
@@ -266,8 +278,10 @@ class NaiveAgent(SearchAndSample):
         if self._event < 0:
             raise RuntimeError("react() before start()")
         passive = np.asarray(passive_sensation, dtype=float).reshape(-1)
-        if passive.shape != (self._body.n_sensors,) or not np.all(np.isfinite(passive)):
-            raise ValueError(f"passive_sensation: must be {self._body.n_sensors} finite numbers")
+        # Not used as a value (the sweep senses the resting POV again): a lost
+        # frame (non-finite) is accepted.
+        if passive.shape != (self._body.n_sensors,):
+            raise ValueError(f"passive_sensation: must be {self._body.n_sensors} numbers")
         self._event += 1
         self._body.forget()
         before_rows, before_calls = self._body.total_rows, self._body.total_calls
@@ -337,7 +351,7 @@ class NaiveAgent(SearchAndSample):
         # This event's memory of (motor, sensation): the sweep of the known POVs.
         self._body.stage = "sweep"
         current, split_now = self._sweep_known()
-        tree = cKDTree(current) if len(current) else None
+        tree = cKDTree(finite_rows(current, -1.0)) if len(current) else None
         matches, rest_hits, rank_now = self._match_snapshots(current, tree)
         matches = self._test_ranks(matches, rest_hits, rank_now, current)
         known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)
@@ -370,89 +384,6 @@ class NaiveAgent(SearchAndSample):
                         rest_motor_state=self._to_body(self._rest), new_pov_ids=new_idx,
                         new_povs=self._to_body(self._store.samples[new_idx]),
                         compensations=records, equality_rows=self._sets.rows_since(sets_before))
-
-    def _match_snapshots(self, current, tree):
-        """Match every snapshot's sweep, and its anchor, with this sweep
-        ``current``. Returns ``(matches [(before, after), ...], rest_hits
-        (the POV now sensing each snapshot's anchor, -1: none), rank_now)``;
-        ``rank_now`` ``(K,)`` holds the ranks the matches carry over (a
-        match senses the same relative pose in the same light layout)."""
-        p = self.params
-        rank_now = np.full(len(current), RANK_UNKNOWN)
-        match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree)
-        matches = []
-        for snap in self._pool:
-            before, after = match_sensations(snap.sensations, current, **match)
-            known = snap.rank[before]
-            rank_now[after[known != RANK_UNKNOWN]] = known[known != RANK_UNKNOWN]
-            matches.append((before, after))
-        rest_hits = np.full(len(self._pool), -1)
-        for k, snap in enumerate(self._pool):
-            _, hit = match_sensations(snap.rest_sensation[None], current, **match)
-            if len(hit):
-                rest_hits[k] = hit[0]
-                if snap.rest_rank != RANK_UNKNOWN:
-                    rank_now[hit[0]] = snap.rest_rank
-        return matches, rest_hits, rank_now
-
-    def _test_ranks(self, matches, rest_hits, rank_now, current):
-        """Rank tests (M + 1 rows each) only where a decision needs them:
-        every match of the snapshots that feed equality sets, a few matches
-        of the others (one full-rank match confirms a snapshot), anchor
-        hits. Fills ``rank_now`` in place; returns the full-rank matches."""
-        p = self.params
-        needed = [rest_hits[rest_hits >= 0]]
-        for k, (_, after) in enumerate(matches):
-            if k < p.equality_snapshots:
-                needed.append(after)
-            elif not np.any(rank_now[after] == RANK_FULL):
-                needed.append(after[rank_now[after] == RANK_UNKNOWN][:p.confirm_checks])
-        unknown = np.unique(np.concatenate(needed).astype(int))
-        unknown = unknown[rank_now[unknown] == RANK_UNKNOWN]
-        if len(unknown):
-            # Which anchors are searched depends on these tests. The call also
-            # carries the stencils the search starts from if every tested state
-            # has full rank (the usual outcome): the search's first call is
-            # then answered from memory.
-            guess = rank_now.copy()
-            guess[unknown] = RANK_FULL
-            _, guessed = self._anchor_requests(full_rank_matches(matches, guess), rest_hits,
-                                               guess)
-            starts = self._search_plan(guessed, current)[-1] if guessed else np.zeros(
-                (0, self.n_motors))
-            self._body.stage = "rank"
-            with self._body.lookahead(jacobian_stencil(starts, p.fd_step)):
-                full, _ = check_pose_rank(self._body, self._store.samples[unknown, 0],
-                                          rank=self.structure.pose_rank, fd_step=p.fd_step,
-                                          rank_ratio=p.rank_ratio,
-                                          min_singular=self._tol.min_singular,
-                                          pattern_ratio=p.pattern_ratio)
-            rank_now[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
-        return full_rank_matches(matches, rank_now)
-
-    def _track_frontier(self, requests, found, new_povs) -> None:
-        """Moving average of the frontier searches that found a new POV."""
-        frontier = [i for i, r in enumerate(requests) if r.row >= 0]
-        if frontier:
-            hits = sum(1 for i in frontier if i in found and found[i][0] >= 0
-                       and found[i][0] in new_povs)
-            self._frontier_success = 0.9 * self._frontier_success + 0.1 * hits / len(frontier)
-
-    def _add_equality_sets(self, matches, requests, found) -> None:
-        """Equality sets: the changes matched for one snapshot (and the
-        compensations of its anchors) all compensate one displacement."""
-        for k, snap in enumerate(self._pool):
-            before, after = matches[k]
-            extra_before, extra_after = [], []
-            for i, r in enumerate(requests):
-                if r.snapshot != k or i not in found or found[i][0] < 0:
-                    continue
-                source = r.row if r.row >= 0 else snap.rest_pov
-                if source >= 0 and source not in before:
-                    extra_before.append(source)
-                    extra_after.append(found[i][0])
-            self._sets.add(np.concatenate([before, extra_before]).astype(int),
-                           np.concatenate([after, extra_after]).astype(int))
 
     def _compensation_records(self, known_comp, found_rest, requests, found):
         """Accepted compensations of this event: the snapshots' anchors (in
@@ -509,22 +440,6 @@ class NaiveAgent(SearchAndSample):
         self._body.stage = "rest"
         return self._body.rest(self._rest), rest_rank
 
-    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:
-        """Put this event's ``snapshot`` first; forget superseded and
-        long-failing ones, keep at most ``max_snapshots``."""
-        p = self.params
-        kept = []
-        for k, snap in enumerate(self._pool):
-            alive = len(matches[k][0]) > 0 or k in known_comp or k in found_rest
-            snap.fails = 0 if alive else snap.fails + 1
-            comp_pov = known_comp[k] if k in known_comp else found_rest.get(k, (None,))[0]
-            # Compensated by where the arm now rests: the new snapshot has the
-            # same anchor pose relative to the object, in a later environment.
-            superseded = comp_pov is not None and comp_pov == self._rest_pov
-            if not superseded and snap.fails < p.snapshot_patience:
-                kept.append(snap)
-        self._pool = ([snapshot] + kept)[:p.max_snapshots]
-
     def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
         """Sensation now of every known POV ``(K, S)`` and of every remembered
         split POV ``(Q, S)``, in one call (one sample each: all samples of a
@@ -543,20 +458,6 @@ class NaiveAgent(SearchAndSample):
         if len(self._split_states):
             rows = np.concatenate([rows, self._split_states])
         return rows
-
-    def _anchor_requests(self, matches, rest_hits, rank_now):
-        """``anchors.anchor_requests`` on the pool, with this event's frontier budget."""
-        return anchor_requests(self._pool, matches, rest_hits, rank_now, self.params,
-                               pov_samples=self._store.samples,
-                               frontier_budget=self._frontier_budget())
-
-    def _frontier_budget(self) -> int:
-        """Frontier searches this event: ``frontier_attempts`` while they
-        find new POVs, down to one when they keep failing (the known POVs
-        already fill the reachable region; later translations may still
-        uncover a corner, so the agent keeps trying once per event)."""
-        share = min(1.0, self._frontier_success / 0.2)
-        return max(1, int(np.ceil(self.params.frontier_attempts * share)))
 
     def _to_body(self, phases: np.ndarray) -> np.ndarray:
         """A copy of ``phases`` in the body's motor units."""

@@ -25,6 +25,20 @@ gain *at the solution* (the largest singular value of its Jacobian):
 ``error_tol`` is a motor-equivalent amount, so no tolerance is in the units
 of the receptors and a code that is steep in one place and flat in another
 gets the same test everywhere.
+
+Besides convergence, a stall and the iteration budget, two stops of
+``compensate`` save ``sense`` calls without changing which targets are found
+(see docs/benchmarks.md):
+
+* at a stationary point: when the part of the residual in the range of
+  ``J`` is below ``stationary_ratio`` times the residual, the linearised
+  model can remove at most ``1 - sqrt(1 - ratio^2)`` (2 % at 0.2) of the
+  error (at a local minimum it tends to 0). ``0`` disables it.
+* ``stop_found_targets``: searches toward one target stop as soon as one
+  of them is accepted: the target sensation pins the sensor's
+  configuration, so another restart could only find it again (on the
+  same POV; for a 0-D POV, another of its isolated solutions: pass False
+  to collect those).
 """
 from __future__ import annotations
 
@@ -67,36 +81,19 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
                rank_ratio: float = 1e-3, max_step: float = 0.5,
                initial_damping: float = 1e-3, stall_iterations: int = 6,
                stall_factor: float = 0.5, stationary_ratio: float = 0.2,
-               stop_found_targets: bool = True) -> CompensationSearch:
+               stop_found_targets: bool = True, noise_step: float = 0.0) -> CompensationSearch:
     """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
     from ``starts[k]`` for every search ``k`` at once.
 
     ``target_sensations`` ``(K, S)``, ``starts`` ``(K, M)``. The rank test
     is ``jacobians.has_full_pose_rank`` (``rank_ratio``, ``min_singular`` in
     sensation units, ``pattern_ratio`` for the gain-free part). Each iteration
-    solves ``(J^T J + lambda I) dm = -J^T r`` (Levenberg's isotropic damping:
-    the step stays small along the level set's null directions), caps
-    ``|dm|`` at ``max_step`` (phase), and probes the trial state with its
-    stencil in the batch's one ``sense`` call. A better trial is kept and
-    ``lambda`` (relative to the mean squared singular value of ``J``)
-    shrinks; a worse one is dropped and ``lambda`` grows. A search stops
-    when accepted (``sensory_error <= error_tol * gain`` and
-    ``motor_residual <= motor_tol``), after ``max_iterations``, or when its
+    is a damped Gauss-Newton step (``_damped_step``, capped at ``max_step``).
+    A search stops when accepted (``sensory_error <= error_tol * gain`` and
+    ``motor_residual <= _motor_tolerance``), after ``max_iterations``, when its
     error has not fallen below ``stall_factor`` times its value
-    ``stall_iterations`` iterations earlier (a local minimum).
-
-    Two more stops save ``sense`` calls without changing which targets are
-    found (see docs/benchmarks.md):
-
-    * at a stationary point: when the part of the residual in the range of
-      ``J`` is below ``stationary_ratio`` times the residual, the linearised
-      model can remove at most ``1 - sqrt(1 - ratio^2)`` (2 % at 0.2) of the
-      error (at a local minimum it tends to 0). ``0`` disables it.
-    * ``stop_found_targets``: searches toward one target stop as soon as one
-      of them is accepted: the target sensation pins the sensor's
-      configuration, so another restart could only find it again (on the
-      same POV; for a 0-D POV, another of its isolated solutions: pass False
-      to collect those).
+    ``stall_iterations`` iterations earlier (a local minimum), or at the two
+    stops of the module docstring.
     """
     targets, point = _checked_searches(
         body, target_sensations, starts, rank=rank, fd_step=fd_step,
@@ -104,18 +101,15 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         rank_ratio=rank_ratio, max_step=max_step, initial_damping=initial_damping,
         stall_iterations=stall_iterations, stall_factor=stall_factor,
         stationary_ratio=stationary_ratio)
-    accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=motor_tol,
+    accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
-    n_search = len(point)
-    rows_per_state = point.shape[1] + 1
-    queries = np.zeros(n_search, dtype=int)
-    iterations = np.zeros(n_search, dtype=int)
+    n_search, rows_per_state = len(point), point.shape[1] + 1
+    queries, iterations = np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int)
     if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
         return _none_accepted(point)
 
     sensation, jac, _ = sensory_jacobian(body, point, fd_step)
-    calls = 1
-    queries += rows_per_state
+    calls, queries = 1, queries + rows_per_state
     residual = sensation - targets
     error = np.linalg.norm(residual, axis=1)
     damping = np.full(n_search, float(initial_damping))
@@ -175,7 +169,8 @@ def _outcome(point, jac, sensation, residual, error, queries, iterations, calls,
     singular = np.linalg.svd(jac, compute_uv=False)
     ratio = singular[:, rank - 1] / np.maximum(singular[:, 0], 1e-300)
     motor_residual = _step_norm(jac, residual, rank)
-    accepted = ((error <= error_tol * singular[:, 0]) & (motor_residual <= motor_tol)
+    accepted = ((error <= error_tol * singular[:, 0])
+                & (motor_residual <= _motor_tolerance(singular, rank, *motor_tol))
                 & has_full_pose_rank(jac, rank, rank_ratio, min_singular, sensation,
                                      pattern_ratio))
     return CompensationSearch(motor_states=point, sensory_error=error, gain=singular[:, 0],
@@ -211,7 +206,10 @@ def _stopping(jac, sensation, residual, error, history, iteration, target_id, ac
 def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd_step,
                  max_step) -> None:
     """One Levenberg-Marquardt iteration of the searches ``idx``, in one
-    ``sense`` call: solve the damped normal equations, cap the step, probe
+    ``sense`` call: solve ``(J^T J + lambda I) dm = -J^T r`` (Levenberg's
+    isotropic damping, ``lambda`` relative to the mean squared singular
+    value of ``J``: the step stays small along the level set's null
+    directions), cap the step, probe
     the trial state with its stencil; keep a better trial (``point``,
     ``jac``, ``residual``, ``error`` updated in place) and shrink its
     damping, grow the damping of a worse one."""
@@ -240,12 +238,23 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     damping[worse] = damping[worse] * 4.0
 
 
+def _motor_tolerance(singular, rank, motor_tol, noise_step):
+    """Accepted Gauss-Newton step per search: ``motor_tol``, or the step a
+    residual of measured noise asks for through the ``rank``-th singular
+    value (``noise_step`` in sensation units)."""
+    if noise_step <= 0:
+        return motor_tol
+    with np.errstate(divide="ignore"):
+        return np.maximum(motor_tol, noise_step / singular[:, rank - 1])
+
+
 def _converged(jac, residual, error, error_tol, motor_tol, rank):
     converged = error <= error_tol * np.linalg.norm(jac, ord=2, axis=(1, 2))
     if converged.any():
         idx = np.flatnonzero(converged)
         gn = _step_norm(jac[idx], residual[idx], rank)
-        converged[idx] = gn <= motor_tol
+        singular = np.linalg.svd(jac[idx], compute_uv=False) if motor_tol[1] > 0 else None
+        converged[idx] = gn <= _motor_tolerance(singular, rank, *motor_tol)
     return converged
 
 

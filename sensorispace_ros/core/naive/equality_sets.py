@@ -33,6 +33,23 @@ RANK_DEFICIENT = 0
 RANK_FULL = 1
 
 
+# Where a lost (non-finite) sensation is put so it matches nothing: far from
+# every sensation and from the other side's lost rows; its squares stay finite.
+LOST_ROW = 1e150
+
+
+def finite_rows(rows: np.ndarray, side: float = 1.0) -> np.ndarray:
+    """``rows`` with every row holding a non-finite value moved to
+    ``side * LOST_ROW`` (a copy when any is), for trees and matches."""
+    rows = np.asarray(rows, dtype=float)
+    lost = ~np.all(np.isfinite(rows), axis=-1)
+    if not lost.any():
+        return rows
+    rows = rows.copy()
+    rows[lost] = side * LOST_ROW
+    return rows
+
+
 def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: float = 1e-6,
                      separation: float = 1e-4, tree: cKDTree | None = None):
     """Unique one-to-one matches between two sets of sensations.
@@ -41,10 +58,11 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
     matches row ``j`` of ``current`` when ``|reference[i] - current[j]| <=
     match_tol``, no other current row lies within ``separation`` of
     ``reference[i]``, and no other reference row matches ``current[j]``.
-    ``tree``: a ``cKDTree`` of ``current`` to reuse across calls.
+    ``tree``: a ``cKDTree`` of ``finite_rows(current, -1)`` to reuse across
+    calls. A lost (non-finite) row matches nothing.
     """
-    reference = np.asarray(reference, dtype=float)
-    current = np.asarray(current, dtype=float)
+    reference = finite_rows(reference, 1.0)
+    current = finite_rows(current, -1.0)
     if not 0 < match_tol < separation:
         raise ValueError(f"match_tol must be > 0 and < separation ({separation}), "
                          f"got {match_tol}")

@@ -53,13 +53,20 @@ def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
     (B, S, M), rows)`` where ``rows = B * (M + 1)`` is the number of motor
     states probed. Rows are ordered state by state (the state, then its
     ``M`` displaced copies), so the arm ends at the last state's stencil.
+    A state with a lost (non-finite) row gets a NaN sensation and a zero
+    Jacobian.
     """
     motor_states = np.asarray(motor_states, dtype=float)
     n_batch, n_motors = motor_states.shape
     answer = np.asarray(body.sense(jacobian_stencil(motor_states, fd_step)), dtype=float)
     answer = answer.reshape(n_batch, n_motors + 1, -1)
-    sensations = answer[:, 0, :]
+    sensations = answer[:, 0, :].copy()
     jacobians = np.swapaxes(answer[:, 1:, :] - sensations[:, None, :], 1, 2) / fd_step
+    # A state with a lost row (non-finite) has no Jacobian and no sensation:
+    # J = 0 fails every rank test, a NaN sensation every comparison.
+    lost = ~np.all(np.isfinite(answer), axis=(1, 2))
+    sensations[lost] = np.nan
+    jacobians[lost] = 0.0
     return sensations, jacobians, n_batch * (n_motors + 1)
 
 

@@ -277,6 +277,11 @@ class LoopWalk:
             for p, chunk in zip(whole, np.split(knots, np.cumsum(counts)[:-1])):
                 self.queries[p] += len(chunk)
                 paths[p] = [paths[p][0]] + list(chunk)
+                # A knot corrected through a lost row or a blank Jacobian is
+                # non-finite: the loop is not whole.
+                if not np.all(np.isfinite(chunk)):
+                    reason[p] = NOT_CLOSED
+                    continue
                 samples[p] = resample_loop_spline(np.asarray(paths[p]), n_samples)
         return samples
 
@@ -353,13 +358,23 @@ def resample_loop_spline(path: np.ndarray, n_samples: int = 100) -> np.ndarray:
     loop = np.vstack([path, path[0] + TWO_PI * winding])
     # A periodic spline needs equal ends: remove the winding as a linear drift
     # in the parameter and add it back at the samples.
+    # Repeated knots are dropped; the closing point always stays (the
+    # spline's ends must be equal), so a knot on it goes instead.
     chord = np.linalg.norm(np.diff(loop, axis=0), axis=1)
-    keep = np.r_[True, chord > 1e-12]
-    loop, chord = loop[keep], chord[keep[1:]]
+    keep = np.r_[True, chord[:-1] > 1e-12, True]
+    if keep.sum() > 2 and np.linalg.norm(loop[-1] - loop[keep][-2]) <= 1e-12:
+        keep[np.flatnonzero(keep)[-2]] = False
+    loop = loop[keep]
+    chord = np.linalg.norm(np.diff(loop, axis=0), axis=1)
     knots = np.concatenate([[0.0], np.cumsum(chord)])
     period = knots[-1]
     drift = TWO_PI * winding / period
-    spline = CubicSpline(knots, loop - knots[:, None] * drift, bc_type="periodic")
+    values = loop - knots[:, None] * drift
+    # Equal in exact arithmetic; rounding of a long loop's drift can leave
+    # them further apart than the spline accepts.
+    if not np.allclose(values[0], values[-1], rtol=1e-15, atol=1e-15):
+        values[-1] = values[0]
+    spline = CubicSpline(knots, values, bc_type="periodic")
     speed_of = spline.derivative()
 
     def speed(u):

@@ -85,22 +85,10 @@ def sample_sensory_points_of_view(
     for the gain-free Jacobian: below them the sensation does not pin the
     sensor's configuration (``jacobians.has_full_pose_rank``).
     """
-    start = np.array(motor_states, dtype=float, copy=True)
-    n_motors = int(body.n_motors)
-    if start.ndim != 2 or start.shape[1] != n_motors:
-        raise ValueError(f"motor_states must have shape (P, {n_motors}), got {start.shape}")
-    if not np.all(np.isfinite(start)):
-        raise ValueError("motor_states contains non-finite values")
-    if int(rank) != rank or not 0 <= rank <= n_motors:
-        raise ValueError(f"rank must be an integer in [0, {n_motors}], got {rank}")
-    _check_walk_parameters(n_samples=n_samples, fd_step=fd_step, initial_step=initial_step,
-                           min_step=min_step, max_step=max_step, predictor_tol=predictor_tol,
-                           rank_ratio=rank_ratio, max_queries=max_queries,
-                           polish_iterations=polish_iterations,
-                           min_loop_length=min_loop_length, knots_per_step=knots_per_step,
-                           closure_tol=closure_tol, sample_tol=sample_tol,
-                           surface_step=surface_step,
-                           surface_max_queries=surface_max_queries)
+    start = _checked_starts(body, motor_states, rank)
+    n_motors = start.shape[1]
+    _check_walk_parameters(**{name: value for name, value in locals().items()
+                              if name in _WALK_PARAMETERS})
     dim = n_motors - int(rank)
     if len(start) == 0 or rank == 0 or dim > 2:
         return _none_walked(body, start, n_samples, UNSUPPORTED)
@@ -115,20 +103,43 @@ def sample_sensory_points_of_view(
             predictor_tol=predictor_tol, rank_ratio=rank_ratio, min_singular=min_singular,
             pattern_ratio=pattern_ratio, max_queries=surface_max_queries,
             polish_iterations=polish_iterations, sample_tol=sample_tol)
-    walk = LoopWalk(body, start, rank=rank, fd_step=fd_step, min_step=min_step,
-                    max_step=max_step, predictor_tol=predictor_tol, max_queries=max_queries,
-                    min_loop_length=min_loop_length, knots_per_step=knots_per_step,
-                    closure_tol=closure_tol)
-    walk.begin(rank_ratio, min_singular, pattern_ratio, initial_step)
+    return _walk_loops(body, start, rank=rank, n_samples=n_samples, fd_step=fd_step,
+                       initial_step=initial_step, min_step=min_step, max_step=max_step,
+                       predictor_tol=predictor_tol, max_queries=max_queries,
+                       min_loop_length=min_loop_length, knots_per_step=knots_per_step,
+                       closure_tol=closure_tol, checks=(rank_ratio, min_singular, pattern_ratio),
+                       polish=(polish_iterations, sample_tol))
+
+
+def _walk_loops(body, start, *, rank, n_samples, initial_step, checks, polish,
+                **walk_parameters) -> SensoryPointsOfView:
+    """1-D POVs: ``LoopWalk`` from every start, resampled and polished.
+    ``checks``: the start's rank test ``(rank_ratio, min_singular,
+    pattern_ratio)``; ``polish``: ``(iterations, sample_tol)``."""
+    walk = LoopWalk(body, start, rank=rank, **walk_parameters)
+    walk.begin(*checks, initial_step)
     while len(walk.active):
         walk.advance()
     samples = walk.resample(n_samples)
-    max_residual = walk.project(samples, polish_iterations, sample_tol)
+    max_residual = walk.project(samples, *polish)
     reason = walk.reason
     return SensoryPointsOfView(samples=samples, valid=np.array([r == VALID for r in reason]),
                                reason=reason, queries=walk.queries, steps=walk.steps,
                                calls=walk.calls, max_residual=max_residual,
                                target_sensations=walk.target)
+
+
+def _checked_starts(body, motor_states, rank) -> np.ndarray:
+    """``motor_states`` as a ``(P, M)`` float copy, after checking it and ``rank``."""
+    start = np.array(motor_states, dtype=float, copy=True)
+    n_motors = int(body.n_motors)
+    if start.ndim != 2 or start.shape[1] != n_motors:
+        raise ValueError(f"motor_states must have shape (P, {n_motors}), got {start.shape}")
+    if not np.all(np.isfinite(start)):
+        raise ValueError("motor_states contains non-finite values")
+    if int(rank) != rank or not 0 <= rank <= n_motors:
+        raise ValueError(f"rank must be an integer in [0, {n_motors}], got {rank}")
+    return start
 
 
 def _none_walked(body, start, n_samples, reason) -> SensoryPointsOfView:
@@ -157,6 +168,12 @@ def isolated_samples(solutions: np.ndarray, n_samples: int) -> np.ndarray:
     ``(K, M)`` (the first is its start): repeated in turn."""
     solutions = np.asarray(solutions, dtype=float)
     return solutions[np.arange(n_samples) % len(solutions)]
+
+
+_WALK_PARAMETERS = ("n_samples", "fd_step", "initial_step", "min_step", "max_step",
+                    "predictor_tol", "rank_ratio", "max_queries", "polish_iterations",
+                    "min_loop_length", "knots_per_step", "closure_tol", "sample_tol",
+                    "surface_step", "surface_max_queries")
 
 
 def _check_walk_parameters(**values) -> None:

@@ -74,8 +74,8 @@ class NaiveAgentRecords:
     compensated events except their POV walks (summed over the
     ``compensated`` events); ``queries_by_stage`` / ``calls_by_stage``
     stage -> count (stages of ``STAGES``); ``pose_rank``, ``pov_dim``,
-    ``rank_gap``, ``sensory_gain``, ``fd_noise_floor``, ``rank_votes`` and
-    ``rank_probes`` the agent's measure of its body (``STRUCTURE_FIELDS``;
+    ``rank_gap``, ``sensory_gain``, ``fd_noise_floor``, ``rank_votes``,
+    ``rank_probes``, ``noise_estimate`` and ``fd_step`` the agent's measure of its body (``STRUCTURE_FIELDS``;
     ``pose_rank`` -1 before ``start``).
     """
 
@@ -102,6 +102,8 @@ class NaiveAgentRecords:
     fd_noise_floor: float = 0.0
     rank_votes: int = 0
     rank_probes: int = 0
+    noise_estimate: float = 0.0
+    fd_step: float = 0.0
 
     @classmethod
     def from_agent(cls, agent) -> "NaiveAgentRecords":
@@ -163,7 +165,7 @@ class NaiveAgentRecords:
 
 # The agent's measure of its body, as its records and metrics (naive.<field>) name it.
 STRUCTURE_FIELDS = ("pose_rank", "pov_dim", "rank_gap", "sensory_gain", "fd_noise_floor",
-                    "rank_votes", "rank_probes")
+                    "rank_votes", "rank_probes", "noise_estimate", "fd_step")
 
 
 def structure_fields(agent) -> dict:

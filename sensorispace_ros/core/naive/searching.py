@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.compensation import compensate
+from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
@@ -44,7 +45,7 @@ class SearchAndSample:
         # is judged by the sensory gain at the solution: a motor-equivalent
         # distance of match_tol.
         fresh = []
-        split_tree = cKDTree(split_now) if len(split_now) else None
+        split_tree = cKDTree(finite_rows(split_now, -1.0)) if len(split_now) else None
         for g in sorted(solution):
             same = self.params.match_tol * gain[g]
             if tree is not None:
@@ -87,7 +88,8 @@ class SearchAndSample:
                             motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio,
                             max_step=p.lm_max_step, initial_damping=p.lm_initial_damping,
                             stall_iterations=p.lm_stall_iterations,
-                            stop_found_targets=not isolated)
+                            stop_found_targets=not isolated,
+                            noise_step=self._tol.noise_step)
         solution: dict[int, np.ndarray] = {}
         others: dict[int, np.ndarray] = {}
         gain: dict[int, float] = {}
@@ -147,7 +149,9 @@ class SearchAndSample:
             pattern_ratio=p.pattern_ratio)
         indices, sensations = [], []
         for i in range(len(motor_states)):
-            if walk.valid[i]:
+            # Nothing non-finite becomes a POV (a walk through lost rows).
+            if walk.valid[i] and np.all(np.isfinite(walk.samples[i])) and \
+                    np.all(np.isfinite(walk.target_sensations[i])):
                 samples = walk.samples[i]
                 if others is not None and len(others[i]):
                     samples = isolated_samples(np.vstack([motor_states[i:i + 1], others[i]]),

@@ -108,9 +108,12 @@ class CountingBody:
     states were all sensed since the last ``forget()`` is answered from
     ``SensedSinceChange`` (counted in ``remembered``, not in ``calls``).
     Rows in and out are phases (``phase``, identity by default); the body is
-    sent its own units."""
+    sent its own units. A row that comes back non-finite (a lost frame) is
+    sensed again, ``retries`` times at most (each a call of the lost rows);
+    one still lost is returned as it came (its users leave it out)."""
 
-    def __init__(self, body, remember: bool = True, phase: MotorPhase | None = None):
+    def __init__(self, body, remember: bool = True, phase: MotorPhase | None = None,
+                 retries: int = 0):
         self._body = body
         self.n_motors = int(body.n_motors)
         self.n_sensors = int(body.n_sensors)
@@ -124,6 +127,8 @@ class CountingBody:
         self._sensed = SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
         self._lookahead: np.ndarray | None = None
         self.phase = phase if phase is not None else MotorPhase([2.0 * np.pi] * self.n_motors)
+        self.retries = int(retries)
+        self._fresh = False
 
     @property
     def stage(self) -> str | None:
@@ -158,8 +163,20 @@ class CountingBody:
         finally:
             self._lookahead = None
 
+    @contextlib.contextmanager
+    def fresh(self):
+        """Inside the block every call goes to the body, remembered or not:
+        sensing a state again to average its noise."""
+        self._fresh = True
+        try:
+            yield
+        finally:
+            self._fresh = False
+
     def _recall(self, motor_states: np.ndarray) -> np.ndarray | None:
-        return None if self._sensed is None else self._sensed.recall(motor_states)
+        if self._sensed is None or self._fresh:
+            return None
+        return self._sensed.recall(motor_states)
 
     def _count(self, n_rows: int) -> None:
         self.rows[self.stage] = self.rows.get(self.stage, 0) + n_rows
@@ -191,14 +208,25 @@ class CountingBody:
         if self._lookahead is not None:
             motor_states = np.concatenate([motor_states, self._lookahead])
             self._lookahead = None
+        answer = self._ask(motor_states)
+        lost = ~np.all(np.isfinite(answer), axis=1)
+        for _ in range(self.retries):
+            if not lost.any():
+                break
+            answer[lost] = self._ask(motor_states[lost])
+            lost = ~np.all(np.isfinite(answer), axis=1)
+        if self._sensed is not None:
+            # A row still lost is not remembered: asked again, it is sensed again.
+            self._sensed.store(motor_states[~lost], answer[~lost])
+        return answer[:asked]
+
+    def _ask(self, motor_states: np.ndarray) -> np.ndarray:
         self._count(len(motor_states))
-        answer = np.asarray(self._body.sense(self.phase.to_body(motor_states)), dtype=float)
+        answer = np.array(self._body.sense(self.phase.to_body(motor_states)), dtype=float)
         if answer.shape != (len(motor_states), self.n_sensors):
             raise ValueError(f"body.sense returned shape {answer.shape}, expected "
                              f"({len(motor_states)}, {self.n_sensors})")
-        if self._sensed is not None:
-            self._sensed.store(motor_states, answer)
-        return answer[:asked]
+        return answer
 
     @property
     def total_rows(self) -> int:

@@ -28,6 +28,7 @@ so no tolerance is in the units of the receptors.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,7 +47,10 @@ class BodyStructure:
     ratio at the cut among the probes that agree, ``gain`` the median
     largest singular value (sensation per phase radian), ``floor`` the
     median finite-difference noise floor (same unit), ``votes`` how many of
-    ``probes`` probe states agree."""
+    ``probes`` probe states agree; ``noise`` the measured per-receptor
+    sensory noise (``noise.SensoryNoise.sd``), ``fd_step`` the
+    finite-difference step sized from it, ``weakest`` the median
+    ``pose_rank``-th singular value of the agreeing probes."""
 
     n_motors: int
     pose_rank: int
@@ -55,6 +59,9 @@ class BodyStructure:
     floor: float
     votes: int
     probes: int
+    noise: float = 0.0
+    fd_step: float = 0.0
+    weakest: float = 0.0
 
     @property
     def pov_dim(self) -> int:
@@ -65,7 +72,8 @@ class BodyStructure:
         return {"naive.pose_rank": int(self.pose_rank), "naive.pov_dim": int(self.pov_dim),
                 "naive.rank_gap": float(self.rank_gap), "naive.sensory_gain": float(self.gain),
                 "naive.fd_noise_floor": float(self.floor),
-                "naive.rank_votes": int(self.votes), "naive.rank_probes": int(self.probes)}
+                "naive.rank_votes": int(self.votes), "naive.rank_probes": int(self.probes),
+                "naive.noise_estimate": float(self.noise), "naive.fd_step": float(self.fd_step)}
 
 
 @dataclass(frozen=True)
@@ -79,14 +87,23 @@ class Tolerances:
     match: float
     separation: float
     min_singular: float
+    noise_step: float = 0.0
 
     @classmethod
-    def of(cls, params, structure: BodyStructure) -> "Tolerances":
+    def of(cls, params, structure: BodyStructure, jacobian_noise: float = 0.0,
+           noise_step: float = 0.0) -> "Tolerances":
+        """``jacobian_noise``: the expected spectral norm of a
+        finite-difference Jacobian's noise; a rank test's smallest singular
+        value stays above it (the r-th singular value of a Jacobian of pure
+        noise, a blank sensation's, lies below its first). ``noise_step``:
+        the sensory residual measured noise explains, whose Gauss-Newton step
+        a search may keep (``compensation.compensate``)."""
         # A body that showed nothing (rank 0) has no gain; no sensation of it
         # passes a rank test, so any positive scale will do.
         gain = structure.gain if structure.gain > 0 else 1.0
         return cls(match=params.match_tol * gain, separation=params.match_separation * gain,
-                   min_singular=params.min_singular * gain)
+                   min_singular=max(params.min_singular * gain, jacobian_noise),
+                   noise_step=noise_step)
 
 
 def probe_states(center: np.ndarray, count: int, radius: float) -> np.ndarray:
@@ -123,23 +140,69 @@ def gap_rank(singular: np.ndarray, floor: np.ndarray):
     return cut + 1, np.exp(log_gap[np.arange(len(values)), cut])
 
 
-def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: float):
+def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: float,
+                        repeats: int = 1, noise_sd: float | None = None):
     """Central-difference Jacobians ``(B, S, M)`` at step ``h`` and their noise
-    floors ``(B,)`` from the rows of ``central_stencil``."""
-    rows = np.asarray(sensed, dtype=float).reshape(n_states, 1 + 4 * n_motors, -1)
+    floors ``(B,)`` from the rows of ``central_stencil`` (each sensed
+    ``repeats`` times in a row, averaged over the finite ones).
+
+    Without ``noise_sd`` the floor is the larger of the truncation error
+    (the difference of the estimates at ``h`` and ``2h``) and float64
+    round-off. With it (the sd left in a row averaged over its repeats, at a
+    step sized from measured noise) the floor is the noise's: the expected
+    spectral norm of the differences' noise, ``sd (sqrt(S) + sqrt(M)) /
+    (sqrt(2) h)``. Truncation
+    error is then left out: it is smooth in the motor state and lies in the
+    range of the Jacobian, so it does not lift the singular values of the
+    level set's tangents the rank test looks at."""
+    rows = np.asarray(sensed, dtype=float).reshape(n_states, 1 + 4 * n_motors, repeats, -1)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)        # all repeats of a row lost
+        rows = np.nanmean(np.where(np.isfinite(rows), rows, np.nan), axis=2)
     plus, minus = rows[:, 1:1 + n_motors], rows[:, 1 + n_motors:1 + 2 * n_motors]
     plus2, minus2 = rows[:, 1 + 2 * n_motors:1 + 3 * n_motors], rows[:, 1 + 3 * n_motors:]
     jac = np.swapaxes(plus - minus, 1, 2) / (2.0 * step)
     jac2 = np.swapaxes(plus2 - minus2, 1, 2) / (4.0 * step)
-    truncation = np.linalg.norm(jac - jac2, ord=2, axis=(1, 2))
-    rounding = np.finfo(float).eps * np.max(np.abs(rows), axis=(1, 2)) / step
-    return jac, np.maximum(truncation, rounding)
+    finite = np.all(np.isfinite(jac), axis=(1, 2)) & np.all(np.isfinite(jac2), axis=(1, 2))
+    jac[~finite], jac2[~finite] = 0.0, 0.0
+    with np.errstate(invalid="ignore"):
+        scale = np.nanmax(np.abs(np.where(np.isfinite(rows), rows, 0.0)), axis=(1, 2))
+    rounding = np.finfo(float).eps * scale / step
+    if noise_sd is None:
+        floor = np.maximum(np.linalg.norm(jac - jac2, ord=2, axis=(1, 2)), rounding)
+    else:
+        n_sensors = rows.shape[2]
+        noise = noise_sd * (np.sqrt(n_sensors) + np.sqrt(n_motors)) / (np.sqrt(2.0) * step)
+        floor = np.maximum(rounding, noise)
+    # A probe with a lost row has no Jacobian: J = 0 against a floor of 1 has gap 1 (no vote).
+    return jac, np.where(finite, floor, 1.0)
+
+
+def noise_rank(singular: np.ndarray, floor: np.ndarray, factor: float):
+    """Rank and gap of each row of singular values ``(B, k)`` against a
+    floor ``(B,)`` that is the expected spectral norm of the Jacobian's
+    noise: the rank counts the values at least ``factor`` times the floor
+    (noise alone stays below it); the gap is the ``rank``-th value over the
+    larger of the next one and the floor (1 for rank 0)."""
+    floor = np.maximum(np.asarray(floor, dtype=float), 1e-300)
+    rank = np.sum(singular >= factor * floor[:, None], axis=1)
+    padded = np.concatenate([singular, np.zeros((len(singular), 1))], axis=1)
+    rows = np.arange(len(singular))
+    above = np.where(rank > 0, padded[rows, np.maximum(rank - 1, 0)], floor)
+    below = np.maximum(padded[rows, rank], floor)
+    return rank, np.where(rank > 0, above / below, 1.0)
 
 
 def structure_from_probes(singular: np.ndarray, floor: np.ndarray, n_motors: int,
-                          min_gap: float) -> BodyStructure:
-    """The vote of ``gap_rank`` over probe states (see the module docstring)."""
-    rank, gap = gap_rank(singular, floor)
+                          min_gap: float, noise_gap: float | None = None) -> BodyStructure:
+    """The vote of ``gap_rank`` over probe states (see the module docstring);
+    with ``noise_gap`` (a floor that is the measured noise's) of
+    ``noise_rank``, a probe voting when its gap reaches ``noise_gap``."""
+    if noise_gap is None:
+        rank, gap = gap_rank(singular, floor)
+    else:
+        rank, gap = noise_rank(singular, floor, noise_gap)
+        min_gap = noise_gap
     decided = gap >= min_gap
     if not decided.any():
         return BodyStructure(n_motors, 0, float(np.max(gap, initial=1.0)), 0.0,
@@ -147,16 +210,21 @@ def structure_from_probes(singular: np.ndarray, floor: np.ndarray, n_motors: int
     counts = np.bincount(rank[decided], minlength=n_motors + 1)
     pose_rank = int(np.flatnonzero(counts == counts.max())[-1])
     agree = decided & (rank == pose_rank)
+    weakest = float(np.median(singular[agree, pose_rank - 1])) if pose_rank > 0 else 0.0
     return BodyStructure(n_motors, pose_rank, float(np.min(gap[agree])),
                          float(np.median(singular[decided, 0])), float(np.median(floor[decided])),
-                         int(agree.sum()), len(rank))
+                         int(agree.sum()), len(rank), weakest=weakest)
 
 
 def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int = 8,
-                      radius: float = 0.1, min_gap: float = 100.0) -> BodyStructure:
+                      radius: float = 0.1, min_gap: float = 100.0, repeats: int = 1,
+                      noise_sd: float | None = None, noise_gap: float = 4.0) -> BodyStructure:
     """Pose rank, POV dimension and sensory gain of ``body`` around
     ``center`` (phases), from ``probes`` states in ONE ``sense`` call of
-    ``probes * (1 + 4M)`` rows."""
+    ``probes * (1 + 4M) * repeats`` rows. ``noise_sd``: the sd left in a
+    row averaged over its ``repeats`` when ``fd_step`` was sized from the
+    measured noise (``jacobians_and_floor``); the rank is then
+    ``noise_rank``'s at ``noise_gap``."""
     center = np.asarray(center, dtype=float).reshape(-1)
     n_motors = len(center)
     if int(probes) != probes or probes < 1:
@@ -165,7 +233,10 @@ def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int =
         if not np.isfinite(value) or value <= 0:
             raise ValueError(f"{name} must be a finite number > 0, got {value}")
     states = probe_states(center, int(probes), radius)
-    sensed = body.sense(central_stencil(states, fd_step))
-    jac, floor = jacobians_and_floor(sensed, len(states), n_motors, fd_step)
+    stencil = np.repeat(central_stencil(states, fd_step), int(repeats), axis=0)
+    sensed = body.sense(stencil)
+    jac, floor = jacobians_and_floor(sensed, len(states), n_motors, fd_step, int(repeats),
+                                     noise_sd)
     singular = np.linalg.svd(jac, compute_uv=False)
-    return structure_from_probes(singular, floor, n_motors, min_gap)
+    return structure_from_probes(singular, floor, n_motors, min_gap,
+                                 None if noise_sd is None else noise_gap)

@@ -1,0 +1,282 @@
+"""How noisy the naive agent's sensations are, measured by the agent itself.
+
+A real sensor adds noise, rounds its outputs (float32, an ADC's steps) and
+loses frames; a real joint lands near, not at, the commanded value, which
+shows in the sensations as more noise. The agent is told none of this. It
+senses, once, in one ``sense`` call:
+
+* the start state several times: the spread of the repeats is the random
+  part of the noise (joint imprecision included);
+* short straight lines through the start with steps on a ladder from tiny
+  to coarse: second differences along a line remove the smooth signal (up
+  to the step squared times its curvature) and keep the errors. A
+  deterministic error (rounding to fixed steps, to float32) repeats
+  exactly, so the repeats miss it; along a line whose steps move the
+  signal over several rounding steps it looks like noise of about
+  step/sqrt(12). Line steps that leave most outputs unchanged (within one
+  rounding step) say nothing and are skipped; the finest informative line
+  step gives the estimate.
+
+Every spread is robust (median absolute deviation): heavy tails, a few wild
+outputs and lost rows (non-finite, left out and counted) do not move it.
+The estimate is a per-receptor standard deviation in the units of the
+sensations; float64 round-off of the outputs is its floor, so a noiseless
+body measures 1e-16 to 1e-14 and nothing the agent sizes from it changes.
+
+``measure_body`` then measures the structure at a finite-difference step
+sized from the noise, and every tolerance that would expect exact repeats
+becomes the larger of its parameter and what the noise explains
+(``sized_params``). While the noise hides pose directions at one sensing
+per row, the rank probes are sensed anew and averaged (``structure_max_repeats``
+at most).
+"""
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import chi2
+
+from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.structure import BodyStructure, measure_structure
+
+# MAD -> standard deviation of a normal distribution.
+_MAD_TO_SD = 1.482602218505602
+# Fixed direction of the ladder's lines (any body's motor space).
+_GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
+
+
+@dataclass(frozen=True)
+class SensoryNoise:
+    """The agent's measure of its sensory noise (``measure_noise``).
+
+    ``sd`` per-receptor standard deviation of one sensation (sensation
+    units): the larger of ``repeat_sd`` (the same motor state sensed again)
+    and ``ladder_sd`` (second differences along short lines), at least the
+    float64 round-off of the outputs. ``lost_fraction`` the share of
+    sensed rows that came back non-finite; ``slope`` how fast the sensation
+    changes along the ladder's line (sensation per phase radian, at its
+    coarser steps), a first measure of the sensory gain."""
+
+    sd: float
+    repeat_sd: float
+    ladder_sd: float
+    lost_fraction: float
+    slope: float = 0.0
+
+    def metrics(self) -> dict:
+        return {"naive.noise_estimate": float(self.sd),
+                "naive.noise_repeat_sd": float(self.repeat_sd),
+                "naive.noise_ladder_sd": float(self.ladder_sd),
+                "naive.lost_fraction": float(self.lost_fraction)}
+
+
+def ladder_steps() -> np.ndarray:
+    """Line steps (phase) of the ladder: half decades from 1e-8 to 0.1."""
+    return 10.0 ** np.arange(-8.0, -0.99, 0.5)
+
+
+def noise_rows(center: np.ndarray, repeats: int, line_rows: int) -> np.ndarray:
+    """The rows ``measure_noise`` senses: ``repeats`` copies of ``center``,
+    then one line of ``line_rows`` states per ladder step."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    direction = np.cos(2.0 * np.pi * ((np.arange(1, len(center) + 1) * _GOLDEN) % 1.0))
+    direction /= np.linalg.norm(direction)
+    k = np.arange(line_rows)[None, :, None]
+    lines = center + ladder_steps()[:, None, None] * k * direction
+    return np.vstack([np.repeat(center[None], repeats, axis=0),
+                      lines.reshape(-1, len(center))])
+
+
+def robust_sd(deviations: np.ndarray) -> float:
+    """``1.4826 * median |deviation|`` of the finite entries (0 if none)."""
+    values = np.abs(np.asarray(deviations, dtype=float))
+    values = values[np.isfinite(values)]
+    return float(_MAD_TO_SD * np.median(values)) if len(values) else 0.0
+
+
+def repeat_spread(repeats: np.ndarray) -> float:
+    """Robust sd of sensations of one motor state sensed ``R`` times ``(R, S)``
+    (non-finite rows left out), corrected for the median's own spread."""
+    rows = repeats[np.all(np.isfinite(repeats), axis=1)]
+    if len(rows) < 3:
+        return 0.0
+    spread = robust_sd(rows - np.median(rows, axis=0))
+    return spread * np.sqrt(len(rows) / (len(rows) - 1.0))
+
+
+def ladder_spread(lines: np.ndarray) -> float:
+    """The noise seen by second differences along the ladder's lines
+    ``(L, K, S)``: for each step, ``robust_sd(d2) / sqrt(6)`` over the
+    outputs that move along the line; steps where most of those second
+    differences are 0 (outputs within one rounding step) are skipped. The
+    finest informative step's value; 0 if none is."""
+    d2 = lines[:, 2:] - 2.0 * lines[:, 1:-1] + lines[:, :-2]
+    for step in range(len(lines)):
+        line = lines[step]
+        finite = np.all(np.isfinite(line), axis=1)
+        moving = np.ptp(line[finite], axis=0) > 0 if finite.sum() >= 3 else np.zeros(0, bool)
+        if not moving.any():
+            continue
+        values = d2[step][:, moving]
+        values = values[np.all(np.isfinite(values), axis=1)]
+        # "Unchanged" up to the round-off of the subtraction itself.
+        tiny = 16.0 * np.finfo(float).eps * np.max(np.abs(line[finite]))
+        if len(values) == 0 or np.mean(np.abs(values) <= tiny) > 0.5:
+            continue
+        return robust_sd(values) / np.sqrt(6.0)
+    return 0.0
+
+
+def line_slope(lines: np.ndarray) -> float:
+    """Largest ``|y_last - y_0| / length`` of the ladder's lines ``(L, K, S)``
+    with steps of at least 1e-3 (finite ends only; 0 if none)."""
+    slopes = [0.0]
+    for step, line in zip(ladder_steps(), lines):
+        finite = np.flatnonzero(np.all(np.isfinite(line), axis=1))
+        if step >= 1e-3 and len(finite) >= 2:
+            slopes.append(float(np.linalg.norm(line[finite[-1]] - line[finite[0]])
+                                / (step * (finite[-1] - finite[0]))))
+    return max(slopes)
+
+
+def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
+                  line_rows: int = 16) -> SensoryNoise:
+    """``SensoryNoise`` of ``body`` around ``center`` (phases), from ONE
+    ``sense`` call of ``repeats + line_rows * len(ladder_steps())`` rows."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    for name, value in (("repeats", repeats), ("line_rows", line_rows)):
+        if int(value) != value or value < 3:
+            raise ValueError(f"{name} must be an integer >= 3, got {value}")
+    sensed = np.asarray(body.sense(noise_rows(center, repeats, line_rows)), dtype=float)
+    lost = float(np.mean(~np.all(np.isfinite(sensed), axis=1)))
+    repeat_sd = repeat_spread(sensed[:repeats])
+    lines = sensed[repeats:].reshape(len(ladder_steps()), line_rows, -1)
+    ladder_sd = ladder_spread(lines)
+    finite = sensed[np.isfinite(sensed)]
+    roundoff = np.finfo(float).eps * (float(np.max(np.abs(finite))) if len(finite) else 0.0)
+    return SensoryNoise(max(repeat_sd, ladder_sd, roundoff), repeat_sd, ladder_sd, lost,
+                        line_slope(lines))
+
+
+# Accepted sensory errors a match may add up: an anchor is an earlier
+# compensation, so poses drift along chains of them, each step by a random
+# error within the accepted one. 256 such errors still lie far below the
+# sensation step between neighbouring positions at the noise levels the
+# agent copes with (a smaller allowance found positions twice).
+_CHAIN = 256.0
+
+
+def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
+    """The forward-difference step (phase) for a per-receptor noise
+    ``noise_sd`` and a sensory ``slope`` (sensation per phase): the step
+    where truncation (``step / fd_curvature_scale``, relative) and noise
+    (the motor-equivalent noise over the step) are alike."""
+    if slope <= 0 or noise_sd <= 0:
+        return params.fd_step
+    motor_equivalent = noise_sd * np.sqrt(n_sensors) / slope
+    wanted = np.sqrt(2.0 * motor_equivalent * params.fd_curvature_scale)
+    return float(max(params.fd_step, min(params.fd_max_step, wanted)))
+
+
+def measure_body(body, center: np.ndarray, params: NaiveParams):
+    """Noise, then structure (at the step sized from the noise, probes
+    averaged while the noise hides the rank). Returns ``(BodyStructure,
+    sized NaiveParams)``; every row goes through ``body.sense``."""
+    n_sensors = int(body.n_sensors)
+    noise = measure_noise(body, center, repeats=params.noise_repeats,
+                          line_rows=params.noise_repeats)
+    step = sized_fd_step(params, noise.sd, noise.slope, n_sensors)
+    noisy = step > params.fd_step
+    repeats, revealed = 1, -1
+    while True:
+        # Repeats are sensed anew, not recalled from what was sensed before.
+        with getattr(body, "fresh", contextlib.nullcontext)():
+            structure = measure_structure(body, center, fd_step=step,
+                probes=params.structure_probes, radius=params.structure_radius,
+                min_gap=params.rank_min_gap, repeats=repeats,
+                noise_sd=averaged_sd(noise, repeats) if noisy else None,
+                noise_gap=params.rank_noise_gap)
+        # Averaging removes only the part of the noise that repeats do not
+        # repeat; noise hides the weakest directions, so averaging goes on
+        # while it reveals more of them (or the probes disagree).
+        if not noisy or noise.repeat_sd == 0 or 4 * repeats > params.structure_max_repeats \
+                or (structure.votes == structure.probes and structure.pose_rank <= revealed):
+            break
+        revealed, repeats = structure.pose_rank, 4 * repeats
+    structure = replace(structure, noise=noise.sd, fd_step=step)
+    return structure, sized_params(params, structure, n_sensors)
+
+
+def averaged_sd(noise, repeats: int) -> float:
+    """Per-receptor sd of a sensation averaged over ``repeats`` sensings: the
+    random part (``repeat_sd``) shrinks, the part that repeats exactly
+    (rounding, quantisation) stays."""
+    # Repeats that spread about as much as the ladder sees: all of it random.
+    fixed = 0.0 if noise.repeat_sd >= 0.5 * noise.sd else noise.sd ** 2 - noise.repeat_sd ** 2
+    return float(np.sqrt(noise.repeat_sd ** 2 / repeats + fixed))
+
+
+def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) -> NaiveParams:
+    """``params`` with every exact-repeat tolerance raised to what the
+    measured noise explains; a noiseless body keeps its parameters:
+
+    * the finite-difference step: where the truncation error of a forward
+      difference and the noise it divides by the step are alike
+      (``sized_fd_step``);
+    * compensation acceptance: two sensings of one motor state differ by a
+      residual whose squared norm over ``2 sd^2`` is chi-square with ``S``
+      degrees of freedom; its ``noise_confidence`` quantile, in
+      motor-equivalent units (over the gain), is the accepted sensory error;
+    * the Gauss-Newton step such a residual asks for, through the pose's
+      weakest singular value at the state in question: the accepted motor
+      residual of a search (``noise_step``); through the median one measured at
+      the start, the POV samples' tolerance; the walk's predictor aims above it;
+    * sweep matching and dedupe compare sensations of poses found by different
+      searches, in chains whose accepted errors add up: ``_CHAIN`` times the
+      accepted sensory error (a chain's sum of random errors grows as the
+      square root of its length);
+    * the smallest accepted singular value of a rank test: above the spectral
+      norm of a forward-difference Jacobian's noise, so a blank sensation
+      (a Jacobian of pure noise) never passes.
+    """
+    sd, rank = structure.noise, structure.pose_rank
+    if sd <= 0 or rank < 1 or structure.gain <= 0:
+        return replace(params, fd_step=max(params.fd_step, structure.fd_step))
+    quantile = params.noise_confidence
+    residual = sd * np.sqrt(2.0 * chi2.ppf(quantile, n_sensors))
+    sensory = 2.0 * residual / structure.gain
+    weakest = structure.weakest if structure.weakest > 0 else structure.gain
+    motor = 2.0 * sd * np.sqrt(2.0 * chi2.ppf(quantile, rank)) / weakest
+    # Matches and dedupe compare sensations of poses found by different
+    # searches, each within the accepted error of its target, in chains
+    # (an anchor is an earlier compensation) whose errors add up.
+    match_tol = max(params.match_tol, _CHAIN * sensory)
+    return replace(
+        params, fd_step=max(params.fd_step, structure.fd_step),
+        lm_error_tol=max(params.lm_error_tol, sensory),
+        pov_sample_tol=max(params.pov_sample_tol, motor),
+        pov_predictor_tol=max(params.pov_predictor_tol, 2.0 * motor),
+        match_tol=match_tol, match_separation=max(params.match_separation, 4.0 * match_tol))
+
+
+def noise_step(params: NaiveParams, structure: BodyStructure) -> float:
+    """Twice the ``noise_confidence`` quantile of the part of a residual
+    between two sensings that lies in the pose's ``rank`` directions
+    (sensation units): over a state's ``rank``-th singular value, the
+    Gauss-Newton step a search may keep there."""
+    if structure.noise <= 0 or structure.pose_rank < 1:
+        return 0.0
+    chi = chi2.ppf(params.noise_confidence, structure.pose_rank)
+    return float(2.0 * structure.noise * np.sqrt(2.0 * chi))
+
+
+def jacobian_noise(structure: BodyStructure, n_sensors: int) -> float:
+    """Expected spectral norm of a forward-difference Jacobian's noise
+    (sensation per phase) at the agent's step."""
+    if structure.fd_step <= 0:
+        return 0.0
+    return float(structure.noise * np.sqrt(2.0) * (np.sqrt(n_sensors)
+                                                    + np.sqrt(structure.n_motors))
+                 / structure.fd_step)
