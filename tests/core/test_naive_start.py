@@ -70,7 +70,8 @@ def test_a_start_whose_probes_agree_is_kept_without_an_extra_sense_call():
     agent, reaction, _ = started([0.3, 1.2])
     assert agent.start_choice is None
     np.testing.assert_allclose(reaction.rest_motor_state, [0.3, 1.2])
-    assert agent.calls_by_stage["rank"] == 1          # the structure's one measurement
+    # The noise measurement's call and the structure's, nothing more.
+    assert agent.calls_by_stage["rank"] == 2
 
 
 def test_start_imports_nothing_of_the_world():

@@ -157,7 +157,7 @@ def test_a_sweep_on_a_scheduler_with_two_separate_workers(reference, tmp_path):
 
 
 def test_a_misleading_metric_is_explained_under_its_table():
-    from sensorispace_ros.offline.sweep_summary import summary_markdown
+    from sensorispace_ros.evaluation.sweep_summary import summary_markdown
 
     def summary(keys):
         stats = {"mean": 0.1, "sd": 0.0, "min": 0.0015, "max": 1.0, "seed_min": 0, "seed_max": 1}

@@ -125,7 +125,6 @@ class SnapshotMatching:
         (the POV now sensing each snapshot's anchor, -1: none), rank_now)``;
         ``rank_now`` ``(K,)`` holds the ranks the matches carry over (a
         match senses the same relative pose in the same light layout)."""
-        p = self.params
         rank_now = np.full(len(current), RANK_UNKNOWN)
         match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree)
         matches = []

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensorispace_ros.core.naive.structure import (BodyStructure, central_stencil, gap_rank,
-                                                   jacobians_and_floor, measure_structure)
+                                                   jacobians_and_floor, measure_structure,
+                                                   noise_rank)
 from sensorispace_ros.core.seeding import rng_for
 
 # Motor states drawn elsewhere, per structure probe.
@@ -47,19 +48,28 @@ class StartChoice:
                 f"measured elsewhere ({self.states_probed} states probed): start kept")
 
 
-def point_ranks(body, states: np.ndarray, params) -> tuple[np.ndarray, np.ndarray]:
+def point_ranks(body, states: np.ndarray, params,
+                noise_sd: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Rank and gap of the sensory Jacobian at each of ``states`` (phases), in
     one ``sense`` call; a state whose gap is below ``params.rank_min_gap``
-    resolves nothing and has rank 0."""
+    resolves nothing and has rank 0. ``noise_sd``: the measured noise, when
+    the step was sized from it; the rank then counts the singular values
+    clearly above it (``structure.noise_rank``), as the structure's probes do."""
     states = np.asarray(states, dtype=float)
     sensed = body.sense(central_stencil(states, params.fd_step))
-    jac, floor = jacobians_and_floor(sensed, len(states), states.shape[1], params.fd_step)
-    rank, gap = gap_rank(np.linalg.svd(jac, compute_uv=False), floor)
-    return np.where(gap >= params.rank_min_gap, rank, 0), gap
+    jac, floor = jacobians_and_floor(sensed, len(states), states.shape[1], params.fd_step,
+                                     1, noise_sd)
+    singular = np.linalg.svd(jac, compute_uv=False)
+    if noise_sd is None:
+        rank, gap = gap_rank(singular, floor)
+        return np.where(gap >= params.rank_min_gap, rank, 0), gap
+    rank, gap = noise_rank(singular, floor, params.rank_noise_gap)
+    return np.where(gap >= params.rank_noise_gap, rank, 0), gap
 
 
-def choose_start(body, start: np.ndarray, structure: BodyStructure, params,
-                 seed: int) -> tuple[np.ndarray, BodyStructure, StartChoice | None]:
+def choose_start(body, start: np.ndarray, structure: BodyStructure, params, seed: int,
+                 noise_sd: float | None = None
+                 ) -> tuple[np.ndarray, BodyStructure, StartChoice | None]:
     """``(start, structure, choice)``: the given ones when the structure's
     probes all agree on a rank above 0 (choice None, nothing sensed), else
     the start this module's docstring describes and its structure."""
@@ -68,7 +78,7 @@ def choose_start(body, start: np.ndarray, structure: BodyStructure, params,
     count = SEARCH_FACTOR * int(params.structure_probes)
     rng = rng_for(seed, "naive_start")
     elsewhere = rng.uniform(-np.pi, np.pi, (count, len(start)))
-    ranks, gaps = point_ranks(body, np.vstack([start[None], elsewhere]), params)
+    ranks, gaps = point_ranks(body, np.vstack([start[None], elsewhere]), params, noise_sd)
     best = int(ranks[1:].max())
     if best <= ranks[0]:
         return start, structure, StartChoice(int(ranks[0]), best, count, False)
