@@ -78,7 +78,8 @@ def body_measure(agent) -> str:
     structure = agent.structure
     line = (f"measured body: pose rank {structure.pose_rank} of {structure.n_motors} joints "
             f"({structure.votes} of {structure.probes} probe states agree), points of view "
-            f"of dimension {structure.pov_dim}")
+            f"of dimension {structure.pov_dim}, sensory noise {structure.noise:.2g} "
+            f"(finite-difference step {structure.fd_step:.2g})")
     choice = getattr(agent, "start_choice", None)
     return line if choice is None else f"{line}; {choice.describe()}"
 
