@@ -24,8 +24,7 @@ from rclpy.publisher import Publisher
 
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.run_world import run_world as build_world  # noqa: F401 (the nodes' name)
-from sensorispace_ros.protocol import (MAX_FRAME_NUMBER, RUN_PLACEHOLDER, frame,  # noqa: F401
-                                       parse_frame, run_directory)
+from sensorispace_ros.protocol import MAX_FRAME_NUMBER, frame, parse_frame  # noqa: F401
 from sensorispace_ros.graph import tracing
 
 # Parameters of the graph itself (not of the science): config.GRAPH_SCHEMA.

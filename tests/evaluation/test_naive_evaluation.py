@@ -5,6 +5,7 @@ states per POV are reported, and a run that finds too few POVs for a
 representation still writes its metrics with a one-line account."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -32,7 +33,7 @@ def _moved_target(truth, event: int, by: float):
     every compensation of that event is asked for moves as much."""
     centers = truth.centers.copy()
     centers[event, 0] += by
-    return type(truth)(**{**truth.__dict__, "centers": centers})
+    return dataclasses.replace(truth, centers=centers)
 
 
 def test_a_pose_a_quarter_step_off_is_wrong_and_a_fifth_is_not(judged):

@@ -48,7 +48,7 @@ def test_three_povs_give_a_result_with_the_reason_and_a_clean_exit(context, tmp_
 def test_a_second_run_gets_a_directory_of_its_own():
     from pathlib import Path
 
-    from sensorispace_ros.graph.framework import run_directory
+    from sensorispace_ros.protocol import run_directory
 
     first = run_directory("results/graph/{run}", END_STAMP_NS)
     second = run_directory("results/graph/{run}", END_STAMP_NS + 1_000_000)

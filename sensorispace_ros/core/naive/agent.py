@@ -234,8 +234,8 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self.structure, self.params = measure_body(self._body, m0, given)
         # The step grows above the given one only where noise, not round-off, sized it.
         noisy = self.params.fd_step > given.fd_step
-        m0, _, self.start_choice = choose_start(self._body, m0, self.structure, self.params, seed,
-                                                self.structure.noise if noisy else None)
+        m0, self.start_choice = choose_start(self._body, m0, self.structure, self.params, seed,
+                                             self.structure.noise if noisy else None)
         if self.start_choice is not None and self.start_choice.moved:
             self.structure, self.params = measure_body(self._body, m0, given)
         self._tol = Tolerances.of(self.params, self.structure,

@@ -8,9 +8,9 @@ around it; when they all agree (the usual case, the paper's start) nothing
 more is sensed and the start is kept. Otherwise the rank at the start itself
 is measured, together with the rank at ``SEARCH_FACTOR x probes`` motor
 states drawn (seeded) over every joint's whole period, in one ``sense``
-call, by the same rule (``structure.gap_rank``). If some state elsewhere has
-a higher rank than the start, the agent moves to the best separated of the
-states of the highest rank and measures its structure there again.
+call, by the same rule as the probes (``point_ranks``). If some state
+elsewhere has a higher rank than the start, the agent moves to the best
+separated of the states of the highest rank and measures its body there again.
 Nothing of the body is assumed: ranks are measured, states are phases.
 """
 from __future__ import annotations
@@ -20,8 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensorispace_ros.core.naive.structure import (BodyStructure, central_stencil, gap_rank,
-                                                   jacobians_and_floor, measure_structure,
-                                                   noise_rank)
+                                                   jacobians_and_floor, noise_rank)
 from sensorispace_ros.core.seeding import rng_for
 
 # Motor states drawn elsewhere, per structure probe.
@@ -68,23 +67,20 @@ def point_ranks(body, states: np.ndarray, params,
 
 
 def choose_start(body, start: np.ndarray, structure: BodyStructure, params, seed: int,
-                 noise_sd: float | None = None
-                 ) -> tuple[np.ndarray, BodyStructure, StartChoice | None]:
-    """``(start, structure, choice)``: the given ones when the structure's
-    probes all agree on a rank above 0 (choice None, nothing sensed), else
-    the start this module's docstring describes and its structure."""
+                 noise_sd: float | None = None) -> tuple[np.ndarray, StartChoice | None]:
+    """``(start, choice)``: the given start when the structure's probes all
+    agree on a rank above 0 (choice None, nothing sensed), else the start this
+    module's docstring describes; the caller measures a moved start anew.
+    ``noise_sd``: as ``point_ranks``'."""
     if structure.votes == structure.probes and structure.pose_rank > 0:
-        return start, structure, None
+        return start, None
     count = SEARCH_FACTOR * int(params.structure_probes)
     rng = rng_for(seed, "naive_start")
     elsewhere = rng.uniform(-np.pi, np.pi, (count, len(start)))
     ranks, gaps = point_ranks(body, np.vstack([start[None], elsewhere]), params, noise_sd)
     best = int(ranks[1:].max())
     if best <= ranks[0]:
-        return start, structure, StartChoice(int(ranks[0]), best, count, False)
+        return start, StartChoice(int(ranks[0]), best, count, False)
     candidates = np.flatnonzero(ranks[1:] == best)
     chosen = elsewhere[candidates[np.argmax(gaps[1:][candidates])]].copy()
-    structure = measure_structure(body, chosen, fd_step=params.fd_step,
-                                  probes=params.structure_probes,
-                                  radius=params.structure_radius, min_gap=params.rank_min_gap)
-    return chosen, structure, StartChoice(int(ranks[0]), best, count, True)
+    return chosen, StartChoice(int(ranks[0]), best, count, True)

@@ -21,7 +21,7 @@ publishes its own bookkeeping, never anything of the world:
 ``/agent/compensation_records`` (each accepted compensation) and, at the
 end, ``/agent/stage_counters``: together ``core.naive.records.
 NaiveAgentRecords``, also written to ``<run directory>/agent_records.npz``
-(``framework.run_directory``) for a run evaluated without a bag.
+(``protocol.run_directory``) for a run evaluated without a bag.
 
 It logs what it measured of its body (pose rank, POV dimension, the start
 it chose for a degenerate one: ``core.naive.start``) and, at the end, what
@@ -50,9 +50,9 @@ from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.graph import agent_outputs, tracing
 from sensorispace_ros.graph.body_over_topics import BodyOverTopics, RunAborted
-from sensorispace_ros.graph.framework import GraphNode, frame, run_directory, run_node
+from sensorispace_ros.graph.framework import GraphNode, frame, run_node
 from sensorispace_ros.graph.nodes.agent_restart import AgentRestart
-from sensorispace_ros.protocol import AGENT_RECORDS_FILE
+from sensorispace_ros.protocol import AGENT_RECORDS_FILE, run_directory
 from sensorispace_ros.state.agent_journal import CheckpointError
 
 TOPICS = ("/body/motor_command", "/body/sensation", "/agent/points_of_view",

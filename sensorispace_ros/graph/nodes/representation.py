@@ -13,7 +13,7 @@ reaction of the change it died in); once ``/agent/done`` has arrived and
 the totals match, runs ``offline.representation.build_representation`` in a worker
 thread, publishes ``/representation/embedding`` for every dimension and
 regularisation iteration, and writes its arrays to
-``<run directory>/representation.npz`` (``framework.run_directory``: the
+``<run directory>/representation.npz`` (``protocol.run_directory``: the
 stamp of ``/agent/done`` names it); with fewer than 4 POVs none is built and
 the file holds the agent's outputs and the ``reason``. Ground truth is joined
 later, by the evaluator, never here. It exits then, unless
@@ -37,9 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros import contracts, messages
-from sensorispace_ros.graph.framework import GraphNode, run_directory, run_node
+from sensorispace_ros.graph.framework import GraphNode, run_node
 from sensorispace_ros.graph.nodes.growing_hausdorff import GrowingHausdorff
-from sensorispace_ros.protocol import RESULT_FILE
+from sensorispace_ros.protocol import RESULT_FILE, run_directory
 from sensorispace_ros.offline.pov_assembly import (  # noqa: F401  (re-exported)
     MIN_POVS, assemble_points_of_view, embedding_arrays, equality_pairs)
 
