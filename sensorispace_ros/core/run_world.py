@@ -16,6 +16,7 @@ def world_params(cfg: dict) -> dict:
         "m0": tuple(cfg["arm"]["initial_motor_state"]),
         "grid_half_width": world["grid_half_width"],
         "grid_count": world["grid_count"],
+        "initial_center": world["initial_position"],
         "n_lights": lights["count"],
         "light_radius_min": lights["radius_min"],
         "light_radius_max": lights["radius_max"],

@@ -68,13 +68,16 @@ class EnvironmentEvent:
 
 def schedule(grid: np.ndarray, rng: np.random.Generator, initial_offsets: np.ndarray,
              redistribution_probability: float = 0.1, order: str = "random",
-             light_kwargs: dict | None = None) -> list[EnvironmentEvent]:
+             light_kwargs: dict | None = None,
+             start_index: int | None = None) -> list[EnvironmentEvent]:
     """The sequence of environmental changes of one exploration.
 
     ``order="random"`` visits every grid position once in random order (the
     paper); ``order="tracking"`` visits them as a boustrophedon, so that each
     translation is to a neighbouring position. After each translation a
     redistribution follows with ``redistribution_probability``.
+    ``start_index``: the grid position the object starts at, which it is
+    not moved to again (its compensation is the start's own POV).
     """
     if not 0.0 <= redistribution_probability <= 1.0:
         raise ValueError("redistribution_probability must be in [0, 1], "
@@ -87,6 +90,8 @@ def schedule(grid: np.ndarray, rng: np.random.Generator, initial_offsets: np.nda
         visit = _boustrophedon(grid)
     else:
         raise ValueError(f"schedule order must be 'random' or 'tracking', got {order!r}")
+    if start_index is not None:
+        visit = visit[visit != start_index]
     events: list[EnvironmentEvent] = []
     offsets = np.asarray(initial_offsets, dtype=float)
     for grid_index in visit:

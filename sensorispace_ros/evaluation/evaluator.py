@@ -200,8 +200,10 @@ def _neighbours_true_fraction(embedding: np.ndarray, positions: np.ndarray,
     _, index = cKDTree(embedding).query(embedding, k=k + 1)
     true_kth, _ = cKDTree(positions).query(positions, k=k + 1)
     gap = np.linalg.norm(positions[index[:, 1:]] - positions[:, None, :], axis=-1)
-    # Ties: compensated sensor positions sit ~1e-7 off the exact grid.
-    return float(np.mean(np.all(gap <= true_kth[:, -1:] * (1.0 + 1e-3), axis=1)))
+    # Ties: compensated sensor positions sit up to the compensation threshold
+    # off the exact lattice, whose distances (1, sqrt 2, 2 steps) are far
+    # more than 5 % apart.
+    return float(np.mean(np.all(gap <= true_kth[:, -1:] * 1.05, axis=1)))
 
 
 def _spearman(a: np.ndarray, b: np.ndarray) -> float:

@@ -31,10 +31,12 @@ def test_progress_reaches_every_event(small_world, small_result):
 
 
 def ring_grid_indices(w):
-    """Ground truth: grid positions whose compensating tip lies in 1 <= r <= 3."""
+    """Ground truth: grid positions the object is moved to whose compensating
+    tip lies in 1 <= r <= 3 (the start's own position is not moved to)."""
     tip = arm.forward(w.m0)[:2] + w.grid - w.initial_center
     radius = np.hypot(tip[:, 0], tip[:, 1])
-    return set(np.flatnonzero((radius >= 1.0) & (radius <= 3.0)).tolist())
+    visited = {e.grid_index for e in w.events}
+    return set(np.flatnonzero((radius >= 1.0) & (radius <= 3.0)).tolist()) & visited
 
 
 # --- world ---------------------------------------------------------------------
@@ -55,9 +57,36 @@ def test_world_follows_the_paper_setting(seed):
     assert len(w.receptors) == 6 and len(w.initial_offsets) == 10
     assert retina.lights_in_view(arm.forward(w.m0), w.initial_lights, w.receptors) >= 3
     translations = [e for e in w.events if e.kind == world.TRANSLATION]
-    assert sorted(e.grid_index for e in translations) == list(range(62 * 62))
+    start = int(np.flatnonzero(np.all(w.grid == w.initial_center, axis=1))[0])
+    # Every grid position once, but the one the object starts at.
+    assert sorted(e.grid_index for e in translations) == sorted(set(range(62 * 62)) - {start})
     redistributions = len(w.events) - len(translations)
     assert 0.07 * len(translations) < redistributions < 0.13 * len(translations)
+
+
+def test_the_object_starts_on_the_grid_nearest_its_centre():
+    w = build_world(0)
+    distance = np.linalg.norm(w.grid, axis=1)
+    assert np.any(np.all(w.grid == w.initial_center, axis=1))
+    assert np.linalg.norm(w.initial_center) == pytest.approx(distance.min())
+    # so every displacement the object makes is a whole number of grid steps
+    steps = (np.array([e.center for e in w.events]) - w.initial_center) / w.spacing
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
+
+
+def test_a_centre_start_is_half_a_step_off_an_even_grid():
+    w = build_world(0, {"initial_center": "center"})
+    np.testing.assert_array_equal(w.initial_center, [0.0, 0.0])
+    steps = np.array([e.center for e in w.events]) / w.spacing
+    np.testing.assert_allclose(np.abs(steps - np.round(steps)), 0.5, atol=1e-9)
+    assert sorted(e.grid_index for e in w.events if e.kind == world.TRANSLATION) == \
+        list(range(62 * 62))
+
+
+@pytest.mark.parametrize("where", ["middle", (1.0, 2.0, 3.0)])
+def test_a_bad_initial_centre_is_refused(where):
+    with pytest.raises(ValueError, match="initial_center"):
+        build_world(0, {"initial_center": where})
 
 
 def test_world_rejects_unknown_parameters():
@@ -231,6 +260,7 @@ def test_every_reachable_position_is_compensated_or_split(body_run):
     w, result = body_run
     targets = targets_of(w)
     reachable = np.flatnonzero(w.arm.reachable(targets[:, :2], float(targets[0, 2])))
+    reachable = np.intersect1d(reachable, [e.grid_index for e in w.events])   # moved to
     assert len(reachable) > 20
     split = [g for g in reachable if w.arm.pov_dim == 1
              and fibre_is_split(w.arm, targets[g])]

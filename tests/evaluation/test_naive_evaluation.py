@@ -74,3 +74,11 @@ def test_a_run_with_too_few_points_of_view_writes_its_metrics_and_says_why(tmp_p
     assert "pose rank 2" in written["outcome"]
     assert written["outcome"] == metrics["outcome"]
     assert "quality" not in written and (tmp_path / "arrays.npz").is_file()
+
+
+def test_every_naive_position_is_a_paper_position(smoke_naive_reference):
+    """Anchors recorded at the start and after changes give one lattice of
+    sensor positions, the paper strategy's: the object starts on its grid."""
+    metrics = smoke_naive_reference.metrics
+    assert metrics["naive.distinct_positions"] >= 4
+    assert metrics["naive.coverage_of_paper_positions"] == metrics["naive.coverage"]

@@ -64,9 +64,9 @@ def test_smoke_run_counts_are_consistent(smoke_run):
     assert n_pov == metrics["exploration"]["compensated"] + 1 - metrics["pov"]["invalid"]
     assert arrays["povs"].shape == (n_pov, 50, 4)
     # The paper's shortcut relates every pair of grid positions by one
-    # displacement; the initial POV (object at the grid centre, not a grid
-    # point for an even count) takes part in none.
-    assert metrics["equality_sets"]["pairs"] == (n_pov - 1) * (n_pov - 2) // 2
+    # displacement; the object starts on the grid, so the initial POV is one
+    # of them.
+    assert metrics["equality_sets"]["pairs"] == n_pov * (n_pov - 1) // 2
     iterations = load_config(SMOKE)["representation"]["regularization"]["iterations"]
     # spread of the Hausdorff metric, then after each iteration
     assert len(metrics["regularization"]["2d"]["set_spread"]) == iterations + 1
@@ -291,6 +291,15 @@ def test_neighbours_true_fraction_counts_swapped_points():
     # the two swapped POVs, and POVs that now find a stranger among their nearest
     assert fraction <= 1.0 - 3 / len(positions)
     assert evaluation._neighbours_true_fraction(positions, positions) == 1.0
+
+
+def test_neighbours_true_fraction_allows_ties_off_the_exact_lattice():
+    """Compensated positions sit up to the compensation threshold off the
+    lattice: a diagonal tie stays a tie."""
+    positions = ring_grid()
+    spacing = np.min(np.linalg.norm(positions[1:] - positions[0], axis=1))
+    jittered = positions + np.random.default_rng(0).uniform(-5e-3, 5e-3, positions.shape) * spacing
+    assert evaluation._neighbours_true_fraction(positions, jittered) == 1.0
 
 
 def test_unit_step_cv_by_hand():

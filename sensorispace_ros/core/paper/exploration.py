@@ -37,7 +37,7 @@ PAPER_PARAMS = {
     "m0": (0.1, -1.5, 2.2, -3.0),
     "grid_half_width": 6.0,
     "grid_count": 62,
-    "initial_center": (0.0, 0.0),
+    "initial_center": "grid",      # or (x, y): see initial_object_center
     "n_lights": 10,
     "light_radius_min": 3.5,
     "light_radius_max": 7.0,
@@ -128,9 +128,9 @@ def build_world(seed: int, params: dict | None = None) -> World:
     m0 = np.asarray(merged["m0"], dtype=float)
     if m0.shape != (body_arm.n_joints,):
         raise ValueError(f"m0 must have {body_arm.n_joints} joint values, got {merged['m0']}")
-    center = np.asarray(merged["initial_center"], dtype=float)
-    if center.shape != (2,):
-        raise ValueError(f"initial_center must be (x, y), got {merged['initial_center']}")
+    grid = world_mod.position_grid(float(merged["grid_half_width"]), int(merged["grid_count"]))
+    center = initial_object_center(merged["initial_center"], grid)
+    on_grid = np.flatnonzero(np.all(grid == center, axis=1))
 
     receptors = retina.draw_receptor_positions(rng_for(seed, "retina"),
                                                int(merged["n_receptors"]),
@@ -150,16 +150,38 @@ def build_world(seed: int, params: dict | None = None) -> World:
     else:
         raise ValueError(f"no light layout out of {merged['max_light_draws']} draws puts "
                          f"min_lights_in_view={merged['min_lights_in_view']} lights in view")
-    grid = world_mod.position_grid(float(merged["grid_half_width"]), int(merged["grid_count"]))
     events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
                                 redistribution_probability=float(merged["redistribution_probability"]),
-                                order=merged["order"], light_kwargs=light_kwargs)
+                                order=merged["order"], light_kwargs=light_kwargs,
+                                start_index=int(on_grid[0]) if len(on_grid) else None)
     return World(seed=int(seed), params=merged, m0=m0, receptors=receptors, arm=body_arm,
                  code=code,
                  initial_center=center, initial_offsets=offsets, grid=grid,
                  spacing=world_mod.grid_spacing(float(merged["grid_half_width"]),
                                                 int(merged["grid_count"])),
                  events=events)
+
+
+def initial_object_center(where, grid: np.ndarray) -> np.ndarray:
+    """The object's position before the first change.
+
+    ``"grid"``: the grid position nearest [0, 0]. Every change then moves the object by a whole number
+    of grid steps, so an anchor recorded at the start and one recorded after
+    any change give the same lattice of compensating sensor positions.
+    ``"center"``: [0, 0], half a step off the grid when ``grid_count`` is
+    even; anchors recorded before and after the first change then give two
+    lattices offset by half a step. ``(x, y)``: that position.
+    """
+    if isinstance(where, str):
+        if where == "grid":
+            return grid[int(np.argmin(np.einsum("ij,ij->i", grid, grid)))].astype(float)
+        if where == "center":
+            return np.zeros(2)
+        raise ValueError(f"initial_center must be 'grid', 'center' or (x, y), got {where!r}")
+    center = np.asarray(where, dtype=float)
+    if center.shape != (2,):
+        raise ValueError(f"initial_center must be (x, y), got {where!r}")
+    return center
 
 
 @dataclass
