@@ -63,7 +63,8 @@ from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecor
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
-from sensorispace_ros.core.naive.noise import jacobian_noise, measure_body, noise_step
+from sensorispace_ros.core.naive.noise import (jacobian_noise, measure_body, noise_residual,
+    noise_step)
 from sensorispace_ros.core.naive.start import choose_start
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
@@ -240,7 +241,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             self.structure, self.params = measure_body(self._body, m0, given)
         self._tol = Tolerances.of(self.params, self.structure,
                                   jacobian_noise(self.structure, self._body.n_sensors),
-                                  noise_step(self.params, self.structure))
+                                  noise_step(self.params, self.structure),
+                                  noise_residual(self.params, self.structure,
+                                                 self._body.n_sensors) if noisy else 0.0)
         return m0
 
     def start(self, initial_motor_state, seed: int = 0) -> Reaction:
@@ -324,6 +327,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
             match_tol=self._tol.match,
             separation=self._tol.separation)
+        self._sweep.ratio = self._tol.ratio
         self._sweep.sets = self._sets
         self._sweep.observe()       # the sweep "before" the first change
         self._body.stage = "rest"

@@ -126,7 +126,8 @@ class SnapshotMatching:
         ``rank_now`` ``(K,)`` holds the ranks the matches carry over (a
         match senses the same relative pose in the same light layout)."""
         rank_now = np.full(len(current), RANK_UNKNOWN)
-        match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree)
+        match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
+                     ratio=self._tol.ratio)
         matches = []
         for snap in self._pool:
             before, after = match_sensations(snap.sensations, current, **match)

@@ -272,6 +272,15 @@ def noise_step(params: NaiveParams, structure: BodyStructure) -> float:
     return float(2.0 * structure.noise * np.sqrt(2.0 * chi))
 
 
+def noise_residual(params: NaiveParams, structure: BodyStructure, n_sensors: int) -> float:
+    """The ``noise_confidence`` quantile of the distance between two sensings
+    of one motor state (sensation units): their difference over ``sqrt(2) sd``
+    is chi with ``n_sensors`` degrees of freedom."""
+    if structure.noise <= 0:
+        return 0.0
+    return float(structure.noise * np.sqrt(2.0 * chi2.ppf(params.noise_confidence, n_sensors)))
+
+
 def jacobian_noise(structure: BodyStructure, n_sensors: int) -> float:
     """Expected spectral norm of a forward-difference Jacobian's noise
     (sensation per phase) at the agent's step."""

@@ -57,6 +57,7 @@ class NaiveParams:
     lm_restarts: int = _default("lm_restarts")
     match_tol: float = _default("match_tol")
     match_separation: float = _default("match_separation")
+    match_ratio: float = _default("match_ratio")
     rank_ratio: float = _default("rank_ratio")
     pattern_ratio: float = _default("pattern_ratio")
     min_singular: float = _default("min_singular")
