@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
+from sensorispace_ros.core.naive.jacobians import SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.structure import BodyStructure, measure_structure
 
@@ -165,7 +166,7 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
 # error within the accepted one. 256 such errors still lie far below the
 # sensation step between neighbouring positions at the noise levels the
 # agent copes with (a smaller allowance found positions twice).
-_CHAIN = 256.0
+_CHAIN = 8.0
 
 
 def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
@@ -281,11 +282,37 @@ def noise_residual(params: NaiveParams, structure: BodyStructure, n_sensors: int
     return float(structure.noise * np.sqrt(2.0 * chi2.ppf(params.noise_confidence, n_sensors)))
 
 
-def jacobian_noise(structure: BodyStructure, n_sensors: int) -> float:
-    """Expected spectral norm of a forward-difference Jacobian's noise
-    (sensation per phase) at the agent's step."""
-    if structure.fd_step <= 0:
+def jacobian_noise(structure: BodyStructure, n_sensors: int, step: float | None = None) -> float:
+    """Expected spectral norm of a finite-difference Jacobian's noise
+    (sensation per phase) at ``step`` (default: the structure's forward
+    step; a ``SymmetricStep`` differences two noisy rows ``2 step`` apart)."""
+    step = structure.fd_step if step is None else step
+    if step <= 0:
         return 0.0
-    return float(structure.noise * np.sqrt(2.0) * (np.sqrt(n_sensors)
-                                                    + np.sqrt(structure.n_motors))
-                 / structure.fd_step)
+    spread = np.sqrt(n_sensors) + np.sqrt(structure.n_motors)
+    if isinstance(step, SymmetricStep):
+        return float(structure.noise * np.sqrt(2.0) * spread / (2.0 * step))
+    return float(structure.noise * np.sqrt(2.0) * spread / step)
+
+
+# A forward-difference Jacobian whose noise reaches this share of the pose's
+# weakest singular value tilts the directions the walks and searches follow.
+_WEAK_SHARE = 0.125
+
+
+def finite_difference_step(params: NaiveParams, structure: BodyStructure,
+                           n_sensors: int) -> float:
+    """The step every Jacobian of the agent takes: the sized forward step,
+    or, where its noise would reach ``_WEAK_SHARE`` of the weakest singular
+    value measured at the start (and only there: a symmetric stencil senses
+    ``2M + 1`` rows instead of ``M + 1``), a ``SymmetricStep`` where the
+    central difference's truncation (``step^2 / (6 L^2)``, relative, ``L``
+    the ``fd_curvature_scale``) and its noise are alike, within
+    ``fd_max_step``."""
+    step = params.fd_step
+    if structure.noise <= 0 or structure.weakest <= 0 or structure.gain <= 0 or \
+            jacobian_noise(structure, n_sensors, step) <= _WEAK_SHARE * structure.weakest:
+        return step
+    motor_equivalent = structure.noise * np.sqrt(n_sensors) / structure.gain
+    wanted = (3.0 * motor_equivalent * params.fd_curvature_scale ** 2 / np.sqrt(2.0)) ** (1 / 3)
+    return SymmetricStep(max(step, min(params.fd_max_step, wanted)))

@@ -34,6 +34,7 @@ class NaiveParams:
     fd_max_step: float = _default("fd_max_step")
     rank_noise_gap: float = _default("rank_noise_gap")
     structure_max_repeats: int = _default("structure_max_repeats")
+    accept_repeats: int = _default("accept_repeats")
     lost_row_retries: int = _default("lost_row_retries")
     structure_probes: int = _default("structure_probes")
     structure_radius: float = _default("structure_radius")

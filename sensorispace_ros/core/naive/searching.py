@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.compensation import compensate
+from sensorispace_ros.core.naive.confirm import confirm_compensations
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
@@ -39,6 +40,10 @@ class SearchAndSample:
             return {}, [], []
         group, unique_targets, owner, starts = self._search_plan(requests, current)
         solution, others, gain = self._run_searches(unique_targets, owner, starts)
+        if self._repeats > 1 and solution:
+            # Anchors at rest were averaged; rows of a sweep were sensed once.
+            once = {g: requests[int(np.flatnonzero(group == g)[0])].row >= 0 for g in solution}
+            solution = self._confirm(solution, unique_targets, once)
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
@@ -72,6 +77,21 @@ class SearchAndSample:
                  for i in range(len(requests)) if group[i] in solution}
         return found, new_povs, new_sensations
 
+    def _confirm(self, solution, unique_targets, once):
+        """The searches' solutions that pass ``confirm.confirm_compensations``
+        (stepped with the averaged residual); ``once[g]``: group ``g``'s
+        target was sensed once, not averaged."""
+        groups = sorted(solution)
+        sd2 = self.structure.noise ** 2
+        self._body.stage = "compensation"
+        stepped, accepted, _ = confirm_compensations(
+            self._body, np.stack([solution[g] for g in groups]), unique_targets[groups],
+            np.array([sd2 if once[g] else sd2 / self._repeats for g in groups]),
+            noise_sd=self.structure.noise, repeats=self._repeats,
+            rank=self.structure.pose_rank, fd_step=self._fd_step,
+            confidence=self.params.noise_confidence)
+        return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
+
     def _run_searches(self, unique_targets, owner, starts):
         """The batched searches. Returns ``{group: best accepted state}``,
         ``{group: other distinct accepted states (K, M)}`` (empty unless the
@@ -83,7 +103,7 @@ class SearchAndSample:
         search = compensate(self._body, unique_targets[owner], starts,
                             rank=self.structure.pose_rank,
                             min_singular=self._tol.min_singular,
-                            pattern_ratio=p.pattern_ratio, fd_step=p.fd_step,
+                            pattern_ratio=p.pattern_ratio, fd_step=self._fd_step,
                             max_iterations=p.lm_max_iterations, error_tol=p.lm_error_tol,
                             motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio,
                             max_step=p.lm_max_step, initial_damping=p.lm_initial_damping,
@@ -139,7 +159,7 @@ class SearchAndSample:
         self._body.stage = "pov"
         walk = sample_sensory_points_of_view(
             self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
-            fd_step=p.fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
+            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
             max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
             rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
             polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
