@@ -54,6 +54,9 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     with getattr(body, "fresh", _nothing)():
         sensed = np.asarray(body.sense(asked), dtype=float).reshape(n_states, rows + repeats - 1, -1)
     _, jac = stencil_jacobian(sensed[:, :rows], fd_step)
+    # A stencil with a lost row has no Jacobian: it confirms nothing.
+    whole = np.all(np.isfinite(jac), axis=(1, 2))
+    jac[~whole] = 0.0
     mean = np.stack([finite_mean(np.concatenate([sensed[k, :1], sensed[k, rows:]]))
                      for k in range(n_states)])
     residual = mean - targets
@@ -63,8 +66,9 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     variance = np.asarray(target_variance, dtype=float) + noise_sd ** 2 / repeats
     dof = max(targets.shape[1] - rank, 1)
     accepted = np.isfinite(outside) & (outside <= variance * chi2.ppf(confidence, dof))
-    accepted &= np.all(np.isfinite(jac), axis=(1, 2))
-    stepped = states + np.nan_to_num(minimum_norm_correction(jac, residual, rank))
+    accepted &= whole
+    step = minimum_norm_correction(jac, residual, rank)
+    stepped = states + np.where(accepted[:, None], step, 0.0)
     return stepped, accepted, mean
 
 

@@ -163,9 +163,10 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
 
 # Accepted sensory errors a match may add up: an anchor is an earlier
 # compensation, so poses drift along chains of them, each step by a random
-# error within the accepted one. 256 such errors still lie far below the
-# sensation step between neighbouring positions at the noise levels the
-# agent copes with (a smaller allowance found positions twice).
+# error within the accepted one (a chain's sum grows as the square root of
+# its length). The tolerance only bounds how far a match may drift; which
+# row matches is told by how far it stands out from the next nearest one
+# (``Tolerances.ratio``), so a wide allowance does not join neighbours.
 _CHAIN = 8.0
 
 
