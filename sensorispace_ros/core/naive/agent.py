@@ -64,8 +64,8 @@ from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecor
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
-from sensorispace_ros.core.naive.noise import (finite_difference_step, jacobian_noise,
-    measure_body, noise_residual, noise_step)
+from sensorispace_ros.core.naive.noise import (averaging_repeats, finite_difference_step,
+    jacobian_noise, measure_body, noise_residual, noise_step)
 from sensorispace_ros.core.naive.start import choose_start
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
@@ -113,6 +113,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._tol: Tolerances | None = None
         self._fd_step = self.params.fd_step     # every Jacobian's step, sized by start()
         self._repeats = 1                       # sensings averaged per anchor, sized by start()
+        self._noisy = False                     # noise sized the tolerances (start())
         self._store = PovStore(self.params.n_samples, self.n_motors)
         # One motor state of every POV whose walk came back split (remember_split_povs).
         self._split_states = np.zeros((0, self.n_motors))
@@ -244,7 +245,8 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             self.structure, self.params = measure_body(self._body, m0, given)
         self._fd_step = finite_difference_step(self.params, self.structure,
                                                self._body.n_sensors)
-        self._repeats = self.params.accept_repeats if noisy else 1
+        self._repeats = averaging_repeats(self.params, self.structure) if noisy else 1
+        self._noisy = bool(noisy)
         self._tol = Tolerances.of(self.params, self.structure,
                                   jacobian_noise(self.structure, self._body.n_sensors,
                                                  self._fd_step),

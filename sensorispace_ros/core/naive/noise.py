@@ -207,7 +207,7 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
                 or (structure.votes == structure.probes and structure.pose_rank <= revealed):
             break
         revealed, repeats = structure.pose_rank, 4 * repeats
-    structure = replace(structure, noise=noise.sd, fd_step=step)
+    structure = replace(structure, noise=noise.sd, fd_step=step, repeat_noise=noise.repeat_sd)
     return structure, sized_params(params, structure, n_sensors)
 
 
@@ -272,6 +272,16 @@ def noise_step(params: NaiveParams, structure: BodyStructure) -> float:
         return 0.0
     chi = chi2.ppf(params.noise_confidence, structure.pose_rank)
     return float(2.0 * structure.noise * np.sqrt(2.0 * chi))
+
+
+def averaging_repeats(params: NaiveParams, structure: BodyStructure) -> int:
+    """Sensings averaged per anchor and per search's end (``confirm``):
+    ``accept_repeats`` where the noise is random (repeats spread about as
+    much as the ladder sees), 1 where most of it repeats exactly (rounding,
+    quantisation: averaging would not shrink it)."""
+    if structure.noise <= 0 or structure.repeat_noise < 0.5 * structure.noise:
+        return 1
+    return int(params.accept_repeats)
 
 
 def noise_residual(params: NaiveParams, structure: BodyStructure, n_sensors: int) -> float:

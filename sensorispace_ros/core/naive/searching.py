@@ -40,8 +40,8 @@ class SearchAndSample:
             return {}, [], []
         group, unique_targets, owner, starts = self._search_plan(requests, current)
         solution, others, gain = self._run_searches(unique_targets, owner, starts)
-        if self._repeats > 1 and solution:
-            # Anchors at rest were averaged; rows of a sweep were sensed once.
+        if self._noisy and solution:
+            # Anchors at rest were averaged (``_repeats``); rows of a sweep were sensed once.
             once = {g: requests[int(np.flatnonzero(group == g)[0])].row >= 0 for g in solution}
             solution = self._confirm(solution, unique_targets, once)
         pov_of_group: dict[int, int] = {}

@@ -50,7 +50,8 @@ class BodyStructure:
     ``probes`` probe states agree; ``noise`` the measured per-receptor
     sensory noise (``noise.SensoryNoise.sd``), ``fd_step`` the
     finite-difference step sized from it, ``weakest`` the median
-    ``pose_rank``-th singular value of the agreeing probes."""
+    ``pose_rank``-th singular value of the agreeing probes; ``repeat_noise``
+    the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``)."""
 
     n_motors: int
     pose_rank: int
@@ -62,6 +63,7 @@ class BodyStructure:
     noise: float = 0.0
     fd_step: float = 0.0
     weakest: float = 0.0
+    repeat_noise: float = 0.0
 
     @property
     def pov_dim(self) -> int:
