@@ -164,10 +164,12 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
 # Accepted sensory errors a match may add up: an anchor is an earlier
 # compensation, so poses drift along chains of them, each step by a random
 # error within the accepted one (a chain's sum grows as the square root of
-# its length). The tolerance only bounds how far a match may drift; which
+# its length; 256 errors cover the chains of the paper grid at noise 1e-8
+# and float32). The tolerance only bounds how far a match may drift; which
 # row matches is told by how far it stands out from the next nearest one
 # (``Tolerances.ratio``), so a wide allowance does not join neighbours.
-_CHAIN = 8.0
+_CHAIN = 256.0
+_CLOSE = 8.0
 
 
 def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
@@ -254,7 +256,11 @@ def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) 
     # Matches and dedupe compare sensations of poses found by different
     # searches, each within the accepted error of its target, in chains
     # (an anchor is an earlier compensation) whose errors add up.
-    match_tol = max(params.match_tol, _CHAIN * sensory)
+    # The allowance stops at what the pose's weakest direction moves the
+    # sensation over a walk's first knot interval (a drift the agent would
+    # walk past anyway), never below _CLOSE accepted errors.
+    drift = max(weakest * params.pov_initial_step / structure.gain, _CLOSE * sensory)
+    match_tol = max(params.match_tol, min(_CHAIN * sensory, drift))
     return replace(
         params, fd_step=max(params.fd_step, structure.fd_step),
         lm_error_tol=max(params.lm_error_tol, sensory),
