@@ -55,7 +55,6 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.core.naive.anchors import Snapshot, SnapshotMatching
-from sensorispace_ros.core.naive.confirm import finite_mean
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetCollection, EqualitySetSweep, check_pose_rank, finite_rows)
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -455,18 +454,6 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
                 rank_now[self._rest_pov] = rest_rank
         self._body.stage = "rest"
         return self._rest_sensation(self._rest), rest_rank
-
-    def _rest_sensation(self, motor_state: np.ndarray) -> np.ndarray:
-        """Rest at ``motor_state``; its sensation, the anchor: averaged over
-        ``_repeats`` sensings (lost ones left out) where noise sized the
-        tolerances, so a compensation toward it is judged against the noise
-        of the search's end alone (``confirm.confirm_compensations``)."""
-        if self._repeats <= 1:
-            return self._body.rest(motor_state)
-        with self._body.fresh():
-            more = self._body.sense(np.repeat(motor_state[None], self._repeats - 1, axis=0))
-            sensation = self._body.rest(motor_state)
-        return finite_mean(np.vstack([sensation[None], more]))
 
     def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
         """Sensation now of every known POV ``(K, S)`` and of every remembered

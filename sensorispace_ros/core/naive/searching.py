@@ -6,6 +6,9 @@ walks (or covers) POVs of the dimension the agent measured and stores the
 whole ones. For 0-D POVs the searches toward one target keep going after the
 first acceptance, and every distinct solution they find belongs to that
 target's POV. Tolerances on sensations are the agent's ``Tolerances``.
+Where noise sized them, a search's end passes ``confirm`` (a chi-square
+test of its averaged residual) and anchors are averaged
+(``_rest_sensation``).
 """
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.compensation import compensate
-from sensorispace_ros.core.naive.confirm import confirm_compensations
+from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
@@ -76,6 +79,18 @@ class SearchAndSample:
         found = {i: (pov_of_group[group[i]], solution[group[i]])
                  for i in range(len(requests)) if group[i] in solution}
         return found, new_povs, new_sensations
+
+    def _rest_sensation(self, motor_state: np.ndarray) -> np.ndarray:
+        """Rest at ``motor_state``; its sensation, the anchor: averaged over
+        ``_repeats`` sensings (lost ones left out) where noise sized the
+        tolerances, so a compensation toward it is judged against the noise
+        of the search's end alone (``confirm.confirm_compensations``)."""
+        if self._repeats <= 1:
+            return self._body.rest(motor_state)
+        with self._body.fresh():
+            more = self._body.sense(np.repeat(motor_state[None], self._repeats - 1, axis=0))
+            sensation = self._body.rest(motor_state)
+        return finite_mean(np.vstack([sensation[None], more]))
 
     def _confirm(self, solution, unique_targets, once):
         """The searches' solutions that pass ``confirm.confirm_compensations``
