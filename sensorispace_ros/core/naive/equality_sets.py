@@ -67,7 +67,7 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
     """
     reference = finite_rows(reference, 1.0)
     current = finite_rows(current, -1.0)
-    if not 0 < match_tol < separation and ratio <= 0:
+    if not 0 < match_tol or not (match_tol < separation or ratio > 0):
         raise ValueError(f"match_tol must be > 0 and < separation ({separation}), "
                          f"got {match_tol}")
     empty = np.zeros(0, dtype=int)
@@ -203,8 +203,10 @@ class EqualitySetSweep:
 
     ``points_of_view`` ``(P, N, M)`` (any sample of a POV will do: all share
     the eye's pose). ``rows`` counts motor states probed, ``calls`` the
-    ``sense`` calls.
+    ``sense`` calls; ``ratio`` as ``match_sensations``'s (0: none).
     """
+
+    ratio = 0.0
 
     def __init__(self, body, points_of_view: np.ndarray, *, rank: int, fd_step: float = 1e-6,
                  rank_ratio: float = 1e-3, min_singular: float = 0.0,
