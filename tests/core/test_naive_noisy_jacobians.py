@@ -150,3 +150,33 @@ def test_the_ratio_test_tells_a_match_from_a_near_neighbour():
     # Without the ratio the separation alone (wider than the tolerance) decides.
     before, _ = match_sensations(reference, current, match_tol=0.5, separation=2.0)
     assert before.tolist() == []
+
+
+def _structure(noise, repeat_noise, fd_step=1e-3, weakest=0.01):
+    from sensorispace_ros.core.naive.structure import BodyStructure
+    return BodyStructure(n_motors=4, pose_rank=3, rank_gap=10.0, gain=0.8, floor=0.0, votes=8,
+                         probes=8, noise=noise, fd_step=fd_step, weakest=weakest,
+                         repeat_noise=repeat_noise)
+
+
+def test_averaging_pays_only_for_noise_that_repeats_do_not_repeat():
+    from sensorispace_ros.core.naive.noise import averaging_repeats
+    from sensorispace_ros.core.naive.params import NaiveParams
+    params = NaiveParams(accept_repeats=16)
+    assert averaging_repeats(params, _structure(1e-4, 1e-4)) == 16
+    # Rounding: the repeats agree exactly, the ladder sees the rounding.
+    assert averaging_repeats(params, _structure(1e-4, 0.0)) == 1
+    assert averaging_repeats(params, _structure(0.0, 0.0)) == 1
+
+
+def test_the_step_turns_symmetric_only_where_noise_reaches_the_weakest_direction():
+    from sensorispace_ros.core.naive.noise import finite_difference_step, jacobian_noise
+    from sensorispace_ros.core.naive.params import NaiveParams
+    params = NaiveParams(fd_step=1e-3)
+    quiet = _structure(1e-9, 1e-9)
+    assert not isinstance(finite_difference_step(params, quiet, 6), SymmetricStep)
+    loud = _structure(1e-4, 1e-4)
+    step = finite_difference_step(params, loud, 6)
+    assert isinstance(step, SymmetricStep) and step > 1e-3
+    # Its Jacobian's noise is below the forward step's.
+    assert jacobian_noise(loud, 6, step) < jacobian_noise(loud, 6, 1e-3)
