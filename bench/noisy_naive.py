@@ -32,7 +32,7 @@ from imperfect_bodies import ImperfectSensing  # noqa: E402  (a test helper, sha
 
 
 def run(config: str, seed: int, out: str, **imperfections) -> dict:
-    from sensorispace_ros.offline.reproduce import reproduce
+    from sensorispace_ros.evaluation.reproduce import reproduce
 
     cfg = config_mod.load_config(config)
     wrapper = functools.partial(ImperfectSensing, seed=seed + 7919, **imperfections)

@@ -63,7 +63,8 @@ from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecor
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
-from sensorispace_ros.core.naive.noise import jacobian_noise, measure_body, noise_step
+from sensorispace_ros.core.naive.noise import (averaging_repeats, finite_difference_step,
+    jacobian_noise, measure_body, noise_residual, noise_step)
 from sensorispace_ros.core.naive.start import choose_start
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
@@ -109,6 +110,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self.n_motors = self._body.n_motors
         self.structure: BodyStructure | None = None     # measured by start()
         self._tol: Tolerances | None = None
+        self._fd_step = self.params.fd_step     # every Jacobian's step, sized by start()
+        self._repeats = 1                       # sensings averaged per anchor, sized by start()
+        self._noisy = False                     # noise sized the tolerances (start())
         self._store = PovStore(self.params.n_samples, self.n_motors)
         # One motor state of every POV whose walk came back split (remember_split_povs).
         self._split_states = np.zeros((0, self.n_motors))
@@ -238,9 +242,16 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
                                              self.structure.noise if noisy else None)
         if self.start_choice is not None and self.start_choice.moved:
             self.structure, self.params = measure_body(self._body, m0, given)
+        self._fd_step = finite_difference_step(self.params, self.structure,
+                                               self._body.n_sensors)
+        self._repeats = averaging_repeats(self.params, self.structure) if noisy else 1
+        self._noisy = bool(noisy)
         self._tol = Tolerances.of(self.params, self.structure,
-                                  jacobian_noise(self.structure, self._body.n_sensors),
-                                  noise_step(self.params, self.structure))
+                                  jacobian_noise(self.structure, self._body.n_sensors,
+                                                 self._fd_step),
+                                  noise_step(self.params, self.structure),
+                                  noise_residual(self.params, self.structure,
+                                                 self._body.n_sensors) if noisy else 0.0)
         return m0
 
     def start(self, initial_motor_state, seed: int = 0) -> Reaction:
@@ -263,7 +274,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._rest = m0.copy()
         self._rest_pov = new[0] if new else -1
         self._body.stage = "rest"
-        rest_sensation = self._body.rest(m0)
+        rest_sensation = self._rest_sensation(m0)
         current = np.asarray(sensations).reshape(-1, self._body.n_sensors)
         self._pool = [Snapshot(0, current, np.full(len(current), RANK_FULL), rest_sensation,
                                 m0.copy(), self._rest_pov,
@@ -320,10 +331,11 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._body.stage = "equality_pass"
         self._sweep = EqualitySetSweep(
             self._body, self._store.samples, rank=self.structure.pose_rank,
-            fd_step=self.params.fd_step, rank_ratio=self.params.rank_ratio,
+            fd_step=self._fd_step, rank_ratio=self.params.rank_ratio,
             min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
             match_tol=self._tol.match,
             separation=self._tol.separation)
+        self._sweep.ratio = self._tol.ratio
         self._sweep.sets = self._sets
         self._sweep.observe()       # the sweep "before" the first change
         self._body.stage = "rest"
@@ -433,7 +445,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         if rest_rank == RANK_UNKNOWN:
             self._body.stage = "rank"
             full, _ = check_pose_rank(self._body, self._rest[None],
-                                      rank=self.structure.pose_rank, fd_step=p.fd_step,
+                                      rank=self.structure.pose_rank, fd_step=self._fd_step,
                                       rank_ratio=p.rank_ratio,
                                       min_singular=self._tol.min_singular,
                                       pattern_ratio=p.pattern_ratio)
@@ -441,7 +453,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             if self._rest_pov >= 0:
                 rank_now[self._rest_pov] = rest_rank
         self._body.stage = "rest"
-        return self._body.rest(self._rest), rest_rank
+        return self._rest_sensation(self._rest), rest_rank
 
     def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
         """Sensation now of every known POV ``(K, S)`` and of every remembered

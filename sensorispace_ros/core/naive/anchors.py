@@ -126,7 +126,8 @@ class SnapshotMatching:
         ``rank_now`` ``(K,)`` holds the ranks the matches carry over (a
         match senses the same relative pose in the same light layout)."""
         rank_now = np.full(len(current), RANK_UNKNOWN)
-        match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree)
+        match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
+                     ratio=self._tol.ratio)
         matches = []
         for snap in self._pool:
             before, after = match_sensations(snap.sensations, current, **match)
@@ -168,9 +169,10 @@ class SnapshotMatching:
             starts = self._search_plan(guessed, current)[-1] if guessed else np.zeros(
                 (0, self.n_motors))
             self._body.stage = "rank"
-            with self._body.lookahead(jacobian_stencil(starts, p.fd_step)):
+            with self._body.lookahead(jacobian_stencil(starts, self._fd_step)):
                 full, _ = check_pose_rank(self._body, self._store.samples[unknown, 0],
-                                          rank=self.structure.pose_rank, fd_step=p.fd_step,
+                                          rank=self.structure.pose_rank,
+                                          fd_step=self._fd_step,
                                           rank_ratio=p.rank_ratio,
                                           min_singular=self._tol.min_singular,
                                           pattern_ratio=p.pattern_ratio)

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensorispace_ros.core.naive.jacobians import (has_full_pose_rank, minimum_norm_correction,
-    sensory_jacobian)
+    sensory_jacobian, stencil_rows)
 
 
 @dataclass
@@ -103,7 +103,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         stationary_ratio=stationary_ratio)
     accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
-    n_search, rows_per_state = len(point), point.shape[1] + 1
+    n_search, rows_per_state = len(point), stencil_rows(point.shape[1], fd_step)
     queries, iterations = np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int)
     if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
         return _none_accepted(point)

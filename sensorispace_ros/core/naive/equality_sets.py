@@ -51,19 +51,23 @@ def finite_rows(rows: np.ndarray, side: float = 1.0) -> np.ndarray:
 
 
 def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: float = 1e-6,
-                     separation: float = 1e-4, tree: cKDTree | None = None):
+                     separation: float = 1e-4, tree: cKDTree | None = None,
+                     ratio: float = 0.0):
     """Unique one-to-one matches between two sets of sensations.
 
     Returns ``(reference_index, current_index)``: row ``i`` of ``reference``
     matches row ``j`` of ``current`` when ``|reference[i] - current[j]| <=
     match_tol``, no other current row lies within ``separation`` of
-    ``reference[i]``, and no other reference row matches ``current[j]``.
+    ``reference[i]`` (with ``ratio > 0``: nor within ``ratio`` times the
+    matched distance; a tolerance wide enough for noisy chains of poses
+    then still tells a match from its neighbours), and no other reference
+    row matches ``current[j]``.
     ``tree``: a ``cKDTree`` of ``finite_rows(current, -1)`` to reuse across
     calls. A lost (non-finite) row matches nothing.
     """
     reference = finite_rows(reference, 1.0)
     current = finite_rows(current, -1.0)
-    if not 0 < match_tol < separation:
+    if not 0 < match_tol or not (match_tol < separation or ratio > 0):
         raise ValueError(f"match_tol must be > 0 and < separation ({separation}), "
                          f"got {match_tol}")
     empty = np.zeros(0, dtype=int)
@@ -80,8 +84,10 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
         if len(current) == 1:
             near[candidate] = True
         else:
-            second, _ = tree.query(reference[candidate], k=2, distance_upper_bound=separation)
-            near[candidate] = ~np.isfinite(second[:, 1])
+            reach = max(separation, ratio * match_tol)
+            second, _ = tree.query(reference[candidate], k=2, distance_upper_bound=reach)
+            clear = np.maximum(separation, ratio * distance[candidate])
+            near[candidate] = ~(second[:, 1] <= clear)
     ref_idx = np.flatnonzero(near)
     cur_idx = index[near]
     # Two reference rows on one current row: neither is a trustworthy match.
@@ -197,8 +203,10 @@ class EqualitySetSweep:
 
     ``points_of_view`` ``(P, N, M)`` (any sample of a POV will do: all share
     the eye's pose). ``rows`` counts motor states probed, ``calls`` the
-    ``sense`` calls.
+    ``sense`` calls; ``ratio`` as ``match_sensations``'s (0: none).
     """
+
+    ratio = 0.0
 
     def __init__(self, body, points_of_view: np.ndarray, *, rank: int, fd_step: float = 1e-6,
                  rank_ratio: float = 1e-3, min_singular: float = 0.0,
@@ -230,7 +238,7 @@ class EqualitySetSweep:
         pairs = np.zeros((0, 2), dtype=int)
         if self._previous is not None:
             before, after = match_sensations(self._previous, current, match_tol=self.match_tol,
-                                             separation=self.separation)
+                                             separation=self.separation, ratio=self.ratio)
             before, after, rank = carry_rank(self, before, after, self._previous_rank, rank)
             if self.sets.add(before, after) >= 0:
                 pairs = np.stack([before, after], axis=1)

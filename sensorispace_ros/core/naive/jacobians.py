@@ -45,38 +45,71 @@ class SensoryPointsOfView:
     target_sensations: np.ndarray
 
 
+class SymmetricStep(float):
+    """A finite-difference step (phase) whose Jacobians are central
+    differences: each state is sensed with ``+-step`` along every joint
+    (``2M + 1`` rows instead of ``M + 1``). Its truncation error is second
+    order in the step and its noise half a forward difference's at one
+    step, so under sensory noise a larger step gives a Jacobian whose weak
+    directions stand out of the noise (``noise.sized_params`` chooses it);
+    everywhere else it is the float it equals."""
+
+    __slots__ = ()
+
+    def __reduce__(self):
+        return (SymmetricStep, (float(self),))
+
+
+def stencil_rows(n_motors: int, fd_step: float) -> int:
+    """Rows ``jacobian_stencil`` senses per state."""
+    return (2 if isinstance(fd_step, SymmetricStep) else 1) * int(n_motors) + 1
+
+
 def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
-    """Sensations and forward-difference sensory Jacobians of many motor states
+    """Sensations and finite-difference sensory Jacobians of many motor states
     in ONE ``sense`` call.
 
     ``motor_states`` ``(B, M)``. Returns ``(sensations (B, S), jacobians
-    (B, S, M), rows)`` where ``rows = B * (M + 1)`` is the number of motor
-    states probed. Rows are ordered state by state (the state, then its
-    ``M`` displaced copies), so the arm ends at the last state's stencil.
-    A state with a lost (non-finite) row gets a NaN sensation and a zero
-    Jacobian.
+    (B, S, M), rows)`` where ``rows = B * stencil_rows(M, fd_step)`` is the
+    number of motor states probed. Rows are ordered state by state (the
+    state, then its displaced copies), so the arm ends at the last state's
+    stencil. A state with a lost (non-finite) row gets a NaN sensation and
+    a zero Jacobian.
     """
     motor_states = np.asarray(motor_states, dtype=float)
     n_batch, n_motors = motor_states.shape
+    rows = stencil_rows(n_motors, fd_step)
     answer = np.asarray(body.sense(jacobian_stencil(motor_states, fd_step)), dtype=float)
-    answer = answer.reshape(n_batch, n_motors + 1, -1)
-    sensations = answer[:, 0, :].copy()
-    jacobians = np.swapaxes(answer[:, 1:, :] - sensations[:, None, :], 1, 2) / fd_step
+    sensations, jacobians = stencil_jacobian(answer.reshape(n_batch, rows, -1), fd_step)
     # A state with a lost row (non-finite) has no Jacobian and no sensation:
     # J = 0 fails every rank test, a NaN sensation every comparison.
-    lost = ~np.all(np.isfinite(answer), axis=(1, 2))
+    lost = ~np.all(np.isfinite(answer.reshape(n_batch, rows, -1)), axis=(1, 2))
     sensations[lost] = np.nan
     jacobians[lost] = 0.0
-    return sensations, jacobians, n_batch * (n_motors + 1)
+    return sensations, jacobians, n_batch * rows
+
+
+def stencil_jacobian(answer: np.ndarray, fd_step: float):
+    """``(sensations (..., S), jacobians (..., S, M))`` from what the rows of
+    ``jacobian_stencil`` sensed, ``answer`` ``(..., stencil_rows, S)``."""
+    sensations = answer[..., 0, :].copy()
+    if isinstance(fd_step, SymmetricStep):
+        n_motors = (answer.shape[-2] - 1) // 2
+        ahead, behind = answer[..., 1:n_motors + 1, :], answer[..., n_motors + 1:, :]
+        return sensations, np.swapaxes(ahead - behind, -1, -2) / (2.0 * fd_step)
+    return sensations, np.swapaxes(answer[..., 1:, :] - sensations[..., None, :], -1, -2) / fd_step
 
 
 def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:
     """The rows ``sensory_jacobian`` senses for ``motor_states`` ``(B, M)``:
-    ``(B * (M + 1), M)``, each state then its ``M`` displaced copies."""
+    ``(B * stencil_rows, M)``, each state then its displaced copies (``+h``
+    along each joint, then ``-h`` for a ``SymmetricStep``)."""
     motor_states = np.asarray(motor_states, dtype=float)
     n_batch, n_motors = motor_states.shape
-    stencil = np.repeat(motor_states[:, None, :], n_motors + 1, axis=1)
-    stencil[:, 1:, :] += fd_step * np.eye(n_motors)
+    stencil = np.repeat(motor_states[:, None, :], stencil_rows(n_motors, fd_step), axis=1)
+    stencil[:, 1:n_motors + 1, :] += fd_step * np.eye(n_motors)
+    if isinstance(fd_step, SymmetricStep):
+        stencil[:, n_motors + 1:, :] -= fd_step * np.eye(n_motors)
     return stencil.reshape(-1, n_motors)
 
 

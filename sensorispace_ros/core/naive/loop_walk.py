@@ -31,7 +31,8 @@ from scipy.interpolate import CubicSpline
 
 from sensorispace_ros.core.motor_loops import closure_gap_ratio, loop_winding
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID,
-    has_full_pose_rank, jacobian_svd, minimum_norm_correction, repair_rows, sensory_jacobian)
+    has_full_pose_rank, jacobian_stencil, jacobian_svd, minimum_norm_correction, repair_rows,
+    sensory_jacobian, stencil_jacobian, stencil_rows)
 
 TWO_PI = 2.0 * np.pi
 
@@ -73,7 +74,7 @@ class LoopWalk:
         self.min_loop_length = min_loop_length
         n_pov = len(start)
         self.n_motors = start.shape[1]
-        self.rows_per_state = self.n_motors + 1
+        self.rows_per_state = stencil_rows(self.n_motors, fd_step)
         self.n_knots = int(knots_per_step)
         self.fraction = np.arange(1, self.n_knots + 1)             # probe k at k * spacing
         self.rows_per_call = 2 * (self.rows_per_state + self.n_knots - 1)  # per walking POV
@@ -138,20 +139,18 @@ class LoopWalk:
         # between the front's last knot and the farthest probe (the knots'
         # Gauss-Newton pass in ``resample`` removes what that costs in accuracy).
         farthest = predicted[:, :, -1, :]
-        stencil = np.repeat(farthest[:, :, None, :], self.rows_per_state, axis=2)
-        stencil[:, :, 1:, :] += self.fd_step * np.eye(n_motors)
+        stencil = jacobian_stencil(farthest.reshape(-1, n_motors), self.fd_step)
         answer = np.asarray(self.body.sense(np.concatenate([
-            stencil.reshape(-1, n_motors), predicted[:, :, :-1, :].reshape(-1, n_motors)])),
-            dtype=float)
+            stencil, predicted[:, :, :-1, :].reshape(-1, n_motors)])), dtype=float)
         self.calls += 1
         self.queries[self.active] += self.rows_per_call
-        n_stencil_rows = stencil.shape[0] * 2 * self.rows_per_state
-        at_farthest = answer[:n_stencil_rows].reshape(stencil.shape[:3] + (-1,))
-        farthest_jac = (np.swapaxes(at_farthest[:, :, 1:] - at_farthest[:, :, :1], -1, -2)
-                        / self.fd_step)
+        n_stencil_rows = len(stencil)
+        at_farthest = answer[:n_stencil_rows].reshape(farthest.shape[:2]
+                                                      + (self.rows_per_state, -1))
+        farthest_sensation, farthest_jac = stencil_jacobian(at_farthest, self.fd_step)
         sensation = np.concatenate([answer[n_stencil_rows:].reshape(
-            predicted.shape[:2] + (n_knots - 1, answer.shape[1])), at_farthest[:, :, None, 0]],
-            axis=2)
+            predicted.shape[:2] + (n_knots - 1, answer.shape[1])),
+            farthest_sensation[:, :, None]], axis=2)
         along = (fraction / n_knots)[:, None, None]                          # (K, 1, 1)
         jac = ((1.0 - along) * self.point_jac[:, :, None] + along * farthest_jac[:, :, None])
         correction, null = _correction_and_null(

@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
+from sensorispace_ros.core.naive.jacobians import SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.structure import BodyStructure, measure_structure
 
@@ -162,10 +163,13 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
 
 # Accepted sensory errors a match may add up: an anchor is an earlier
 # compensation, so poses drift along chains of them, each step by a random
-# error within the accepted one. 256 such errors still lie far below the
-# sensation step between neighbouring positions at the noise levels the
-# agent copes with (a smaller allowance found positions twice).
+# error within the accepted one (a chain's sum grows as the square root of
+# its length; 256 errors cover the chains of the paper grid at noise 1e-8
+# and float32). The tolerance only bounds how far a match may drift; which
+# row matches is told by how far it stands out from the next nearest one
+# (``Tolerances.ratio``), so a wide allowance does not join neighbours.
 _CHAIN = 256.0
+_CLOSE = 8.0
 
 
 def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors: int) -> float:
@@ -205,7 +209,7 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
                 or (structure.votes == structure.probes and structure.pose_rank <= revealed):
             break
         revealed, repeats = structure.pose_rank, 4 * repeats
-    structure = replace(structure, noise=noise.sd, fd_step=step)
+    structure = replace(structure, noise=noise.sd, fd_step=step, repeat_noise=noise.repeat_sd)
     return structure, sized_params(params, structure, n_sensors)
 
 
@@ -252,7 +256,11 @@ def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) 
     # Matches and dedupe compare sensations of poses found by different
     # searches, each within the accepted error of its target, in chains
     # (an anchor is an earlier compensation) whose errors add up.
-    match_tol = max(params.match_tol, _CHAIN * sensory)
+    # The allowance stops at what the pose's weakest direction moves the
+    # sensation over a walk's first knot interval (a drift the agent would
+    # walk past anyway), never below _CLOSE accepted errors.
+    drift = max(weakest * params.pov_initial_step / structure.gain, _CLOSE * sensory)
+    match_tol = max(params.match_tol, min(_CHAIN * sensory, drift))
     return replace(
         params, fd_step=max(params.fd_step, structure.fd_step),
         lm_error_tol=max(params.lm_error_tol, sensory),
@@ -272,11 +280,56 @@ def noise_step(params: NaiveParams, structure: BodyStructure) -> float:
     return float(2.0 * structure.noise * np.sqrt(2.0 * chi))
 
 
-def jacobian_noise(structure: BodyStructure, n_sensors: int) -> float:
-    """Expected spectral norm of a forward-difference Jacobian's noise
-    (sensation per phase) at the agent's step."""
-    if structure.fd_step <= 0:
+def averaging_repeats(params: NaiveParams, structure: BodyStructure) -> int:
+    """Sensings averaged per anchor and per search's end (``confirm``):
+    ``accept_repeats`` where the noise is random (repeats spread about as
+    much as the ladder sees), 1 where most of it repeats exactly (rounding,
+    quantisation: averaging would not shrink it)."""
+    if structure.noise <= 0 or structure.repeat_noise < 0.5 * structure.noise:
+        return 1
+    return int(params.accept_repeats)
+
+
+def noise_residual(params: NaiveParams, structure: BodyStructure, n_sensors: int) -> float:
+    """The ``noise_confidence`` quantile of the distance between two sensings
+    of one motor state (sensation units): their difference over ``sqrt(2) sd``
+    is chi with ``n_sensors`` degrees of freedom."""
+    if structure.noise <= 0:
         return 0.0
-    return float(structure.noise * np.sqrt(2.0) * (np.sqrt(n_sensors)
-                                                    + np.sqrt(structure.n_motors))
-                 / structure.fd_step)
+    return float(structure.noise * np.sqrt(2.0 * chi2.ppf(params.noise_confidence, n_sensors)))
+
+
+def jacobian_noise(structure: BodyStructure, n_sensors: int, step: float | None = None) -> float:
+    """Expected spectral norm of a finite-difference Jacobian's noise
+    (sensation per phase) at ``step`` (default: the structure's forward
+    step; a ``SymmetricStep`` differences two noisy rows ``2 step`` apart)."""
+    step = structure.fd_step if step is None else step
+    if step <= 0:
+        return 0.0
+    spread = np.sqrt(n_sensors) + np.sqrt(structure.n_motors)
+    if isinstance(step, SymmetricStep):
+        return float(structure.noise * np.sqrt(2.0) * spread / (2.0 * step))
+    return float(structure.noise * np.sqrt(2.0) * spread / step)
+
+
+# A forward-difference Jacobian whose noise reaches this share of the pose's
+# weakest singular value tilts the directions the walks and searches follow.
+_WEAK_SHARE = 0.125
+
+
+def finite_difference_step(params: NaiveParams, structure: BodyStructure,
+                           n_sensors: int) -> float:
+    """The step every Jacobian of the agent takes: the sized forward step,
+    or, where its noise would reach ``_WEAK_SHARE`` of the weakest singular
+    value measured at the start (and only there: a symmetric stencil senses
+    ``2M + 1`` rows instead of ``M + 1``), a ``SymmetricStep`` where the
+    central difference's truncation (``step^2 / (6 L^2)``, relative, ``L``
+    the ``fd_curvature_scale``) and its noise are alike, within
+    ``fd_max_step``."""
+    step = params.fd_step
+    if structure.noise <= 0 or structure.weakest <= 0 or structure.gain <= 0 or \
+            jacobian_noise(structure, n_sensors, step) <= _WEAK_SHARE * structure.weakest:
+        return step
+    motor_equivalent = structure.noise * np.sqrt(n_sensors) / structure.gain
+    wanted = (3.0 * motor_equivalent * params.fd_curvature_scale ** 2 / np.sqrt(2.0)) ** (1 / 3)
+    return SymmetricStep(max(step, min(params.fd_max_step, wanted)))

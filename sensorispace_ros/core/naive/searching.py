@@ -6,6 +6,9 @@ walks (or covers) POVs of the dimension the agent measured and stores the
 whole ones. For 0-D POVs the searches toward one target keep going after the
 first acceptance, and every distinct solution they find belongs to that
 target's POV. Tolerances on sensations are the agent's ``Tolerances``.
+Where noise sized them, a search's end passes ``confirm`` (a chi-square
+test of its averaged residual) and anchors are averaged
+(``_rest_sensation``).
 """
 from __future__ import annotations
 
@@ -13,6 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.compensation import compensate
+from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
@@ -39,6 +43,10 @@ class SearchAndSample:
             return {}, [], []
         group, unique_targets, owner, starts = self._search_plan(requests, current)
         solution, others, gain = self._run_searches(unique_targets, owner, starts)
+        if self._noisy and solution:
+            # Anchors at rest were averaged (``_repeats``); rows of a sweep were sensed once.
+            once = {g: requests[int(np.flatnonzero(group == g)[0])].row >= 0 for g in solution}
+            solution = self._confirm(solution, unique_targets, once)
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
@@ -72,6 +80,33 @@ class SearchAndSample:
                  for i in range(len(requests)) if group[i] in solution}
         return found, new_povs, new_sensations
 
+    def _rest_sensation(self, motor_state: np.ndarray) -> np.ndarray:
+        """Rest at ``motor_state``; its sensation, the anchor: averaged over
+        ``_repeats`` sensings (lost ones left out) where noise sized the
+        tolerances, so a compensation toward it is judged against the noise
+        of the search's end alone (``confirm.confirm_compensations``)."""
+        if self._repeats <= 1:
+            return self._body.rest(motor_state)
+        with self._body.fresh():
+            more = self._body.sense(np.repeat(motor_state[None], self._repeats - 1, axis=0))
+            sensation = self._body.rest(motor_state)
+        return finite_mean(np.vstack([sensation[None], more]))
+
+    def _confirm(self, solution, unique_targets, once):
+        """The searches' solutions that pass ``confirm.confirm_compensations``
+        (stepped with the averaged residual); ``once[g]``: group ``g``'s
+        target was sensed once, not averaged."""
+        groups = sorted(solution)
+        sd2 = self.structure.noise ** 2
+        self._body.stage = "compensation"
+        stepped, accepted, _ = confirm_compensations(
+            self._body, np.stack([solution[g] for g in groups]), unique_targets[groups],
+            np.array([sd2 if once[g] else sd2 / self._repeats for g in groups]),
+            noise_sd=self.structure.noise, repeats=self._repeats,
+            rank=self.structure.pose_rank, fd_step=self._fd_step,
+            confidence=self.params.noise_confidence)
+        return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
+
     def _run_searches(self, unique_targets, owner, starts):
         """The batched searches. Returns ``{group: best accepted state}``,
         ``{group: other distinct accepted states (K, M)}`` (empty unless the
@@ -83,7 +118,7 @@ class SearchAndSample:
         search = compensate(self._body, unique_targets[owner], starts,
                             rank=self.structure.pose_rank,
                             min_singular=self._tol.min_singular,
-                            pattern_ratio=p.pattern_ratio, fd_step=p.fd_step,
+                            pattern_ratio=p.pattern_ratio, fd_step=self._fd_step,
                             max_iterations=p.lm_max_iterations, error_tol=p.lm_error_tol,
                             motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio,
                             max_step=p.lm_max_step, initial_damping=p.lm_initial_damping,
@@ -139,7 +174,7 @@ class SearchAndSample:
         self._body.stage = "pov"
         walk = sample_sensory_points_of_view(
             self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
-            fd_step=p.fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
+            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
             max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
             rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
             polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,

@@ -50,7 +50,8 @@ class BodyStructure:
     ``probes`` probe states agree; ``noise`` the measured per-receptor
     sensory noise (``noise.SensoryNoise.sd``), ``fd_step`` the
     finite-difference step sized from it, ``weakest`` the median
-    ``pose_rank``-th singular value of the agreeing probes."""
+    ``pose_rank``-th singular value of the agreeing probes; ``repeat_noise``
+    the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``)."""
 
     n_motors: int
     pose_rank: int
@@ -62,6 +63,7 @@ class BodyStructure:
     noise: float = 0.0
     fd_step: float = 0.0
     weakest: float = 0.0
+    repeat_noise: float = 0.0
 
     @property
     def pov_dim(self) -> int:
@@ -88,22 +90,31 @@ class Tolerances:
     separation: float
     min_singular: float
     noise_step: float = 0.0
+    ratio: float = 0.0
 
     @classmethod
     def of(cls, params, structure: BodyStructure, jacobian_noise: float = 0.0,
-           noise_step: float = 0.0) -> "Tolerances":
+           noise_step: float = 0.0, noise_residual: float = 0.0) -> "Tolerances":
         """``jacobian_noise``: the expected spectral norm of a
         finite-difference Jacobian's noise; a rank test's smallest singular
         value stays above it (the r-th singular value of a Jacobian of pure
         noise, a blank sensation's, lies below its first). ``noise_step``:
         the sensory residual measured noise explains, whose Gauss-Newton step
-        a search may keep (``compensation.compensate``)."""
+        a search may keep (``compensation.compensate``). ``noise_residual``
+        (0: none): what two sensings of one pose differ by at most, where
+        noise sized the match tolerance; a match must then stand out by
+        ``match_ratio`` from the next nearest sensation and lie beyond this
+        residual (``equality_sets.match_sensations``), not by a separation
+        tied to the tolerance."""
         # A body that showed nothing (rank 0) has no gain; no sensation of it
         # passes a rank test, so any positive scale will do.
         gain = structure.gain if structure.gain > 0 else 1.0
-        return cls(match=params.match_tol * gain, separation=params.match_separation * gain,
+        separation, ratio = params.match_separation * gain, 0.0
+        if noise_residual > 0:
+            separation, ratio = noise_residual, params.match_ratio
+        return cls(match=params.match_tol * gain, separation=separation,
                    min_singular=max(params.min_singular * gain, jacobian_noise),
-                   noise_step=noise_step)
+                   noise_step=noise_step, ratio=ratio)
 
 
 def probe_states(center: np.ndarray, count: int, radius: float) -> np.ndarray:

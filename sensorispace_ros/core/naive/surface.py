@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, VALID,
     SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, minimum_norm_correction,
-    repair_rows, sensory_jacobian)
+    repair_rows, sensory_jacobian, stencil_jacobian, stencil_rows)
 
 TWO_PI = 2.0 * np.pi
 DIRECTIONS = 6          # proposals per front knot, evenly round its tangent plane
@@ -115,15 +115,14 @@ class _Cover:
         n_motors = proposal.shape[1]
         sensed = np.asarray(self.body.sense(jacobian_stencil(proposal, self.fd_step)), dtype=float)
         self.calls += 1
-        sensed = sensed.reshape(len(proposal), n_motors + 1, -1)
-        sensation = sensed[:, 0]
-        jac = np.swapaxes(sensed[:, 1:] - sensation[:, None], 1, 2) / self.fd_step
+        rows = stencil_rows(n_motors, self.fd_step)
+        sensation, jac = stencil_jacobian(sensed.reshape(len(proposal), rows, -1), self.fd_step)
         correction, plane = _correction_and_plane(jac, sensation - self.target[owner], self.rank)
         with np.errstate(over="ignore", invalid="ignore"):
             size = np.linalg.norm(correction, axis=1)
         reach = self.step * 0.5 ** level
         good = np.isfinite(size) & (size <= CORRECTION * reach)
-        np.add.at(self.queries, owner, n_motors + 1)
+        np.add.at(self.queries, owner, rows)
         for p in np.unique(owner):
             mine = owner == p
             if self.queries[p] > self.max_queries or np.any(mine & ~good & (level >= HALVINGS)):
