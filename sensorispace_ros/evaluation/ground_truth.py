@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
-from sensorispace_ros.core.run_world import run_world
+from sensorispace_ros.bodies import run_world
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 if TYPE_CHECKING:
