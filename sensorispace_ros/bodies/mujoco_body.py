@@ -46,7 +46,9 @@ class MujocoBody:
         self.data = mujoco.MjData(self.model)
         width, height = cfg_mujoco["image"]
         channels = 3 if cfg_mujoco["channels"] == "rgb" else 1
-        self.renderer = TiledRenderer(self.model, spec.camera, width, height, channels)
+        self.renderer = TiledRenderer(self.model, spec.camera, width, height, channels,
+                                      supersample=cfg_mujoco["supersample"],
+                                      blur=cfg_mujoco["blur"])
         self.settle = cfg_mujoco["settle"]
         self.settle_steps = int(cfg_mujoco["settle_steps"])
         self.address = self.model.jnt_qposadr[list(spec.joints)]

@@ -47,13 +47,19 @@ class TiledRenderer:
     (top row first), ``channels`` 1 (luminance) or 3 (RGB)."""
 
     def __init__(self, model, camera_id: int, width: int, height: int, channels: int,
-                 tiles: int = 8):
+                 tiles: int = 8, supersample: int = 1, blur: float = 0.0):
         import mujoco
 
         problem = rendering_problem()
         if problem is not None:
             raise RuntimeError(f"MuJoCo cannot render: {problem}")
         self.mujoco = mujoco
+        self.supersample = int(supersample)
+        self.blur = float(blur)
+        self.out_width, self.out_height = int(width), int(height)
+        self.filters = (_pixel_filter(self.out_height, self.supersample, blur),
+                        _pixel_filter(self.out_width, self.supersample, blur))
+        width, height = self.supersample * int(width), self.supersample * int(height)
         self.width, self.height, self.channels = int(width), int(height), int(channels)
         self.tiles = max(1, min(int(tiles), 4096 // max(self.width, self.height)))
         model.vis.quality.offsamples = 0
@@ -115,7 +121,26 @@ class TiledRenderer:
                 x, y = (tile % self.tiles) * w, (tile // self.tiles) * h
                 out[i] = view[y:y + h, x:x + w][::-1]       # OpenGL rows run bottom-up
         self.frames += count
+        if self.supersample > 1 or self.blur > 0:
+            rows, columns = self.filters
+            planes = np.moveaxis(out, -1, 1).astype(np.float64)        # (n, 3, y, x)
+            filtered = rows @ planes @ columns.T
+            out = np.clip(np.rint(np.moveaxis(filtered, 1, -1)), 0, 255).astype(np.uint8)
         if self.channels == 3:
             return out
         luma = (out.astype(np.uint32) @ _LUMA + 500) // 1000
         return luma.astype(np.uint8)[..., None]
+
+
+def _pixel_filter(pixels: int, supersample: int, blur: float) -> np.ndarray:
+    """``(pixels, supersample * pixels)``: the weights of the samples each pixel
+    gathers: its own ``supersample`` samples (the light its area receives),
+    spread by a Gaussian of ``blur`` pixels (an out-of-focus lens; 0: none),
+    each row summing to 1."""
+    samples = (np.arange(pixels * supersample) + 0.5) / supersample
+    centres = np.arange(pixels) + 0.5
+    if blur > 0:
+        weights = np.exp(-0.5 * ((samples[None] - centres[:, None]) / blur) ** 2)
+    else:
+        weights = (np.abs(samples[None] - centres[:, None]) < 0.5).astype(float)
+    return weights / weights.sum(axis=1, keepdims=True)
