@@ -464,8 +464,9 @@ def unflatten(flat: dict[str, Any]) -> dict:
 def to_parameter_file(cfg: dict) -> str:
     """``cfg`` as a ROS 2 parameter file.
 
-    ``None`` values are left out (ROS has no null) and so are empty sections
-    (rcl's parser rejects ``key: {}`` followed by more keys).
+    ``None`` values are left out (ROS has no null), and so are empty lists
+    (untyped for ROS; a list whose default is empty means "automatic") and
+    empty sections (rcl's parser rejects ``key: {}`` followed by more keys).
     """
     def ros_values(node):
         out = {}
@@ -474,8 +475,8 @@ def to_parameter_file(cfg: dict) -> str:
                 value = ros_values(value)
                 if not value:
                     continue
-            elif value is None:
-                continue
+            elif value is None or (isinstance(value, list) and not value):
+                continue        # an empty list has no ROS type; absent, it takes its default
             out[key] = value
         return out
     return yaml.safe_dump({"/**": {ROS_WRAPPER: ros_values(cfg)}}, sort_keys=False,

@@ -122,6 +122,16 @@ def test_the_other_models_chain(other_world):
     assert other_world.arm.pose_rank == 3 and other_world.arm.pov_dim == 0
 
 
+def test_the_other_model_runs_the_paper_strategy_by_configuration_alone():
+    from sensorispace_ros.offline.strategies import run_strategy
+    out = run_strategy(config.load_config(None, OTHER), "paper", 0)
+    metrics = out.metrics
+    assert metrics["exploration.compensated"] >= 10
+    assert metrics["pov.count"] == metrics["exploration.compensated"] + 1
+    assert metrics["pov.max_pose_drift"] < 1e-9
+    assert out.povs.shape[2] == 3                   # three joints
+
+
 def test_physics_settles_near_the_command(arm_world):
     world = world_of(ARM, **{"mujoco.settle": "physics"})
     body = world.body(lights=world.initial_lights)
