@@ -168,3 +168,12 @@ def test_the_simulated_body_stays_the_default():
     assert type(ours) is type(theirs)
     np.testing.assert_array_equal(ours.initial_lights, theirs.initial_lights)
     assert [e.grid_index for e in ours.events] == [e.grid_index for e in theirs.events]
+
+
+def test_a_graph_runs_truth_is_the_models_chain(other_world):
+    """The evaluator of a graph run (POVs only) poses them by the model's chain,
+    not by the simulated arm of ``arm.*``."""
+    from sensorispace_ros.evaluation.ground_truth import ground_truth_from_motor
+    states = other_world.m0 + np.random.default_rng(1).uniform(-1, 1, (5, 1, 3))
+    truth = ground_truth_from_motor(states, config.load_config(None, OTHER))
+    np.testing.assert_allclose(truth["true_poses"], other_world.arm.forward(states[:, 0]))

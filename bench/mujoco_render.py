@@ -1,0 +1,71 @@
+"""Rendering cost of a MuJoCo body's frames (docs/benchmarks.md, "A MuJoCo body").
+
+    .venv/bin/python -m bench.mujoco_render [--config config/mujoco-arm.yaml] [--frames 512]
+
+Times, per frame, at the same motor states of the configuration's model:
+the body's own path (``MujocoBody.sense``: tiles, effects off), and as
+baselines ``mujoco.Renderer`` one frame at a time with MuJoCo's default
+visual settings, and with the body's settings (shadows, reflections, skybox
+and the other effects off, no multisampling). Prints JSON.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+
+def _renderer_ms(world, states, effects_off: bool) -> float:
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(world.spec.path))
+    if effects_off:
+        model.vis.quality.offsamples = 0
+    width, height = world.mujoco_cfg["image"]
+    renderer = mujoco.Renderer(model, height, width)
+    if effects_off:
+        for flag in range(mujoco.mjtRndFlag.mjNRNDFLAG):
+            renderer.scene.flags[flag] = 0
+    data = mujoco.MjData(model)
+    address = model.jnt_qposadr[list(world.spec.joints)]
+    started = time.perf_counter()
+    for state in states:
+        data.qpos[address] = state
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_camlight(model, data)
+        renderer.update_scene(data, int(world.spec.camera))
+        renderer.render()
+    elapsed = time.perf_counter() - started
+    renderer.close()
+    return 1e3 * elapsed / len(states)
+
+
+def main(argv=None) -> int:
+    from sensorispace_ros import config
+    from sensorispace_ros.bodies import run_world
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default="config/mujoco-arm.yaml")
+    parser.add_argument("--frames", type=int, default=512)
+    args = parser.parse_args(argv)
+    world = run_world(config.load_config(args.config))
+    states = world.m0 + np.random.default_rng(0).uniform(-0.3, 0.3, (args.frames, len(world.m0)))
+    body = world.body(lights=world.initial_lights)
+    body.sense(states[:64])                                       # warm-up
+    started = time.perf_counter()
+    body.sense(states)
+    body_ms = 1e3 * (time.perf_counter() - started) / len(states)
+    results = {"config": args.config, "frames": args.frames,
+               "image": world.mujoco_cfg["image"], "channels": world.mujoco_cfg["channels"],
+               "supersample": world.mujoco_cfg["supersample"],
+               "body_ms_per_frame": body_ms,
+               "renderer_effects_off_ms_per_frame": _renderer_ms(world, states[:128], True),
+               "renderer_defaults_ms_per_frame": _renderer_ms(world, states[:64], False)}
+    print(json.dumps(results, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
