@@ -6,7 +6,10 @@ Times, per frame, at the same motor states of the configuration's model:
 the body's own path (``MujocoBody.sense``: tiles, effects off), and as
 baselines ``mujoco.Renderer`` one frame at a time with MuJoCo's default
 visual settings, and with the body's settings (shadows, reflections, skybox
-and the other effects off, no multisampling). Prints JSON.
+and the other effects off, no multisampling). Also the singular values,
+relative to the first, of the central-difference Jacobian of the images at
+the start, at several steps (rad): the kinematics make the last one 0
+wherever the joints outnumber the pose's 3 degrees of freedom. Prints JSON.
 """
 from __future__ import annotations
 
@@ -42,6 +45,19 @@ def _renderer_ms(world, states, effects_off: bool) -> float:
     return 1e3 * elapsed / len(states)
 
 
+def _jacobian_spectrum(world, steps=(1e-3, 3e-3, 1e-2, 3e-2, 1e-1)) -> dict:
+    body = world.body(lights=world.initial_lights)
+    joints = np.eye(len(world.m0))
+    out = {}
+    for step in steps:
+        rows = np.vstack([world.m0 + step * joints, world.m0 - step * joints])
+        images = body.sense(rows).astype(float)
+        jacobian = (images[:len(joints)] - images[len(joints):]).T / (2 * step)
+        values = np.linalg.svd(jacobian, compute_uv=False)
+        out[f"{step:g}"] = [round(float(v), 4) for v in values / values[0]]
+    return out
+
+
 def main(argv=None) -> int:
     from sensorispace_ros import config
     from sensorispace_ros.bodies import run_world
@@ -59,10 +75,11 @@ def main(argv=None) -> int:
     body_ms = 1e3 * (time.perf_counter() - started) / len(states)
     results = {"config": args.config, "frames": args.frames,
                "image": world.mujoco_cfg["image"], "channels": world.mujoco_cfg["channels"],
-               "supersample": world.mujoco_cfg["supersample"],
+               "supersample": world.mujoco_cfg["supersample"], "blur": world.mujoco_cfg["blur"],
                "body_ms_per_frame": body_ms,
                "renderer_effects_off_ms_per_frame": _renderer_ms(world, states[:128], True),
-               "renderer_defaults_ms_per_frame": _renderer_ms(world, states[:64], False)}
+               "renderer_defaults_ms_per_frame": _renderer_ms(world, states[:64], False),
+               "jacobian_relative_singular_values": _jacobian_spectrum(world)}
     print(json.dumps(results, indent=2))
     return 0
 

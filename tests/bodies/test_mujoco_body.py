@@ -71,7 +71,7 @@ def test_pixels_are_uint8_and_see_the_object(arm_world):
     body = arm_world.body(lights=arm_world.initial_lights)
     images = body.sense(np.vstack([arm_world.m0, arm_world.m0 + 0.05]))
     assert images.dtype == np.uint8 and images.shape == (2, 256)
-    assert images[0].max() > 100 and (images[0] == 0).any()      # spheres on black
+    assert images[0].max() > 100 and images[0].min() < 10       # spheres on black
     assert not np.array_equal(images[0], images[1])                # the camera moved
     assert body.queries == 2 and body.calls == 1
     np.testing.assert_array_equal(body.motor_state, arm_world.m0 + 0.05)
