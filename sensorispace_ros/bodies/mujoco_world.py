@@ -7,8 +7,9 @@ The object visits every position of the grid (``world.grid_count`` per axis
 over [-``world.grid_half_width``, ``world.grid_half_width``]², a displacement
 from where it starts) in the seeded order (``world.schedule``); after a move,
 with probability ``world.redistribution_probability``, its geoms are
-rearranged by the seed, uniformly over the disc the model's arrangement
-fills: a state change no movement of the body undoes (``core.world.schedule``).
+rearranged by the seed, uniformly over the annulus the model's arrangement
+fills about its centre: a state change no movement of the body undoes
+(``core.world.schedule``).
 
 The run's world is a ``core.paper.exploration.World`` whose arm is that
 chain, so the paper strategy, the compensable positions and the evaluator
@@ -59,10 +60,12 @@ def mujoco_world(cfg: dict, seed: int | None = None) -> MujocoWorld:
     points = _to_chain(chain, geoms_world)
     center = points.mean(axis=0)
     offsets = points - center
-    extent = float(max(np.max(np.hypot(offsets[:, 0], offsets[:, 1])), 1e-6))
+    radii = np.hypot(offsets[:, 0], offsets[:, 1])
+    inner, outer = float(np.min(radii)), float(max(np.max(radii), 1e-6))
     world = cfg["world"]
     grid = center + world_mod.position_grid(world["grid_half_width"], world["grid_count"])
-    light_kwargs = {"count": len(offsets), "radius_min": 0.0, "radius_max": extent}
+    light_kwargs = {"count": len(offsets), "radius_min": min(inner, 0.999 * outer),
+                    "radius_max": outer}
     events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
                                 redistribution_probability=world["redistribution_probability"],
                                 order=world["schedule"], light_kwargs=light_kwargs)
