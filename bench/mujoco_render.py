@@ -6,7 +6,8 @@ Times, per frame, at the same motor states of the configuration's model:
 the body's own path (``MujocoBody.sense``: tiles, effects off), and as
 baselines ``mujoco.Renderer`` one frame at a time with MuJoCo's default
 visual settings, and with the body's settings (shadows, reflections, skybox
-and the other effects off, no multisampling). Also the singular values,
+and the other effects off, no multisampling), without and with a ``plane``
+floor. Also the singular values,
 relative to the first, of the central-difference Jacobian of the images at
 the start, at several steps (rad): the kinematics make the last one 0
 wherever the joints outnumber the pose's 3 degrees of freedom. Prints JSON.
@@ -20,10 +21,16 @@ import time
 import numpy as np
 
 
-def _renderer_ms(world, states, effects_off: bool) -> float:
+PLANE = '<geom name="bench_floor" type="plane" size="20 20 0.1" rgba="0 0 0 1"/>'
+
+
+def _renderer_ms(world, states, effects_off: bool, plane: bool = False) -> float:
     import mujoco
 
-    model = mujoco.MjModel.from_xml_path(str(world.spec.path))
+    xml = world.spec.path.read_text()
+    if plane:
+        xml = xml.replace("<worldbody>", "<worldbody>" + PLANE, 1)
+    model = mujoco.MjModel.from_xml_string(xml)
     if effects_off:
         model.vis.quality.offsamples = 0
     width, height = world.mujoco_cfg["image"]
@@ -79,6 +86,8 @@ def main(argv=None) -> int:
                "body_ms_per_frame": body_ms,
                "renderer_effects_off_ms_per_frame": _renderer_ms(world, states[:128], True),
                "renderer_defaults_ms_per_frame": _renderer_ms(world, states[:64], False),
+               "renderer_effects_off_with_plane_ms_per_frame":
+                   _renderer_ms(world, states[:128], True, plane=True),
                "jacobian_relative_singular_values": _jacobian_spectrum(world)}
     print(json.dumps(results, indent=2))
     return 0
