@@ -18,6 +18,7 @@ camera's, from MuJoCo's kinematics at the state reached.
 """
 from __future__ import annotations
 
+import copy
 import time
 
 import numpy as np
@@ -42,7 +43,8 @@ class MujocoBody:
 
         self.mujoco = mujoco
         self.spec, self.chain, self.arm = spec, chain, chain.arm
-        self.model = spec.model
+        # A copy of its own: the object's geoms move with this body's world only.
+        self.model = copy.deepcopy(spec.model)
         self.data = mujoco.MjData(self.model)
         width, height = cfg_mujoco["image"]
         channels = 3 if cfg_mujoco["channels"] == "rgb" else 1

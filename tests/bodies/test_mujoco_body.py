@@ -177,3 +177,12 @@ def test_a_graph_runs_truth_is_the_models_chain(other_world):
     states = other_world.m0 + np.random.default_rng(1).uniform(-1, 1, (5, 1, 3))
     truth = ground_truth_from_motor(states, config.load_config(None, OTHER))
     np.testing.assert_allclose(truth["true_poses"], other_world.arm.forward(states[:, 0]))
+
+
+def test_two_bodies_of_one_world_keep_their_own_object(arm_world):
+    first = arm_world.body(lights=arm_world.initial_lights)
+    seen, _ = first.sense_at_rest()
+    rearranged = next(e for e in arm_world.events if e.kind == "redistribution")
+    second = arm_world.body(lights=rearranged.lights)
+    assert not np.array_equal(second.sense_at_rest()[0], seen)
+    np.testing.assert_array_equal(first.sense_at_rest()[0], seen)
