@@ -36,10 +36,15 @@ def rendering_problem() -> str | None:
         return f"the mujoco package is not installed ({error}): bash scripts/bootstrap.sh"
     if os.environ.get("MUJOCO_GL", "egl") == "egl":
         try:
-            ctypes.CDLL("libEGL.so.1")
+            load_egl()
         except OSError as error:
             return f"no EGL ({error}); {INSTALL_HINT}"
     return None
+
+
+def load_egl() -> None:
+    """Load the EGL library the ``egl`` backend needs (OSError: none here)."""
+    ctypes.CDLL("libEGL.so.1")
 
 
 class TiledRenderer:
