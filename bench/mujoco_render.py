@@ -10,7 +10,9 @@ and the other effects off, no multisampling), without and with a ``plane``
 floor. Also the singular values,
 relative to the first, of the central-difference Jacobian of the images at
 the start, at several steps (rad): the kinematics make the last one 0
-wherever the joints outnumber the pose's 3 degrees of freedom. Prints JSON.
+wherever the joints outnumber the pose's 3 degrees of freedom; and with
+``mujoco.settle: physics`` the cost of a row and how far its joints land
+from the command. Prints JSON.
 """
 from __future__ import annotations
 
@@ -65,6 +67,15 @@ def _jacobian_spectrum(world, steps=(1e-3, 3e-3, 1e-2, 3e-2, 1e-1)) -> dict:
     return out
 
 
+def _physics(world, states) -> dict:
+    """``mujoco.settle: physics``: the cost of a row and how far the joints land."""
+    body = world.body(lights=world.initial_lights)
+    started = time.perf_counter()
+    body.sense(states)
+    return {"physics_settle_ms_per_row": 1e3 * (time.perf_counter() - started) / len(states),
+            "physics_max_joint_error_rad": float(np.abs(body.last_reached - states).max())}
+
+
 def main(argv=None) -> int:
     from sensorispace_ros import config
     from sensorispace_ros.bodies import run_world
@@ -74,6 +85,7 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=512)
     args = parser.parse_args(argv)
     world = run_world(config.load_config(args.config))
+    physics = run_world(config.load_config(args.config, {"mujoco.settle": "physics"}))
     states = world.m0 + np.random.default_rng(0).uniform(-0.3, 0.3, (args.frames, len(world.m0)))
     body = world.body(lights=world.initial_lights)
     body.sense(states[:64])                                       # warm-up
@@ -88,7 +100,8 @@ def main(argv=None) -> int:
                "renderer_defaults_ms_per_frame": _renderer_ms(world, states[:64], False),
                "renderer_effects_off_with_plane_ms_per_frame":
                    _renderer_ms(world, states[:128], True, plane=True),
-               "jacobian_relative_singular_values": _jacobian_spectrum(world)}
+               "jacobian_relative_singular_values": _jacobian_spectrum(world),
+               **_physics(physics, states[:32])}
     print(json.dumps(results, indent=2))
     return 0
 
