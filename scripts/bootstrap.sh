@@ -20,6 +20,32 @@ check_python() {
     || die "$1 is $("$1" -V 2>&1); need Python 3.10-3.13 (set PYTHON=...)"
 }
 
+# 0. Headless rendering of MuJoCo bodies (docs/mujoco.md) needs EGL and Mesa's
+#    drivers: Debian's libegl1, libegl-mesa0 and libgl1-mesa-dri. Installed
+#    when missing and we may (root, or sudo without a password); otherwise
+#    the command to run is printed and the MuJoCo tests skip, saying why.
+egl_present() {
+  { ldconfig -p 2>/dev/null || true; } | grep -q 'libEGL_mesa.so.0' \
+    && { ldconfig -p 2>/dev/null || true; } | grep -q 'libEGL.so.1' \
+    && ls /usr/lib/*/dri/*_dri.so /usr/lib/*/dri/libdril_dri.so >/dev/null 2>&1
+}
+EGL_PACKAGES="libegl1 libegl-mesa0 libgl1-mesa-dri"
+if ! egl_present; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    say "installing EGL for MuJoCo rendering: $EGL_PACKAGES"
+    apt-get install -y $EGL_PACKAGES >/dev/null 2>&1 \
+      || { apt-get update >/dev/null 2>&1 && apt-get install -y $EGL_PACKAGES >/dev/null 2>&1; } \
+      || say "WARNING: apt-get install $EGL_PACKAGES failed; MuJoCo bodies cannot render"
+  elif command -v apt-get >/dev/null && command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
+    say "installing EGL for MuJoCo rendering: $EGL_PACKAGES"
+    sudo -n apt-get install -y $EGL_PACKAGES >/dev/null 2>&1 \
+      || say "WARNING: sudo apt-get install $EGL_PACKAGES failed; MuJoCo bodies cannot render"
+  else
+    say "WARNING: no EGL found; MuJoCo bodies cannot render (their tests skip). Install it with:"
+    say "  sudo apt-get install -y $EGL_PACKAGES"
+  fi
+fi
+
 mkdir -p "$VENV"
 # Serialise concurrent runs (e.g. scripts/test.sh and scripts/main.sh).
 if command -v flock >/dev/null; then exec 9>"$VENV/.bootstrap.lock"; flock 9; fi

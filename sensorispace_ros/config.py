@@ -122,6 +122,15 @@ def real_vector(length: int) -> Callable[[str, Any], list[float]]:
     return check
 
 
+def integer_vector(length: int, minimum: int = 1) -> Callable[[str, Any], list[int]]:
+    def check(name, value):
+        if (not isinstance(value, (list, tuple)) or len(value) != length
+                or not all(_is_int(v) and v >= minimum for v in value)):
+            _fail(name, f"a list of {length} integers >= {minimum}", value)
+        return [int(v) for v in value]
+    return check
+
+
 def real_list(name: str, value: Any) -> list[float]:
     if (not isinstance(value, (list, tuple)) or not value
             or not all(_is_real(v) for v in value)):
@@ -160,6 +169,8 @@ def check_from_spec(spec: str) -> Callable[[str, Any], Any]:
         return integer(None if match[1] is None else int(match[1]))
     if match := re.fullmatch(r"real vector of (\d+)", spec):
         return real_vector(int(match[1]))
+    if match := re.fullmatch(r"integer vector of (\d+)", spec):
+        return integer_vector(int(match[1]))
     if match := re.fullmatch(r"one of (.+)", spec):
         return choice(*match[1].split(", "))
     if match := re.fullmatch(r"real(?: (>=|>) ([-+.\deE]+))?(?: and <= ([-+.\deE]+))?"
@@ -266,6 +277,8 @@ def _check_body(cfg: dict, simulated_body: bool) -> None:
                       dropout=retina["dropout"], motor_noise=arm_cfg["motor_noise"])
     except ValueError as error:
         raise ConfigError(str(error)) from None
+    # A MuJoCo body checks the start against its model's joints (bodies.mujoco_world).
+    simulated_body = simulated_body and cfg["body"]["kind"] == "simulated"
     if simulated_body and len(arm_cfg["initial_motor_state"]) != body_arm.n_joints:
         raise ConfigError(f"arm.initial_motor_state: must hold one value per joint "
                           f"({body_arm.n_joints}: {body_arm.n_links} links, eye "
@@ -451,8 +464,9 @@ def unflatten(flat: dict[str, Any]) -> dict:
 def to_parameter_file(cfg: dict) -> str:
     """``cfg`` as a ROS 2 parameter file.
 
-    ``None`` values are left out (ROS has no null) and so are empty sections
-    (rcl's parser rejects ``key: {}`` followed by more keys).
+    ``None`` values are left out (ROS has no null), and so are empty lists
+    (untyped for ROS; a list whose default is empty means "automatic") and
+    empty sections (rcl's parser rejects ``key: {}`` followed by more keys).
     """
     def ros_values(node):
         out = {}
@@ -461,8 +475,8 @@ def to_parameter_file(cfg: dict) -> str:
                 value = ros_values(value)
                 if not value:
                     continue
-            elif value is None:
-                continue
+            elif value is None or (isinstance(value, list) and not value):
+                continue        # an empty list has no ROS type; absent, it takes its default
             out[key] = value
         return out
     return yaml.safe_dump({"/**": {ROS_WRAPPER: ros_values(cfg)}}, sort_keys=False,

@@ -20,6 +20,7 @@ PACKAGE_NAME = "sensorispace_ros"
 # Lowest first. A module may import its own layer and the layers below it.
 LAYERS = (
     ("core", "config"),
+    ("bodies",),
     ("protocol", "contracts", "messages", "progress"),
     ("state",),
     ("recording",),

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
-from sensorispace_ros.core.run_world import run_world
+from sensorispace_ros.bodies import run_world
 from sensorispace_ros.core.world import REDISTRIBUTION
 
 if TYPE_CHECKING:
@@ -79,7 +79,9 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
     from sensorispace_ros.core.world import grid_spacing, position_grid
 
     povs = np.asarray(povs, dtype=float)
-    body_arm = Arm.from_config(cfg["arm"])
+    simulated = cfg.get("body", {}).get("kind", "simulated") == "simulated"
+    # A MuJoCo body's chain is its model's (bodies.mujoco_model.planar_chain).
+    body_arm = Arm.from_config(cfg["arm"]) if simulated else run_world(cfg).arm
     true_poses = body_arm.forward(povs[:, 0]).reshape(-1, 3)
     m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
     world = cfg["world"]

@@ -23,7 +23,7 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 
 from sensorispace_ros import config, contracts, messages
-from sensorispace_ros.core.run_world import run_world as build_world  # noqa: F401 (the nodes' name)
+from sensorispace_ros.bodies import run_world as build_world  # noqa: F401 (the nodes' name)
 from sensorispace_ros.protocol import MAX_FRAME_NUMBER, frame, parse_frame  # noqa: F401
 from sensorispace_ros.graph import tracing
 

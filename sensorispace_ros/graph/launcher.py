@@ -264,7 +264,7 @@ def plan_run(config_path, run, domain_id, record: bool, results_root, bags_root,
     ``own_body``: the node name of a body of one's own, started by its user,
     in place of the simulated body."""
     from sensorispace_ros import config
-    from sensorispace_ros.core.run_world import run_world
+    from sensorispace_ros.bodies import run_world
 
     config_path = Path(config_path) if config_path else default_config()
     cfg = config.load_config(config_path, simulated_body=not own_body)

@@ -49,7 +49,8 @@ from sensorispace_ros.messages.joint_states import (MAX_JOINTS, MAX_RECEPTORS,
                                                     JointStateCdrPacker, description_from_msg,
                                                     description_to_msg, joint_state_to_motor,
                                                     motor_to_joint_state)
-from sensorispace_ros.messages.viewer import (coloured_cloud, packed_rgb, shape_to_marker,
+from sensorispace_ros.messages.viewer import (coloured_cloud, packed_rgb, pixels_to_image,
+                                              shape_to_marker,
                                               shapes_to_marker_array, values_to_multiarray)
 
 __all__ = ["CloudCdrPacker", "CloudCdrReader", "FloatCloud", "HeaderView", "MessageError",
@@ -58,4 +59,4 @@ __all__ = ["CloudCdrPacker", "CloudCdrReader", "FloatCloud", "HeaderView", "Mess
            "table_to_cloud", "NUMBER", "NUMBER_TYPES", "with_number_type", "MAX_JOINTS", "MAX_RECEPTORS", "JointStateCdrPacker",
            "description_from_msg", "description_to_msg", "joint_state_to_motor",
            "motor_to_joint_state", "coloured_cloud", "packed_rgb", "shape_to_marker",
-           "shapes_to_marker_array", "values_to_multiarray"]
+           "shapes_to_marker_array", "values_to_multiarray", "pixels_to_image"]

@@ -79,3 +79,18 @@ def values_to_multiarray(values, labels: Sequence[str]):
     dim = MultiArrayDimension(label=",".join(labels), size=len(values), stride=len(values))
     return Float64MultiArray(layout=MultiArrayLayout(dim=[dim], data_offset=0),
                              data=values.tolist())
+
+
+def pixels_to_image(pixels, width: int, height: int, header: Header):
+    """A camera's receptors (rows top first, each pixel's channels together:
+    ``height * width`` gray or ``3 * height * width`` RGB values 0..255) as a
+    ``sensor_msgs/Image`` (``mono8`` or ``rgb8``)."""
+    from sensor_msgs.msg import Image
+
+    values = np.clip(np.rint(np.asarray(pixels, dtype=float).reshape(-1)), 0, 255)
+    channels, left = divmod(len(values), width * height)
+    if left or channels not in (1, 3):
+        raise ValueError(f"{len(values)} values are no {width} x {height} gray or RGB image")
+    return Image(header=header, height=height, width=width,
+                 encoding="mono8" if channels == 1 else "rgb8", is_bigendian=0,
+                 step=width * channels, data=values.astype(np.uint8).tobytes())

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from sensorispace_ros.core.run_world import run_world
+from sensorispace_ros.bodies import run_world
 from sensorispace_ros.offline.chain_pool import can_fork
 from sensorispace_ros.offline.timing import timed_stage
 

@@ -101,7 +101,8 @@ def test_the_viewer_contract_follows_the_topics_it_shows():
         contracts.contract("/agent/stage_counters").columns)
     assert set(VIEWER_TOPICS) == {"/viewer/scene", "/viewer/representation_2d",
                                   "/viewer/representation_3d", "/viewer/sensation",
-                                  "/viewer/activity", "/viewer/stage_counters"}
+                                  "/viewer/activity", "/viewer/stage_counters",
+                                  "/viewer/camera"}
     for topic in VIEWER_TOPICS:
         spec = contracts.contract(topic)
         assert spec.subscribers == ("recorder",), topic   # nothing of the graph reads them

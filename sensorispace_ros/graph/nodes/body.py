@@ -1,4 +1,5 @@
-"""Body node: the simulated arm + retina (core.body.SimulatedBody).
+"""Body node: the simulated arm + retina (core.body.SimulatedBody), or the
+MuJoCo model of ``body.kind: mujoco`` (bodies.mujoco_body.MujocoBody).
 
 At start it publishes what it is on the latched ``/body/description``
 (``core.body_description.BodyDescription``: joint names, unit, periods,
@@ -86,8 +87,10 @@ class BodyNode(GraphNode):
         # CloudCdrPacker, GraphNode.read_float_cloud): rclpy's message conversions
         # would cost more than the rest of an answer, and every command gets
         # three publications.
+        # A MuJoCo body's pixels are uint8 (bodies.mujoco_world.MujocoWorld.sensation_dtype).
+        dtype = getattr(world, "sensation_dtype", world.imperfections.dtype)
         self.sensation_packer = messages.CloudCdrPacker(messages.with_number_type(
-            self.columns["/body/sensation"], world.imperfections.dtype))
+            self.columns["/body/sensation"], dtype))
         self.pose_packer = messages.CloudCdrPacker(self.columns["/body/sensor_pose"])
         self.joint_packer = messages.JointStateCdrPacker(
             contracts.contract("/body/joint_states").joint_names_for(self.description))

@@ -16,6 +16,7 @@ until it has come, the body's latest messages and the POVs wait for it.
   /viewer/representation_2d   each embedding as a coloured PointCloud2 (frame
   /viewer/representation_3d   ``representation``), coloured by true position
   /viewer/sensation           the receptors' latest outputs (Float64MultiArray)
+  /viewer/camera              a MuJoCo body's latest camera image (Image)
   /viewer/activity            change, command, POVs and equality rows so far
   /viewer/stage_counters      the agent's stage counters at the end
 
@@ -52,6 +53,9 @@ class ViewerNode(GraphNode):
         self.scene = scene.Scene(world.receptors, self.cfg["world"]["retina"]["half_width"],
                                  ray_length=self.cfg["world"]["grid_half_width"])
         self.undrawable = 0
+        # A MuJoCo body's receptors are a camera's pixels, shown as its image too.
+        self.camera = (tuple(self.cfg["mujoco"]["image"])
+                       if self.cfg["body"]["kind"] == "mujoco" else None)
         self.draw(self.scene.set_motor_state, world.m0)
         self.columns = {topic: self.columns_of(topic) for topic in (
             "/agent/compensations", "/agent/stage_counters",
@@ -219,6 +223,10 @@ class ViewerNode(GraphNode):
             self.publish("/viewer/sensation", messages.values_to_multiarray(
                 sensation[1].matrix[-1],
                 contracts.contract("/viewer/sensation").elements_for(self.description)))
+            if self.camera is not None:
+                self.publish("/viewer/camera", messages.pixels_to_image(
+                    sensation[1].matrix[-1], *self.camera,
+                    messages.make_header("camera", self.now_ns())))
 
     def _take_latest(self, topic: str):
         raw, self.latest[topic] = self.latest[topic], None
