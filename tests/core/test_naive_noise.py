@@ -116,7 +116,11 @@ def test_a_rank_probe_with_a_lost_row_does_not_vote():
 
 
 def _smoke_agent(**imperfections):
-    world = build_world(0, {"grid_count": 16})
+    # The start of the centred world senses all three pose directions well
+    # (third singular value 0.02-0.1 of a largest near 2); the grid start's
+    # third is 0.001-0.003 of 1, which rounding at 1e-5 already hides
+    # (docs/noise.md, "Not done").
+    world = build_world(0, {"grid_count": 16, "initial_center": "center"})
     wrapper = functools.partial(ImperfectSensing, seed=5, **imperfections)
     return world, explore_naive(world, NaiveParams(), body_wrapper=wrapper).agent
 
