@@ -89,3 +89,24 @@ def orientation_class_error(orientations: np.ndarray, alpha0: float, count: int)
     step = 2.0 * np.pi / count
     offset = arm.wrap_angle(np.asarray(orientations, float) - alpha0)
     return float(np.max(np.abs(offset - step * np.round(offset / step))))
+
+
+def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndarray,
+                     pairs: np.ndarray, set_ids: np.ndarray, space_dim: int,
+                     strategy: str) -> dict:
+    """``topology_h2.*`` (Betti numbers up to H2 of the truth on plane x circle,
+    the agent's metric and every embedding ``embeddings[name]``) and, for the
+    naive agent, its looped and flat dimensions (``core.naive.looped_dims``)."""
+    from sensorispace_ros.core.naive.looped_dims import looped_dimensions
+    from sensorispace_ros.core.topology import euclidean_distances
+    from sensorispace_ros.core.topology_h2 import betti_up_to_h2
+
+    numbers = {}
+    spaces = {"truth": euclidean_distances(pose_key(true_poses)), "hausdorff": distance,
+              **{name: euclidean_distances(emb) for name, emb in embeddings.items()}}
+    for name, matrix in spaces.items():
+        for key, value in betti_up_to_h2(matrix).items():
+            numbers[f"topology_h2.{name}.{key}"] = value
+    if strategy == "naive":
+        numbers.update(looped_dimensions(pairs, set_ids, max(int(space_dim), 0)).metrics())
+    return numbers

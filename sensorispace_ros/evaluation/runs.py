@@ -42,6 +42,15 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
         truth = RunTruth(cfg, produced.world)
     flat = {**body_truth(truth.world), **produced.metrics,
             **_space_numbers(representation, strategy)}
+    if cfg["world"]["rotation_count"] >= 2 and "true_poses" in produced.arrays:
+        from sensorispace_ros.evaluation.rotations import rotation_numbers
+
+        flat.update(rotation_numbers(
+            representation.distance,
+            {f"{dim}.{stage}": representation.embedding(dim, stage)
+             for dim in representation.before for stage in ("before", "after")},
+            produced.arrays["true_poses"], produced.pairs, produced.set_ids,
+            flat["representation.space_dim"], strategy))
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),

@@ -119,3 +119,36 @@ def test_betti_numbers_up_to_h2_read_a_circle_a_sphere_and_a_ring_times_circle()
     ring_circle = _ring_times_circle()
     got = betti_up_to_h2(euclidean_distances(ring_circle), max_points=400, k=2.0)
     assert (got["betti0"], got["betti1"], got["betti2"]) == (1, 2, 1)
+
+
+def test_equality_sets_by_orientation_pair_translations_within_an_orientation():
+    from sensorispace_ros.core.paper.equality_sets import equality_sets_by_orientation
+
+    w = build_world(0, {"grid_count": 12, "rotation_count": 4})
+    result = explore_paper(m0=w.m0, grid=w.grid, events=w.events,
+                           initial_center=w.initial_center, body_arm=w.arm)
+    poses = result.true_poses
+    pairs, set_ids = equality_sets_by_orientation(poses, w.spacing)
+    assert len(pairs) > 100 and len(np.unique(set_ids)) > 10
+    turn = np.angle(np.exp(1j * (poses[pairs[:, 1], 2] - poses[pairs[:, 0], 2])))
+    assert np.max(np.abs(turn)) < 1e-6                      # no turn inside a set
+    step = poses[pairs[:, 1], :2] - poses[pairs[:, 0], :2]
+    for s in np.unique(set_ids):                            # one displacement per set
+        assert np.ptp(step[set_ids == s], axis=0).max() < 1e-6
+    orientation_of_set = {}
+    for s, a in zip(set_ids, np.round(poses[pairs[:, 0], 2], 6)):
+        orientation_of_set.setdefault(s, set()).add(a)
+    assert max(len(v) for v in orientation_of_set.values()) > 1   # sets span orientations
+
+
+def test_naive_compensation_targets_and_pose_coverage():
+    from sensorispace_ros.evaluation.rotations import compensation_targets, pose_coverage
+
+    anchor = np.array([[2.0, 0.0, 0.3]])
+    target = compensation_targets(anchor, [[1.0, 0.0]], [[1.0, 1.0]], [np.pi / 2])
+    assert np.allclose(target, [[1.0, 2.0, 0.3 + np.pi / 2]])
+    reference = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, np.pi], [2.0, 1.0, 0.0]])
+    found = np.array([[1.0, 1.0, 0.01], [1.0, 1.0, 0.02], [2.0, 1.0, np.pi]])
+    numbers = pose_coverage(found, reference, tolerance=0.1)
+    assert numbers["naive.distinct_positions"] == 2          # the first two are one pose
+    assert numbers["naive.coverage_of_paper_positions"] == pytest.approx(1 / 3)
