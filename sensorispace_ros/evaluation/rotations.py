@@ -109,4 +109,25 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
             numbers[f"topology_h2.{name}.{key}"] = value
     if strategy == "naive":
         numbers.update(looped_dimensions(pairs, set_ids, max(int(space_dim), 0)).metrics())
+    numbers.update(angle_numbers(distance, true_poses, pairs, set_ids))
     return numbers
+
+
+def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
+                  set_ids: np.ndarray) -> dict:
+    """``rotation.*``: the angle coordinate of the looped dimension read from
+    the agent's metric and equality sets (``core.circular_coordinates``)
+    against the true orientation (circular correlation), and its
+    coefficients over the metric's two longest loops."""
+    from sensorispace_ros.core.circular_coordinates import (circular_coordinates,
+                                                            circular_correlation,
+                                                            looped_coordinate)
+    try:
+        angles, _ = circular_coordinates(distance, n_loops=2)
+        theta, coefficients, variance = looped_coordinate(angles, pairs, set_ids)
+    except ValueError as error:          # fewer than two loops, or no equality sets
+        return {"rotation.angle_error": str(error)}
+    return {"rotation.angle_circular_correlation":
+            circular_correlation(theta, np.asarray(true_poses)[:, 2]),
+            "rotation.angle_coefficients": [int(c) for c in coefficients],
+            "rotation.angle_set_variance": variance}
