@@ -269,15 +269,11 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     tally = _Tally(states=[m0.copy()], event_ids=[-1], poses=[pose0], grid_ids=[-1],
                    body_arm=body_arm, threshold=threshold,
                    options=dict(compensation_options or {}))
-    anchor_pose, anchor_center = pose0.copy(), np.asarray(initial_center, dtype=float)
-    anchor_turn = 0.0
-    turns = any(e.orientation != 0.0 for e in events)
+    anchor_pose, anchor_center, anchor_turn = pose0.copy(), np.asarray(initial_center, float), 0.0
+    fit = rigid_motion_residual if any(e.orientation for e in events) else rigid_translation_fit
     lights = anchor_center + events[0].offsets if events else None
     for k, event in enumerate(events):
-        new_lights = event.lights
-        residual = (rigid_motion_residual if turns else rigid_translation_fit)(lights,
-                                                                              new_lights)[-1]
-        lights = new_lights
+        residual, lights = fit(lights, event.lights)[-1], event.lights
         is_redistribution = event.kind == world_mod.REDISTRIBUTION
         tally.state_changes += is_redistribution
         if residual > rigid_tol:
