@@ -93,10 +93,11 @@ def orientation_class_error(orientations: np.ndarray, alpha0: float, count: int)
 
 def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndarray,
                      pairs: np.ndarray, set_ids: np.ndarray, space_dim: int,
-                     strategy: str) -> dict:
+                     strategy: str) -> tuple[dict, np.ndarray | None]:
     """``topology_h2.*`` (Betti numbers up to H2 of the truth on plane x circle,
     the agent's metric and every embedding ``embeddings[name]``) and, for the
-    naive agent, its looped and flat dimensions (``core.naive.looped_dims``)."""
+    naive agent, its looped and flat dimensions (``core.naive.looped_dims``);
+    ``rotation.*`` and the angle coordinate (``angle_numbers``; None without one)."""
     from sensorispace_ros.core.naive.looped_dims import looped_dimensions
     from sensorispace_ros.core.topology import euclidean_distances
     from sensorispace_ros.core.topology_h2 import betti_up_to_h2
@@ -109,16 +110,16 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
             numbers[f"topology_h2.{name}.{key}"] = value
     if strategy == "naive":
         numbers.update(looped_dimensions(pairs, set_ids, max(int(space_dim), 0)).metrics())
-    numbers.update(angle_numbers(distance, true_poses, pairs, set_ids))
-    return numbers
+    angle_metrics, angle = angle_numbers(distance, true_poses, pairs, set_ids)
+    return {**numbers, **angle_metrics}, angle
 
 
 def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
-                  set_ids: np.ndarray) -> dict:
+                  set_ids: np.ndarray) -> tuple[dict, np.ndarray | None]:
     """``rotation.*``: the angle coordinate of the looped dimension read from
     the agent's metric and equality sets (``core.circular_coordinates``)
     against the true orientation (circular correlation), and its
-    coefficients over the metric's two longest loops."""
+    coefficients over the metric's two longest loops; and the coordinate."""
     from sensorispace_ros.core.circular_coordinates import (circular_coordinates,
                                                             circular_correlation,
                                                             looped_coordinate)
@@ -126,8 +127,8 @@ def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarra
         angles, _ = circular_coordinates(distance, n_loops=2)
         theta, coefficients, variance = looped_coordinate(angles, pairs, set_ids)
     except ValueError as error:          # fewer than two loops, or no equality sets
-        return {"rotation.angle_error": str(error)}
+        return {"rotation.angle_error": str(error)}, None
     return {"rotation.angle_circular_correlation":
             circular_correlation(theta, np.asarray(true_poses)[:, 2]),
             "rotation.angle_coefficients": [int(c) for c in coefficients],
-            "rotation.angle_set_variance": variance}
+            "rotation.angle_set_variance": variance}, theta
