@@ -15,8 +15,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pathlib import Path
+
 from sensorispace_ros.core import arm
 from sensorispace_ros.core import world as world_mod
+
+
+FIGURE_NAME = "rotations_orientation.png"
 
 
 def turns(world) -> bool:
@@ -100,7 +105,7 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
     ``rotation.*`` and the angle coordinate (``angle_numbers``; None without one)."""
     from sensorispace_ros.core.naive.looped_dims import looped_dimensions
     from sensorispace_ros.core.topology import euclidean_distances
-    from sensorispace_ros.core.topology_h2 import betti_up_to_h2
+    from sensorispace_ros.core.looped_space import betti_up_to_h2
 
     numbers = {}
     spaces = {"truth": euclidean_distances(pose_key(true_poses)), "hausdorff": distance,
@@ -117,10 +122,10 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
 def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
                   set_ids: np.ndarray) -> tuple[dict, np.ndarray | None]:
     """``rotation.*``: the angle coordinate of the looped dimension read from
-    the agent's metric and equality sets (``core.circular_coordinates``)
+    the agent's metric and equality sets (``core.looped_space``)
     against the true orientation (circular correlation), and its
     coefficients over the metric's two longest loops; and the coordinate."""
-    from sensorispace_ros.core.circular_coordinates import (circular_coordinates,
+    from sensorispace_ros.core.looped_space import (circular_coordinates,
                                                             circular_correlation,
                                                             looped_coordinate)
     try:
@@ -132,3 +137,36 @@ def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarra
             circular_correlation(theta, np.asarray(true_poses)[:, 2]),
             "rotation.angle_coefficients": [int(c) for c in coefficients],
             "rotation.angle_set_variance": variance}, theta
+
+
+
+def draw_orientation_figure(arrays: dict, angle: np.ndarray | None, path: str | Path) -> Path:
+    """The figure of a turning world's representation: the agent's 3-D
+    embedding coloured by the true orientation of each POV (a hue wheel: a
+    loop respected shows the hues in order round it), and the angle
+    coordinate of the looped dimension against the true orientation; from a
+    run's ``arrays`` (``true_poses``, ``embedding_3d_before``) and the angle
+    (None: not drawn)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    poses = np.asarray(arrays["true_poses"], dtype=float)
+    heading = np.mod(poses[:, 2], 2 * np.pi)
+    colours = plt.cm.hsv(heading / (2 * np.pi))
+    embedding = np.asarray(arrays["embedding_3d_before"], dtype=float)
+    figure = plt.figure(figsize=(10, 4.5))
+    ax = figure.add_subplot(1, 2, 1, projection="3d")
+    ax.scatter(*embedding.T[:3], c=colours, s=6)
+    ax.set_title("3-D embedding, coloured by true orientation", fontsize=9)
+    ax = figure.add_subplot(1, 2, 2)
+    if angle is not None:
+        ax.scatter(heading, np.mod(angle, 2 * np.pi), c=colours, s=6)
+        ax.set_xlabel("true orientation (rad)")
+        ax.set_ylabel("agent's angle coordinate (rad)")
+    ax.set_title("angle coordinate of the looped dimension", fontsize=9)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(figure)
+    return path

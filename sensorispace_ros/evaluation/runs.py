@@ -63,10 +63,10 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     arrays = {**produced.arrays, **run_arrays(produced, representation, cfg, cfg["seed"])}
     metrics = write_run(out_dir, flat, arrays, cfg, strategy, timings, progress)
     if turning and cfg["output"]["figures"]:
-        from sensorispace_ros.evaluation import rotation_figures
+        from sensorispace_ros.evaluation import rotations
 
-        rotation_figures.draw_orientation_figure(
-            arrays, angle, Path(out_dir) / FIGURES_DIR / rotation_figures.FIGURE_NAME)
+        rotations.draw_orientation_figure(arrays, angle,
+                                          Path(out_dir) / FIGURES_DIR / rotations.FIGURE_NAME)
     return metrics
 
 

@@ -8,7 +8,7 @@ from sensorispace_ros.core import retina, world
 from sensorispace_ros.core.paper.exploration import (build_world, explore_paper, moved_pose,
                                                      rigid_motion_residual)
 from sensorispace_ros.core.topology import euclidean_distances
-from sensorispace_ros.core.topology_h2 import betti_up_to_h2
+from sensorispace_ros.core.looped_space import betti_up_to_h2
 from sensorispace_ros.evaluation.rotations import compensable_poses
 
 TURNING = {"grid_count": 10, "rotation_count": 6}

@@ -1,9 +1,9 @@
 """Circular coordinates from persistent cohomology and the choice of the
-looped one by the equality sets (core.circular_coordinates)."""
+looped one by the equality sets (core.looped_space)."""
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.circular_coordinates import (circular_coordinates,
+from sensorispace_ros.core.looped_space import (circular_coordinates,
                                                         circular_correlation, looped_coordinate)
 from sensorispace_ros.core.topology import euclidean_distances
 
