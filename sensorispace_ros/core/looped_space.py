@@ -36,7 +36,8 @@ from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbo
 
 MAX_POINTS_H2 = 200        # greedy landmarks above this many points (H2 is costly)
 COEFF = 47                 # a prime larger than any winding met in practice
-MAX_LANDMARKS = 300        # greedy landmarks above this many points (H2 is costly)
+MAX_LANDMARKS = 300
+MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small        # greedy landmarks above this many points (H2 is costly)
 
 
 def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE) -> dict:
@@ -140,7 +141,11 @@ def looped_coordinate(angles: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray
     different steps along any other loop. Among the integer combinations
     ``sum_k c_k angles_k`` (``|c_k| <= max_coefficient``, coprime), the one
     whose steps agree best within the sets (least mean circular variance)
-    is returned, with its coefficients and that variance."""
+    is returned (the smallest coefficients among equals), with its
+    coefficients and that variance (None when every
+    combination is bunched on part of the circle: a constant agrees
+    trivially, so a candidate must go round, mean resultant at most
+    ``MAX_RESULTANT``)."""
     angles = np.atleast_2d(np.asarray(angles, float))
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     set_ids = np.asarray(set_ids).reshape(-1)
@@ -148,14 +153,17 @@ def looped_coordinate(angles: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray
         raise ValueError("pairs: the looped coordinate needs equality sets, got none")
     grids = np.meshgrid(*[np.arange(-max_coefficient, max_coefficient + 1)] * len(angles))
     best = None
-    for c in np.column_stack([g.ravel() for g in grids]):
+    candidates = np.column_stack([g.ravel() for g in grids])
+    for c in candidates[np.argsort(np.abs(candidates).sum(axis=1), kind="stable")]:
         if not np.any(c) or np.gcd.reduce(np.abs(c)) != 1 or c[np.flatnonzero(c)[0]] < 0:
             continue
         theta = (c @ angles) % (2 * np.pi)
+        if abs(np.mean(np.exp(1j * theta))) > MAX_RESULTANT:
+            continue            # bunched on part of the circle: it does not go round the loop
         step = np.exp(1j * (theta[pairs[:, 1]] - theta[pairs[:, 0]]))
         _, inverse, counts = np.unique(set_ids, return_inverse=True, return_counts=True)
         mean = np.bincount(inverse, step.real) ** 2 + np.bincount(inverse, step.imag) ** 2
         variance = float(np.mean(1.0 - np.sqrt(mean) / counts))
-        if best is None or variance < best[2]:
+        if best is None or variance < best[2] - 1e-12:      # equals: the simpler stays
             best = (theta, c, variance)
     return best

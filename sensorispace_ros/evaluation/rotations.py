@@ -130,9 +130,12 @@ def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarra
                                                             looped_coordinate)
     try:
         angles, _ = circular_coordinates(distance, n_loops=2)
-        theta, coefficients, variance = looped_coordinate(angles, pairs, set_ids)
+        found = looped_coordinate(angles, pairs, set_ids)
     except ValueError as error:          # fewer than two loops, or no equality sets
         return {"rotation.angle_error": str(error)}, None
+    if found is None:
+        return {"rotation.angle_error": "no combination of the loops goes round the circle"}, None
+    theta, coefficients, variance = found
     return {"rotation.angle_circular_correlation":
             circular_correlation(theta, np.asarray(true_poses)[:, 2]),
             "rotation.angle_coefficients": [int(c) for c in coefficients],

@@ -67,3 +67,14 @@ def test_the_looped_coordinate_is_the_one_every_change_moves_uniformly():
     assert variance < 0.01 and np.abs(coefficients).max() >= 1
     with pytest.raises(ValueError, match="pairs"):
         looped_coordinate(angles, np.zeros((0, 2)), np.zeros(0))
+
+
+def test_a_coordinate_bunched_on_part_of_the_circle_is_never_the_loop():
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    constant = np.zeros(60)
+    pairs = np.column_stack([np.arange(59), np.arange(1, 60)])
+    ids = np.zeros(59, dtype=int)
+    # the constant agrees perfectly within the set; the loop's coordinate is chosen
+    theta, coefficients, _ = looped_coordinate(np.vstack([constant, t]), pairs, ids)
+    assert circular_correlation(theta, t) > 0.999 and coefficients[1] != 0
+    assert looped_coordinate(constant[None], pairs, ids) is None
