@@ -25,6 +25,7 @@ def world_params(cfg: dict) -> dict:
         "min_lights_in_view": lights["min_in_view"],
         "redistribution_probability": world["redistribution_probability"],
         "order": world["schedule"],
+        "rotation_count": world["rotation_count"],
         "segments": tuple(cfg["arm"]["segments"]),
         "eye": cfg["arm"]["eye"],
         "motor_unit": cfg["arm"]["motor_unit"],

@@ -5,6 +5,12 @@ The environment state the paper calls ``e`` is the object's centre; lights
 are stored as offsets from it. A *translation* moves the centre (and every
 light) to a grid position; a *redistribution* draws new offsets around the
 unmoved centre (a state change the agent must not be able to compensate).
+
+With ``rotation_count`` K > 0 the object also turns: each displacement takes it
+to a grid position and one of K orientations evenly spaced over a full turn
+(``orientations``), the lights rotating about the object's centre. The paper
+keeps rotations out (K = 0); its Discussion names them compensable
+displacements too.
 """
 from __future__ import annotations
 
@@ -60,15 +66,36 @@ class EnvironmentEvent:
     center: np.ndarray           # object centre after the change, (2,)
     offsets: np.ndarray          # light offsets after the change, (L, 2)
     grid_index: int              # grid position of the centre (-1 if not on the grid)
+    orientation: float = 0.0     # the object's rotation about its centre (rad)
+    orientation_index: int = 0   # which of the schedule's orientations
 
     @property
     def lights(self) -> np.ndarray:
-        return self.center + self.offsets
+        if self.orientation == 0.0:
+            return self.center + self.offsets
+        return self.center + self.offsets @ rotation_matrix(self.orientation).T
+
+
+def rotation_matrix(angle: float) -> np.ndarray:
+    """The 2-D rotation by ``angle`` (rad), ``(2, 2)``."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def orientations(rotation_count: int) -> np.ndarray:
+    """The object's orientations: ``rotation_count`` angles evenly spaced over a
+    full turn from 0 (just 0 when the object does not turn, ``rotation_count`` 0)."""
+    if int(rotation_count) != rotation_count or rotation_count < 0:
+        raise ValueError(f"rotation_count must be an integer >= 0, got {rotation_count}")
+    if rotation_count == 0:
+        return np.zeros(1)
+    return 2.0 * np.pi * np.arange(int(rotation_count)) / int(rotation_count)
 
 
 def schedule(grid: np.ndarray, rng: np.random.Generator, initial_offsets: np.ndarray,
              redistribution_probability: float = 0.1, order: str = "random",
              light_kwargs: dict | None = None,
+             rotation_count: int = 0,
              start_index: int | None = None) -> list[EnvironmentEvent]:
     """The sequence of environmental changes of one exploration.
 
@@ -76,31 +103,39 @@ def schedule(grid: np.ndarray, rng: np.random.Generator, initial_offsets: np.nda
     paper); ``order="tracking"`` visits them as a boustrophedon, so that each
     translation is to a neighbouring position. After each translation a
     redistribution follows with ``redistribution_probability``.
+    ``rotation_count`` K > 0: every (grid position, orientation) pair is
+    visited once (``order="tracking"``: every orientation at each position in
+    turn, the positions as a boustrophedon).
     ``start_index``: the grid position the object starts at, which it is
-    not moved to again (its compensation is the start's own POV).
+    not moved to again in its starting orientation (its compensation is the
+    start's own POV).
     """
     if not 0.0 <= redistribution_probability <= 1.0:
         raise ValueError("redistribution_probability must be in [0, 1], "
                          f"got {redistribution_probability}")
     light_kwargs = dict(light_kwargs or {})
     light_kwargs.setdefault("count", len(initial_offsets))
+    angles = orientations(rotation_count)
+    n_poses = len(grid) * len(angles)
     if order == "random":
-        visit = rng.permutation(len(grid))
+        visit = rng.permutation(n_poses)
     elif order == "tracking":
-        visit = _boustrophedon(grid)
+        visit = (len(angles) * _boustrophedon(grid)[:, None] + np.arange(len(angles))).ravel()
     else:
         raise ValueError(f"schedule order must be 'random' or 'tracking', got {order!r}")
     if start_index is not None:
-        visit = visit[visit != start_index]
+        visit = visit[visit != start_index * len(angles)]
     events: list[EnvironmentEvent] = []
     offsets = np.asarray(initial_offsets, dtype=float)
-    for grid_index in visit:
-        center = grid[grid_index].copy()
-        events.append(EnvironmentEvent(len(events), TRANSLATION, center, offsets, int(grid_index)))
+    for pose_index in visit:
+        grid_index, turn = divmod(int(pose_index), len(angles))
+        center, angle = grid[grid_index].copy(), float(angles[turn])
+        events.append(EnvironmentEvent(len(events), TRANSLATION, center, offsets, grid_index,
+                                       angle, turn))
         if rng.random() < redistribution_probability:
             offsets = draw_light_offsets(rng, **light_kwargs)
             events.append(EnvironmentEvent(len(events), REDISTRIBUTION, center, offsets,
-                                           int(grid_index)))
+                                           grid_index, angle, turn))
     return events
 
 

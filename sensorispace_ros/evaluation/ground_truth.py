@@ -30,13 +30,18 @@ class RunTruth:
     def __init__(self, cfg: dict, world: World | None = None):
         self.cfg = cfg
         self.world = run_world(cfg) if world is None else world
-        self._paper_positions: np.ndarray | None = None
+        self._paper_poses: np.ndarray | None = None
 
     @property
     def paper_positions(self) -> np.ndarray:
-        if self._paper_positions is None:
-            self._paper_positions = paper_compensated_positions(self.world)
-        return self._paper_positions
+        return self.paper_poses[:, :2].copy()
+
+    @property
+    def paper_poses(self) -> np.ndarray:
+        """Sensor poses ``(Q, 3)`` the paper strategy compensates (with its initial POV)."""
+        if self._paper_poses is None:
+            self._paper_poses = paper_compensated_poses(self.world)
+        return self._paper_poses
 
 
 @dataclass
@@ -59,6 +64,11 @@ class NaiveGroundTruth:
     paper_positions: np.ndarray
     arm: Arm = PAPER_ARM
     spacing: float = 1.0      # the grid step: a quarter of it tells poses apart
+    # A turning object (``evaluation.rotations``): its orientation at each
+    # event (None: it only translates) and the paper strategy's poses (Q, 3).
+    orientations: np.ndarray | None = None
+    paper_poses: np.ndarray | None = None
+    rotation_count: int = 0
 
     @property
     def pose_tolerance(self) -> float:
@@ -98,11 +108,25 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
 def paper_compensated_positions(world) -> np.ndarray:
     """Sensor positions ``(Q, 2)`` the paper strategy compensates (with its
     initial POV), for the coverage denominator."""
+    return paper_compensated_poses(world)[:, :2].copy()
+
+
+def paper_compensated_poses(world) -> np.ndarray:
+    """Sensor poses ``(Q, 3)`` the paper strategy compensates (with its initial POV)."""
     from sensorispace_ros.core.paper import exploration   # numba and scipy: on first use
 
     explored = exploration.explore_paper(m0=world.m0, grid=world.grid, events=world.events,
                              initial_center=world.initial_center, body_arm=world.arm)
-    return explored.true_poses[:, :2].copy()
+    return explored.true_poses.copy()
+
+
+def _turning(world) -> dict:
+    """``NaiveGroundTruth``'s rotation fields of ``world`` (none when the object only translates)."""
+    count = int(world.params.get("rotation_count", 0))
+    if count < 2:
+        return {}
+    return {"orientations": np.asarray([0.0] + [e.orientation for e in world.events]),
+            "paper_poses": paper_compensated_poses(world), "rotation_count": count}
 
 
 def compensable_grid(world) -> np.ndarray:
@@ -144,7 +168,7 @@ def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
         true_poses=world.arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
         initial_motor_state=np.asarray(world.m0, dtype=float),
         paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2),
-        arm=world.arm, spacing=float(world.spacing))
+        arm=world.arm, spacing=float(world.spacing), **_turning(world))
 
 
 def naive_truth_of_changes(truth: RunTruth, n_changes: int, poses: np.ndarray,

@@ -14,6 +14,7 @@ from sensorispace_ros.core import arm
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
 from sensorispace_ros.core.naive.records import STRUCTURE_FIELDS, NaiveAgentRecords
 from sensorispace_ros.core.world import REDISTRIBUTION
+from sensorispace_ros.evaluation import rotations
 from sensorispace_ros.evaluation.ground_truth import (NaiveGroundTruth, RunTruth,
                                                       naive_truth_of_changes, naive_truth_of_run)
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
@@ -151,7 +152,12 @@ def _compensation_numbers(records: NaiveAgentRecords, truth: NaiveGroundTruth) -
     anchors = records.compensation_anchor_event
     n_comp = len(events)
     error = np.zeros(0)
-    if n_comp:
+    if n_comp and truth.orientations is not None:
+        target = rotations.compensation_targets(
+            truth.arm.forward(records.compensation_anchor_motor_state), truth.centers[anchors],
+            truth.centers[events], truth.orientations[events] - truth.orientations[anchors])
+        error = arm.pose_error(truth.arm.forward(records.compensation_motor_state), target)
+    elif n_comp:
         target = truth.arm.forward(records.compensation_anchor_motor_state)
         target[:, :2] += truth.centers[events] - truth.centers[anchors]
         error = arm.pose_error(truth.arm.forward(records.compensation_motor_state), target)
@@ -182,6 +188,11 @@ def _coverage_numbers(true_poses: np.ndarray, truth: NaiveGroundTruth) -> dict:
     """
     from scipy.spatial import cKDTree
 
+    if truth.paper_poses is not None:
+        pose0 = truth.arm.forward(truth.initial_motor_state)
+        return {**rotations.pose_coverage(true_poses, truth.paper_poses, truth.pose_tolerance),
+                "naive.max_orientation_error": rotations.orientation_class_error(
+                    true_poses[:, 2], pose0[2], truth.rotation_count)}
     paper_positions = truth.paper_positions
     distinct, covered, orientation_error = 0, 0, 0.0
     if len(true_poses):

@@ -42,6 +42,17 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
         truth = RunTruth(cfg, produced.world)
     flat = {**body_truth(truth.world), **produced.metrics,
             **_space_numbers(representation, strategy)}
+    angle, turning = None, cfg["world"]["rotation_count"] >= 2 and "true_poses" in produced.arrays
+    if turning:
+        from sensorispace_ros.evaluation.rotations import rotation_numbers
+
+        turning_numbers, angle = rotation_numbers(
+            representation.distance,
+            {f"{dim}.{stage}": representation.embedding(dim, stage)
+             for dim in representation.before for stage in ("before", "after")},
+            produced.arrays["true_poses"], produced.pairs, produced.set_ids,
+            flat["representation.space_dim"], strategy)
+        flat.update(turning_numbers)
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),
@@ -50,7 +61,13 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     if started is not None:
         timings["total"] = time.perf_counter() - started
     arrays = {**produced.arrays, **run_arrays(produced, representation, cfg, cfg["seed"])}
-    return write_run(out_dir, flat, arrays, cfg, strategy, timings, progress)
+    metrics = write_run(out_dir, flat, arrays, cfg, strategy, timings, progress)
+    if turning and cfg["output"]["figures"]:
+        from sensorispace_ros.evaluation import rotations
+
+        rotations.draw_orientation_figure(arrays, angle,
+                                          Path(out_dir) / FIGURES_DIR / rotations.FIGURE_NAME)
+    return metrics
 
 
 def write_without_representation(produced: StrategyOutput, cfg: dict, out_dir: str | Path,

@@ -61,7 +61,8 @@ def run_strategy(cfg: dict, strategy: str, seed: int, progress=None) -> Strategy
 def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     """Simulations 1 and 2 with the paper's analytic shortcuts, on the
     configuration's body (``arm.*``): POVs in its motor unit."""
-    from sensorispace_ros.core.paper.equality_sets import equality_sets_from_poses
+    from sensorispace_ros.core.paper.equality_sets import (equality_sets_by_orientation,
+                                                           equality_sets_from_poses)
     from sensorispace_ros.core.paper.exploration import explore_paper
 
     timings: dict = {}
@@ -82,7 +83,10 @@ def run_paper(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     # compensating POV of a displacement is found analytically, from the
     # sensor poses.
     with timed_stage(progress, "equality_sets", timings):
-        pairs, set_ids = equality_sets_from_poses(true_poses[:, :2], world.spacing)
+        if int(world.params.get("rotation_count", 0)) >= 2:
+            pairs, set_ids = equality_sets_by_orientation(true_poses, world.spacing)
+        else:
+            pairs, set_ids = equality_sets_from_poses(true_poses[:, :2], world.spacing)
     return StrategyOutput(povs=povs, pairs=np.asarray(pairs, dtype=int),
                           set_ids=np.asarray(set_ids, dtype=int),
                           true_positions=true_poses[:, :2].copy(),

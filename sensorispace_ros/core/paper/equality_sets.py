@@ -68,3 +68,33 @@ def equality_sets_from_poses(true_positions: np.ndarray, spacing: float, *,
     key = (delta[:, 0] - low[0]) * width + (delta[:, 1] - low[1])
     _, set_ids = np.unique(key, return_inverse=True)
     return pairs, set_ids.ravel()
+
+
+def equality_sets_by_orientation(true_poses: np.ndarray, spacing: float, *,
+                                 lattice_tol: float = 0.25, angle_tol: float = 1e-3):
+    """``equality_sets_from_poses`` for a turning object: POVs grouped by the
+    eye's orientation (one object orientation each, within ``angle_tol``),
+    pairs only within an orientation, one set per lattice displacement over
+    all orientations (a translation of the object moves the eye by the same
+    step whatever the orientation). Turns are left out of the sets, so the
+    metric regularisation acts along translations only (the paper's
+    Discussion: a turn's compensating step depends on the distance to its
+    centre). ``true_poses`` ``(P, 3)``; returns ``pairs``, ``set_ids``."""
+    poses = np.asarray(true_poses, dtype=float)
+    if poses.ndim != 2 or poses.shape[1] != 3:
+        raise ValueError(f"true_poses must have shape (P, 3), got {poses.shape}")
+    turn = np.round(np.angle(np.exp(1j * poses[:, 2])) / angle_tol).astype(np.int64)
+    all_pairs, all_delta = [], []
+    for value in np.unique(turn):
+        members = np.flatnonzero(turn == value)
+        pairs, _ = equality_sets_from_poses(poses[members, :2], spacing,
+                                            lattice_tol=lattice_tol)
+        if len(pairs):
+            pairs = members[pairs]
+            all_pairs.append(pairs)
+            all_delta.append(np.rint((poses[pairs[:, 1], :2] - poses[pairs[:, 0], :2])
+                                     / spacing).astype(np.int64))
+    if not all_pairs:
+        return np.empty((0, 2), dtype=int), np.empty(0, dtype=int)
+    _, set_ids = np.unique(np.concatenate(all_delta), axis=0, return_inverse=True)
+    return np.concatenate(all_pairs), set_ids.ravel()

@@ -47,6 +47,8 @@ PAPER_PARAMS = {
     "max_light_draws": 10_000,
     "redistribution_probability": 0.1,
     "order": "random",
+    # Object orientations over a full turn (0: the object only translates, the paper).
+    "rotation_count": 0,
     "segments": arm.SEGMENT_LENGTHS,
     "eye": "joint",
     "motor_unit": "rad",
@@ -153,6 +155,7 @@ def build_world(seed: int, params: dict | None = None) -> World:
     events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
                                 redistribution_probability=float(merged["redistribution_probability"]),
                                 order=merged["order"], light_kwargs=light_kwargs,
+                                rotation_count=int(merged["rotation_count"]),
                                 start_index=int(on_grid[0]) if len(on_grid) else None)
     return World(seed=int(seed), params=merged, m0=m0, receptors=receptors, arm=body_arm,
                  code=code,
@@ -219,6 +222,36 @@ def rigid_translation_fit(lights_before: np.ndarray, lights_after: np.ndarray):
     return delta, float(np.sqrt(np.mean(np.sum(residual * residual, axis=1))))
 
 
+def rigid_motion_residual(lights_before: np.ndarray, lights_after: np.ndarray):
+    """RMS residual of the best rigid motion (rotation and translation, light
+    l -> light l, Kabsch) between two light sets: 0 for a displacement of the
+    object, positive for a redistribution."""
+    before = np.asarray(lights_before, dtype=float)
+    after = np.asarray(lights_after, dtype=float)
+    if before.shape != after.shape or before.ndim != 2 or before.shape[1] != 2:
+        raise ValueError(f"light sets must both be (L, 2), got {before.shape} and {after.shape}")
+    a, b = before - before.mean(axis=0), after - after.mean(axis=0)
+    u, _, vt = np.linalg.svd(a.T @ b)
+    flip = np.diag([1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
+    rotation = (u @ flip @ vt).T
+    residual = b - a @ rotation.T
+    return rotation, float(np.sqrt(np.mean(np.sum(residual * residual, axis=1))))
+
+
+def moved_pose(pose, center_before, center_after, turn: float) -> np.ndarray:
+    """The sensor pose that sees the object moved from ``center_before`` to
+    ``center_after`` and turned by ``turn`` (rad, about its centre) as ``pose``
+    saw it before: the pose relative to the object is kept (the eye turns with
+    it). With ``turn`` 0, ``pose`` plus the centre's displacement."""
+    pose = np.asarray(pose, dtype=float)
+    center_before = np.asarray(center_before, dtype=float)
+    center_after = np.asarray(center_after, dtype=float)
+    if turn == 0.0:
+        return pose + np.array([*(center_after - center_before), 0.0])
+    xy = center_after + world_mod.rotation_matrix(turn) @ (pose[:2] - center_before)
+    return np.array([xy[0], xy[1], pose[2] + turn])
+
+
 def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: float = 1e-3,
                   rigid_tol: float = 1e-9, compensation_options: dict | None = None,
                   skip_certain_failures: bool = True, progress=None,
@@ -258,12 +291,11 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
     tally = _Tally(states=[m0.copy()], event_ids=[-1], poses=[pose0], grid_ids=[-1],
                    body_arm=body_arm, threshold=threshold,
                    options=dict(compensation_options or {}))
-    anchor_pose, anchor_center = pose0.copy(), np.asarray(initial_center, dtype=float)
+    anchor_pose, anchor_center, anchor_turn = pose0.copy(), np.asarray(initial_center, float), 0.0
+    fit = rigid_motion_residual if any(e.orientation for e in events) else rigid_translation_fit
     lights = anchor_center + events[0].offsets if events else None
     for k, event in enumerate(events):
-        new_lights = event.lights
-        _, residual = rigid_translation_fit(lights, new_lights)
-        lights = new_lights
+        residual, lights = fit(lights, event.lights)[-1], event.lights
         is_redistribution = event.kind == world_mod.REDISTRIBUTION
         tally.state_changes += is_redistribution
         if residual > rigid_tol:
@@ -271,9 +303,10 @@ def explore_paper(*, m0, grid, events, initial_center=(0.0, 0.0), threshold: flo
             continue
         tally.state_changes_compensated += is_redistribution
         center = event.center
-        target = anchor_pose + np.array([*(center - anchor_center), 0.0])
+        target = moved_pose(anchor_pose, anchor_center, center, event.orientation - anchor_turn)
         if tally.follow(target, event, skip_certain_failures):
             anchor_pose, anchor_center = tally.poses[-1], center.copy()
+            anchor_turn = event.orientation
         if progress is not None and (k + 1) % 100 == 0:
             progress(k + 1, len(events))
     if progress is not None:

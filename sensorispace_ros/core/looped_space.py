@@ -1,0 +1,169 @@
+"""The topology of a space with a looped dimension, from its distance matrix alone.
+
+Betti numbers up to H2 (``betti_up_to_h2``). ``core.topology`` reads b0 and b1 (the paper's ring); a world whose object
+turns gives points of view on the ring times a circle, whose Betti numbers
+are (1, 2, 1): one component, two independent loops, one 2-cycle. Same rule
+as ``core.topology`` (a feature counts when its lifetime exceeds ``k``
+times the landmarks' median nearest-neighbour distance), same landmarks
+(ripser's greedy ``n_perm``), one more dimension: ripser ``maxdim=2``,
+whose cost grows as the cube of the landmarks, hence ``MAX_POINTS_H2``.
+
+An angle coordinate for the looped dimension (``circular_coordinates``,
+``looped_coordinate``): circular coordinates from
+persistent cohomology (de Silva, Morozov & Vejdemo-Johansson 2011).
+
+A long H1 bar of the Rips filtration of a distance matrix is a loop of the
+space. Its cocycle (ripser, coefficients mod a prime ``COEFF``), lifted to
+integers, is an edge labelling of the Rips complex at a radius inside the
+bar, ``r = birth + (death - birth) / 2``, that counts +-1 each time an edge
+crosses a "cut" of the loop. The smoothest angle that crosses the same cut,
+``theta = f mod 1`` with ``f`` minimising ``|| f_j - f_i - z_ij ||^2`` over
+the edges (least squares), is a map to the circle that goes once around it
+along the loop and stays nearly constant across it: the coordinate of the
+looped dimension. Computed on greedy landmarks (ripser's ``n_perm``); every
+other point takes the angle of its nearest landmark. Needs the distance
+matrix only: it reads the agent's Hausdorff metric as it reads any other.
+"""
+from __future__ import annotations
+
+import numpy as np
+from ripser import ripser
+from scipy.sparse import coo_matrix
+from scipy.sparse.linalg import lsqr
+
+from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbour_scale, \
+    check_distance_matrix
+
+MAX_POINTS_H2 = 200        # greedy landmarks above this many points (H2 is costly)
+COEFF = 47                 # a prime larger than any winding met in practice
+MAX_LANDMARKS = 300
+MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small        # greedy landmarks above this many points (H2 is costly)
+
+
+def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE) -> dict:
+    """``betti0``, ``betti1``, ``betti2``, ``threshold``, ``margin`` (as in
+    ``core.topology.betti_numbers``) and the longest lifetimes of H1 and H2
+    of the distance matrix ``distance``."""
+    D = check_distance_matrix(distance)
+    if int(max_points) != max_points or max_points < 4:
+        raise ValueError(f"max_points must be an integer >= 4, got {max_points!r}")
+    if not k > 0:
+        raise ValueError(f"k must be > 0, got {k}")
+    n = D.shape[0]
+    if n > max_points:
+        result = ripser(D, distance_matrix=True, maxdim=2, n_perm=int(max_points))
+        landmarks = np.asarray(result["idx_perm"], dtype=int)
+    else:
+        result = ripser(D, distance_matrix=True, maxdim=2)
+        landmarks = np.arange(n)
+    threshold = float(k * _nearest_neighbour_scale(D[np.ix_(landmarks, landmarks)]))
+    h0, h1, h2 = (_lifetimes(np.asarray(d, dtype=float).reshape(-1, 2)) for d in result["dgms"])
+    finite0 = h0[np.isfinite(h0)]
+    bettis = [len(h0) - len(finite0) + int(np.sum(finite0 > threshold)),
+              int(np.sum(h1 > threshold)), int(np.sum(h2 > threshold))]
+    pooled = np.concatenate([finite0, h1[np.isfinite(h1)], h2[np.isfinite(h2)]])
+    counted, uncounted = pooled[pooled > threshold], pooled[pooled <= threshold]
+    up = counted.min() / threshold if len(counted) else np.inf
+    down = threshold / uncounted.max() if len(uncounted) else np.inf
+    return {"betti0": bettis[0], "betti1": bettis[1], "betti2": bettis[2],
+            "threshold": threshold, "margin": float(min(up, down)),
+            "h1_lifetimes_top3": [float(v) for v in h1[:3]],
+            "h2_lifetimes_top3": [float(v) for v in h2[:3]]}
+
+
+
+def circular_coordinates(distance, n_loops: int = 1, max_landmarks: int = MAX_LANDMARKS):
+    """Angles ``(n_loops, P)`` in [0, 2 pi) of the ``n_loops`` longest H1 bars
+    of ``distance`` (longest first), and those bars ``(n_loops, 2)``."""
+    D = check_distance_matrix(distance)
+    n = len(D)
+    if int(n_loops) != n_loops or n_loops < 1:
+        raise ValueError(f"n_loops must be an integer >= 1, got {n_loops!r}")
+    kwargs = {"n_perm": int(max_landmarks)} if n > max_landmarks else {}
+    result = ripser(D, distance_matrix=True, maxdim=1, coeff=COEFF, do_cocycles=True, **kwargs)
+    landmarks = np.asarray(result.get("idx_perm", np.arange(n)), dtype=int)
+    bars, cocycles = result["dgms"][1], result["cocycles"][1]
+    if len(bars) < n_loops:
+        raise ValueError(f"distance has {len(bars)} H1 bars, fewer than n_loops = {n_loops}")
+    order = np.argsort(bars[:, 0] - bars[:, 1])[:n_loops]       # longest first
+    DL = D[np.ix_(landmarks, landmarks)]
+    nearest = np.argmin(D[:, landmarks], axis=1)
+    angles = np.array([_smooth_angle(DL, cocycles[k], *bars[k])[nearest] for k in order])
+    return angles, bars[order]
+
+
+def _smooth_angle(D: np.ndarray, cocycle: np.ndarray, birth: float, death: float) -> np.ndarray:
+    """Landmark angles of one cocycle (module docstring)."""
+    radius = birth + 0.5 * (death - birth) if np.isfinite(death) else 2.0 * birth
+    i, j = np.nonzero(np.triu(D < radius, k=1))
+    labels = {}
+    for a, b, value in np.asarray(cocycle, dtype=np.int64).reshape(-1, 3):
+        lifted = value if value <= COEFF // 2 else value - COEFF
+        labels[(a, b)], labels[(b, a)] = lifted, -lifted
+    z = np.array([labels.get((a, b), 0) for a, b in zip(i, j)], dtype=float)
+    rows = np.repeat(np.arange(len(i)), 2)
+    cols = np.column_stack([i, j]).ravel()
+    values = np.tile([-1.0, 1.0], len(i))
+    delta = coo_matrix((values, (rows, cols)), shape=(len(i), len(D))).tocsr()
+    f = lsqr(delta, z, atol=1e-10, btol=1e-10)[0]
+    return 2 * np.pi * (f - np.floor(f)) if len(z) else np.zeros(len(D))
+
+
+def circular_correlation(a, b) -> float:
+    """Fisher and Lee's (1983) circular correlation of two angle samples, in
+    absolute value (a coordinate may run either way round): 1 exactly when
+    ``a = +-b + c``, whatever the offset ``c``, and defined for angles
+    spread evenly round the circle (where the mean direction, which the
+    Jammalamadaka coefficient needs, is not)."""
+    a, b = np.asarray(a, float).ravel(), np.asarray(b, float).ravel()
+    if a.shape != b.shape or len(a) < 2:
+        raise ValueError(f"need two angle samples of one length >= 2, got {a.shape}, {b.shape}")
+    n = len(a)
+    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+    numerator = 4.0 * (np.sum(ca * cb) * np.sum(sa * sb) - np.sum(ca * sb) * np.sum(sa * cb))
+    spread_a = n * n - np.sum(np.cos(2 * a)) ** 2 - np.sum(np.sin(2 * a)) ** 2
+    spread_b = n * n - np.sum(np.cos(2 * b)) ** 2 - np.sum(np.sin(2 * b)) ** 2
+    denominator = np.sqrt(max(spread_a, 0.0) * max(spread_b, 0.0))
+    return float(abs(numerator) / denominator) if denominator > 0 else 0.0
+
+
+def looped_coordinate(angles: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray,
+                      max_coefficient: int = 2):
+    """The angle of the looped dimension among the circular coordinates
+    ``angles`` ``(L, P)`` of a space's loops, from the agent's equality sets.
+
+    The loops of a space of poses have many bases (on plane x circle, the
+    eye's heading, the heading relative to the direction of the base, ...);
+    the one whose dimension is the turn of the object is told apart by what
+    a change does to it: every POV of one equality set (one change seen from
+    many POVs) moves by the same step along it, since a displacement of the
+    object turns every pose by the same angle, while it moves them by
+    different steps along any other loop. Among the integer combinations
+    ``sum_k c_k angles_k`` (``|c_k| <= max_coefficient``, coprime), the one
+    whose steps agree best within the sets (least mean circular variance)
+    is returned (the smallest coefficients among equals), with its
+    coefficients and that variance (None when every
+    combination is bunched on part of the circle: a constant agrees
+    trivially, so a candidate must go round, mean resultant at most
+    ``MAX_RESULTANT``)."""
+    angles = np.atleast_2d(np.asarray(angles, float))
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    set_ids = np.asarray(set_ids).reshape(-1)
+    if len(pairs) == 0:
+        raise ValueError("pairs: the looped coordinate needs equality sets, got none")
+    grids = np.meshgrid(*[np.arange(-max_coefficient, max_coefficient + 1)] * len(angles))
+    best = None
+    candidates = np.column_stack([g.ravel() for g in grids])
+    for c in candidates[np.argsort(np.abs(candidates).sum(axis=1), kind="stable")]:
+        if not np.any(c) or np.gcd.reduce(np.abs(c)) != 1 or c[np.flatnonzero(c)[0]] < 0:
+            continue
+        theta = (c @ angles) % (2 * np.pi)
+        if abs(np.mean(np.exp(1j * theta))) > MAX_RESULTANT:
+            continue            # bunched on part of the circle: it does not go round the loop
+        step = np.exp(1j * (theta[pairs[:, 1]] - theta[pairs[:, 0]]))
+        _, inverse, counts = np.unique(set_ids, return_inverse=True, return_counts=True)
+        mean = np.bincount(inverse, step.real) ** 2 + np.bincount(inverse, step.imag) ** 2
+        variance = float(np.mean(1.0 - np.sqrt(mean) / counts))
+        if best is None or variance < best[2] - 1e-12:      # equals: the simpler stays
+            best = (theta, c, variance)
+    return best

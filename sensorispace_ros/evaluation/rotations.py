@@ -1,0 +1,179 @@
+"""Ground truth of a world whose object turns (``world.rotation_count`` > 0):
+the compensable (position, orientation) poses, the pose each compensation
+asks for, and the naive agent's coverage of the compensable poses.
+
+A displacement of the object is a rigid motion of the plane (a translation of
+its centre and a turn about it); it is compensated by the sensor pose that
+keeps the pose relative to the object (``exploration.moved_pose``), the eye
+turning with the object. Poses are compared as points of the plane times
+the circle: ``pose_key`` maps ``(x, y, alpha)`` to ``(x, y, cos alpha, sin
+alpha)``, so two poses are close when their positions are and their
+orientations are (the chord of the angle, ~ the angle when small).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pathlib import Path
+
+from sensorispace_ros.core import arm
+from sensorispace_ros.core import world as world_mod
+
+
+FIGURE_NAME = "rotations_orientation.png"
+
+
+def turns(world) -> bool:
+    """Whether the object of ``world`` turns (some event has an orientation)."""
+    return any(event.orientation != 0.0 for event in world.events)
+
+
+def pose_key(poses: np.ndarray) -> np.ndarray:
+    """``(x, y, cos alpha, sin alpha)`` of poses ``(P, 3)``: a point of plane x circle."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    return np.column_stack([poses[:, :2], np.cos(poses[:, 2]), np.sin(poses[:, 2])])
+
+
+def compensable_poses(world) -> tuple[np.ndarray, np.ndarray]:
+    """From the body's geometry alone: every (grid position, orientation) the
+    object is moved to (not its start) whose compensating pose (the start's pose moved with the
+    object) the paper strategy keeps (``exploration.in_working_region``).
+    Returns ``(pairs (Q, 2) of (grid index, orientation index), poses (Q, 3))``."""
+    from sensorispace_ros.core.paper import exploration   # numba and scipy: on first use
+
+    pose0 = world.arm.forward(world.m0)
+    angles = world_mod.orientations(int(world.params.get("rotation_count", 0)))
+    start = {(int(g), 0) for g in np.flatnonzero(np.all(world.grid == world.initial_center,
+                                                         axis=1))}
+    pairs, poses = [], []
+    for g, center in enumerate(world.grid):
+        for k, angle in enumerate(angles):
+            if (g, k) in start:
+                continue
+            target = exploration.moved_pose(pose0, world.initial_center, center, float(angle))
+            if exploration.in_working_region(world.arm, target):
+                pairs.append((g, k))
+                poses.append(target)
+    return np.asarray(pairs, dtype=int).reshape(-1, 2), np.asarray(poses).reshape(-1, 3)
+
+
+def compensation_targets(anchor_poses, centers_before, centers_after, turns_by) -> np.ndarray:
+    """The pose each compensation asks for ``(C, 3)``: its anchor's pose moved
+    with the object (centre before -> after, turned by ``turns_by``)."""
+    from sensorispace_ros.core.paper import exploration
+
+    return np.array([exploration.moved_pose(p, a, b, float(t)) for p, a, b, t in
+                     zip(np.asarray(anchor_poses, float), np.asarray(centers_before, float),
+                         np.asarray(centers_after, float), np.asarray(turns_by, float))]
+                    ).reshape(-1, 3)
+
+
+def pose_coverage(true_poses: np.ndarray, reference_poses: np.ndarray, tolerance: float) -> dict:
+    """Distinct sensor poses among ``true_poses`` (two closer than ``tolerance``
+    in ``pose_key`` are one) and the share of ``reference_poses`` within
+    ``tolerance`` of one (``naive.*`` coverage numbers on plane x circle)."""
+    keys = pose_key(true_poses)
+    distinct, covered = 0, 0
+    if len(keys):
+        close = cKDTree(keys).query_pairs(tolerance, output_type="ndarray")
+        duplicate = np.zeros(len(keys), dtype=bool)
+        duplicate[close.max(axis=1) if len(close) else []] = True
+        distinct = int(np.sum(~duplicate))
+        if len(reference_poses):
+            distance, _ = cKDTree(keys).query(pose_key(reference_poses), k=1)
+            covered = int(np.sum(distance <= tolerance))
+    n_ref = max(len(reference_poses), 1)
+    return {"naive.coverage": distinct / n_ref, "naive.distinct_positions": distinct,
+            "naive.duplicate_povs": int(len(keys) - distinct),
+            "naive.paper_positions": int(len(reference_poses)),
+            "naive.coverage_of_paper_positions": covered / n_ref}
+
+
+def orientation_class_error(orientations: np.ndarray, alpha0: float, count: int) -> float:
+    """Largest distance of an eye orientation to the nearest of the ``count``
+    orientations the object can give it (``alpha0`` turned by k 2 pi / count)."""
+    if not len(orientations):
+        return 0.0
+    step = 2.0 * np.pi / count
+    offset = arm.wrap_angle(np.asarray(orientations, float) - alpha0)
+    return float(np.max(np.abs(offset - step * np.round(offset / step))))
+
+
+def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndarray,
+                     pairs: np.ndarray, set_ids: np.ndarray, space_dim: int,
+                     strategy: str) -> tuple[dict, np.ndarray | None]:
+    """``topology_h2.*`` (Betti numbers up to H2 of the truth on plane x circle,
+    the agent's metric and every embedding ``embeddings[name]``) and, for the
+    naive agent, its looped and flat dimensions (``core.naive.looped_dims``);
+    ``rotation.*`` and the angle coordinate (``angle_numbers``; None without one)."""
+    from sensorispace_ros.core.naive.looped_dims import looped_dimensions
+    from sensorispace_ros.core.topology import euclidean_distances
+    from sensorispace_ros.core.looped_space import betti_up_to_h2
+
+    numbers = {}
+    spaces = {"truth": euclidean_distances(pose_key(true_poses)), "hausdorff": distance,
+              **{name: euclidean_distances(emb) for name, emb in embeddings.items()}}
+    for name, matrix in spaces.items():
+        for key, value in betti_up_to_h2(matrix).items():
+            numbers[f"topology_h2.{name}.{key}"] = value
+    if strategy == "naive":
+        numbers.update(looped_dimensions(pairs, set_ids, max(int(space_dim), 0)).metrics())
+    angle_metrics, angle = angle_numbers(distance, true_poses, pairs, set_ids)
+    return {**numbers, **angle_metrics}, angle
+
+
+def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
+                  set_ids: np.ndarray) -> tuple[dict, np.ndarray | None]:
+    """``rotation.*``: the angle coordinate of the looped dimension read from
+    the agent's metric and equality sets (``core.looped_space``)
+    against the true orientation (circular correlation), and its
+    coefficients over the metric's two longest loops; and the coordinate."""
+    from sensorispace_ros.core.looped_space import (circular_coordinates,
+                                                            circular_correlation,
+                                                            looped_coordinate)
+    try:
+        angles, _ = circular_coordinates(distance, n_loops=2)
+        found = looped_coordinate(angles, pairs, set_ids)
+    except ValueError as error:          # fewer than two loops, or no equality sets
+        return {"rotation.angle_error": str(error)}, None
+    if found is None:
+        return {"rotation.angle_error": "no combination of the loops goes round the circle"}, None
+    theta, coefficients, variance = found
+    return {"rotation.angle_circular_correlation":
+            circular_correlation(theta, np.asarray(true_poses)[:, 2]),
+            "rotation.angle_coefficients": [int(c) for c in coefficients],
+            "rotation.angle_set_variance": variance}, theta
+
+
+
+def draw_orientation_figure(arrays: dict, angle: np.ndarray | None, path: str | Path) -> Path:
+    """The figure of a turning world's representation: the agent's 3-D
+    embedding coloured by the true orientation of each POV (a hue wheel: a
+    loop respected shows the hues in order round it), and the angle
+    coordinate of the looped dimension against the true orientation; from a
+    run's ``arrays`` (``true_poses``, ``embedding_3d_before``) and the angle
+    (None: not drawn)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    poses = np.asarray(arrays["true_poses"], dtype=float)
+    heading = np.mod(poses[:, 2], 2 * np.pi)
+    colours = plt.cm.hsv(heading / (2 * np.pi))
+    embedding = np.asarray(arrays["embedding_3d_before"], dtype=float)
+    figure = plt.figure(figsize=(10, 4.5))
+    ax = figure.add_subplot(1, 2, 1, projection="3d")
+    ax.scatter(*embedding.T[:3], c=colours, s=6)
+    ax.set_title("3-D embedding, coloured by true orientation", fontsize=9)
+    ax = figure.add_subplot(1, 2, 2)
+    if angle is not None:
+        ax.scatter(heading, np.mod(angle, 2 * np.pi), c=colours, s=6)
+        ax.set_xlabel("true orientation (rad)")
+        ax.set_ylabel("agent's angle coordinate (rad)")
+    ax.set_title("angle coordinate of the looped dimension", fontsize=9)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(figure)
+    return path

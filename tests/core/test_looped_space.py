@@ -1,0 +1,80 @@
+"""Circular coordinates from persistent cohomology and the choice of the
+looped one by the equality sets (core.looped_space)."""
+import numpy as np
+import pytest
+
+from sensorispace_ros.core.looped_space import (circular_coordinates,
+                                                        circular_correlation, looped_coordinate)
+from sensorispace_ros.core.topology import euclidean_distances
+
+
+def test_circular_correlation_is_one_for_a_shifted_or_reversed_angle_only():
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    assert circular_correlation(t + 1.0, t) == pytest.approx(1.0)
+    assert circular_correlation(2.0 - t, t) == pytest.approx(1.0)
+    noise = np.random.default_rng(0).uniform(0, 2 * np.pi, 90)
+    assert circular_correlation(noise, t) < 0.2
+    with pytest.raises(ValueError, match="angle samples"):
+        circular_correlation(t, t[:3])
+
+
+def test_the_coordinate_of_a_circle_goes_once_round_it():
+    t = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+    points = np.column_stack([np.cos(t), np.sin(t)])
+    angles, bars = circular_coordinates(euclidean_distances(points))
+    assert circular_correlation(angles[0], t) > 0.999
+    assert bars.shape == (1, 2) and bars[0, 1] > 5 * bars[0, 0]
+
+
+def _ring_times_circle():
+    """Points on (polar angle, heading) of a ring of radius 2 times a circle,
+    with the heading turning with the polar angle as an arm's pose does."""
+    polar, heading = np.meshgrid(np.linspace(0, 2 * np.pi, 24, endpoint=False),
+                                 np.linspace(0, 2 * np.pi, 12, endpoint=False), indexing="ij")
+    polar, heading = polar.ravel(), heading.ravel()
+    relative = heading - polar           # a metric blind to turning the whole scene
+    points = np.column_stack([2 * np.cos(polar), 2 * np.sin(polar),
+                              np.cos(relative), np.sin(relative)])
+    return points, polar, heading
+
+
+def _turn_sets(polar, heading, steps=((3, 1), (5, 2), (0, 1), (7, 0))):
+    """Equality sets of rigid changes: every pose's heading turned by the same
+    step (b), its polar angle moved by a step (a) that differs from pose to pose
+    unless the change is a turn about the ring's centre."""
+    index = {(round(p, 6), round(h, 6)): n for n, (p, h) in
+             enumerate(zip(polar % (2 * np.pi), heading % (2 * np.pi)))}
+    dp, dh = 2 * np.pi / 24, 2 * np.pi / 12
+    pairs, ids = [], []
+    for s, (a, b) in enumerate(steps):
+        for n, (p, h) in enumerate(zip(polar, heading)):
+            shift = a + (n % 3)                 # the polar step varies from pose to pose
+            key = (round((p + shift * dp) % (2 * np.pi), 6), round((h + b * dh) % (2 * np.pi), 6))
+            if key in index:
+                pairs.append((n, index[key]))
+                ids.append(s)
+    return np.asarray(pairs), np.asarray(ids)
+
+
+def test_the_looped_coordinate_is_the_one_every_change_moves_uniformly():
+    points, polar, heading = _ring_times_circle()
+    angles, _ = circular_coordinates(euclidean_distances(points), n_loops=2)
+    pairs, ids = _turn_sets(polar, heading)
+    theta, coefficients, variance = looped_coordinate(angles, pairs, ids)
+    # The equality sets single out the combination of the loops that is the heading.
+    assert circular_correlation(theta, heading) > 0.99
+    assert circular_correlation(theta, polar) < 0.5
+    assert variance < 0.01 and np.abs(coefficients).max() >= 1
+    with pytest.raises(ValueError, match="pairs"):
+        looped_coordinate(angles, np.zeros((0, 2)), np.zeros(0))
+
+
+def test_a_coordinate_bunched_on_part_of_the_circle_is_never_the_loop():
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    constant = np.zeros(60)
+    pairs = np.column_stack([np.arange(59), np.arange(1, 60)])
+    ids = np.zeros(59, dtype=int)
+    # the constant agrees perfectly within the set; the loop's coordinate is chosen
+    theta, coefficients, _ = looped_coordinate(np.vstack([constant, t]), pairs, ids)
+    assert circular_correlation(theta, t) > 0.999 and coefficients[1] != 0
+    assert looped_coordinate(constant[None], pairs, ids) is None
