@@ -36,6 +36,7 @@ class NaiveExploration:
     kinds: list
     exploration_s: float
     equality_s: float
+    grid_index: np.ndarray | None = None     # per event; None: event t is world.events[t - 1]
 
 
 @dataclass
@@ -53,6 +54,7 @@ class NaiveRunResult:
     metrics: dict
     timings_s: dict
     exploration: NaiveExploration = field(repr=False)
+    clock: object = field(repr=False, default=None)    # clocked_run.ClockTruth (ground truth)
 
     @property
     def agent(self) -> NaiveAgent:
@@ -95,7 +97,8 @@ def explore_naive(world, params: NaiveParams | None = None, *, progress=None,
 
 
 def run_naive(world, params: NaiveParams | None = None, *, progress=None,
-              equality_pass: bool = False, body_wrapper=SensingOnly) -> NaiveRunResult:
+              equality_pass: bool = False, body_wrapper=SensingOnly, clock: str = "agent",
+              change_interval: float = 2000.0) -> NaiveRunResult:
     """Run the naive agent through ``world.events``.
 
     ``equality_pass``: after exploring, replay the schedule once more with
@@ -103,9 +106,22 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
     ``body_wrapper``: what the agent receives instead of the simulator
     (default ``SensingOnly``: ``sense`` and the vector sizes).
     ``progress(done, total)`` is called every 100 events.
+    ``clock``: ``agent`` (the world waits for the agent) or ``rows`` (it
+    changes every ``change_interval`` rows on average, unannounced:
+    ``clocked_run.explore_clocked``; no equality pass).
     """
-    explored = explore_naive(world, params, progress=progress, equality_pass=equality_pass,
-                             body_wrapper=body_wrapper)
+    clock_truth = None
+    if clock == "rows":
+        from sensorispace_ros.core.naive.clocked_run import explore_clocked
+        params = params if params is not None else NaiveParams()
+        explored, clock_truth = explore_clocked(world, params, interval=change_interval,
+                                                sweep_budget=params.clock_sweep_budget,
+                                                progress=progress)
+    elif clock == "agent":
+        explored = explore_naive(world, params, progress=progress, equality_pass=equality_pass,
+                                 body_wrapper=body_wrapper)
+    else:
+        raise ValueError(f"clock: must be agent or rows offline, got {clock!r}")
     agent = explored.agent
     pov_s = agent.seconds_by_stage.get("pov", 0.0)
     pairs, set_ids = agent.equality_sets()
@@ -117,7 +133,8 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
     if agent.structure is not None:
         metrics.update(agent.structure.metrics())
     return NaiveRunResult(povs=agent.points_of_view, pairs=pairs, set_ids=set_ids,
-                          metrics=metrics, timings_s=timings, exploration=explored)
+                          metrics=metrics, timings_s=timings, exploration=explored,
+                          clock=clock_truth)
 
 
 def _passive_sensation(body: SimulatedBody) -> np.ndarray:

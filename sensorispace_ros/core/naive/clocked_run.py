@@ -1,0 +1,144 @@
+"""Offline driver of the naive agent in a world on its own clock
+(``world.clock: rows``).
+
+The world changes after a seeded number of rows (``core.world_clock``),
+wherever that falls; the agent gets no notice. It holds still at its
+resting state while its sensation stays within its noise band
+(``change_detection.band``, one ``hold`` call), reacts when it leaves it
+(confirmed by sensing the state once more), and after each reaction senses
+again its resting state of before and its new one: if either moved, the
+world changed while it worked, and the reaction is undone
+(``ClockedAgent.restore``; its rows stay counted as work lost) and made
+again in the world as it is now.
+
+The driver notes, for the evaluator, the world state (ground truth) at each
+kept reaction's first and last row and every test the agent made
+(``change_detection.ChangeLog``); the agent never sees any of it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sensorispace_ros.core.body import SensingOnly
+from sensorispace_ros.core.naive import change_detection
+from sensorispace_ros.core.naive.change_detection import ChangeLog
+from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
+from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.world import REDISTRIBUTION
+from sensorispace_ros.core.world_clock import ClockedBody, change_rows
+
+
+@dataclass
+class ClockTruth:
+    """Ground truth of a clocked run: ``change_row`` ``(C,)`` the rows the
+    world changed before, ``rest_jumps`` how far each moved the sensation at
+    the arm's state then, ``event_states`` ``(T + 1, 2)`` the world state at
+    each kept reaction's first and last row (event 0: the start), the tests
+    the agent made (``log``), ``lost_rows`` rows of undone reactions,
+    ``undone`` their number, ``rows`` / ``held_rows`` the clock at the end."""
+
+    change_row: np.ndarray
+    rest_jumps: np.ndarray
+    event_states: np.ndarray
+    log: ChangeLog
+    lost_rows: int
+    undone: int
+    rows: int
+    held_rows: int
+    state_of: object = field(repr=False, default=None)
+
+
+def explore_clocked(world, params: NaiveParams | None = None, *, interval: float,
+                    sweep_budget: int = 64, progress=None):
+    """Run the agent through ``world.events`` on a row clock of mean
+    ``interval`` rows. Returns ``(NaiveExploration, ClockTruth)``."""
+    from sensorispace_ros.core.naive.run import NaiveExploration
+
+    params = params if params is not None else NaiveParams()
+    started = time.perf_counter()
+    events = world.events
+    body = ClockedBody(world.body(lights=world.initial_lights),
+                       [world.initial_lights] + [e.lights for e in events],
+                       change_rows(len(events), interval, world.seed))
+    agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
+    agent.start(world.m0, seed=world.seed)
+    run = _Run(agent, body)
+    run.event_states.append((body.state_at(0), body.state_at(max(body.row - 1, 0))))
+    reference, reference_row = agent.anchor_sensation, body.row - 1
+    while True:
+        low, high = change_detection.band(agent.noise_sd, reference)
+        rest = agent.rest_motor_state
+        flagged = body.hold(rest, low, high)
+        if flagged is None:
+            break
+        confirm = agent.sense_again(rest)[0]
+        changed = change_detection.differs(agent.noise_sd, reference, confirm)
+        run.log.add(reference_row, body.row - 1, changed, rest, "hold")
+        if not changed:
+            continue
+        reference, reference_row = run.react(confirm)
+        if progress is not None and callable(progress):
+            progress(body.state, len(events))
+    exploration_s = time.perf_counter() - started
+    return run.exploration(world, exploration_s, NaiveExploration), run.truth()
+
+
+class _Run:
+    """The reactions of one clocked run and what ground truth notes of them."""
+
+    def __init__(self, agent: ClockedAgent, body: ClockedBody):
+        self.agent, self.body = agent, body
+        self.log = ChangeLog()
+        self.event_states: list[tuple[int, int]] = []
+        self.lost_rows = 0
+        self.undone = 0
+
+    def react(self, sensed_at_rest: np.ndarray):
+        """React until a reaction is not cut by a change; returns the new
+        reference sensation and the row it was sensed at."""
+        agent, body = self.agent, self.body
+        while True:
+            saved = agent.checkpoint()
+            before_rest = agent.rest_motor_state
+            first_row, rows_before = body.row, agent.queries_total
+            agent.react(sensed_at_rest)
+            after_rest = agent.rest_motor_state
+            again = agent.sense_again(np.vstack([before_rest, after_rest]))
+            cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
+                change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])
+            self.log.add(first_row - 1, body.row - 1, cut, before_rest, "cut")
+            if not cut:
+                self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
+                return again[1], body.row - 1
+            self.lost_rows += agent.queries_total - rows_before
+            self.undone += 1
+            agent.restore(saved)
+            sensed_at_rest = again[0]
+
+    def exploration(self, world, exploration_s: float, factory):
+        """The ``NaiveExploration`` of the kept reactions: the world at each
+        one's first row."""
+        states = np.asarray([s for s, _ in self.event_states], dtype=int)
+        centers_all = [np.asarray(world.initial_center, float)] + \
+            [np.asarray(e.center, float) for e in world.events]
+        kinds_all = ["initial"] + [e.kind for e in world.events]
+        layout_all = np.cumsum([k == REDISTRIBUTION for k in kinds_all])
+        centers = [centers_all[s] for s in states]
+        layout = [int(layout_all[s]) for s in states]
+        kinds = ["initial"] + [REDISTRIBUTION if layout[t] != layout[t - 1] else "translation"
+                               for t in range(1, len(states))]
+        grid_all = [-1] + [e.grid_index for e in world.events]
+        explored = factory(self.agent, centers, layout, kinds, exploration_s, 0.0)
+        explored.grid_index = np.asarray([grid_all[s] for s in states], dtype=np.int64)
+        return explored
+
+    def truth(self) -> ClockTruth:
+        return ClockTruth(change_row=self.body.change_row.copy(),
+                          rest_jumps=self.body.rest_jumps.copy(),
+                          event_states=np.asarray(self.event_states, dtype=int).reshape(-1, 2),
+                          log=self.log, lost_rows=int(self.lost_rows), undone=int(self.undone),
+                          rows=int(self.body.row), held_rows=int(self.body.held_rows),
+                          state_of=self.body.state_at)
