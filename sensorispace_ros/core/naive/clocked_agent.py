@@ -2,38 +2,128 @@
 
 ``ClockedAgent`` is a ``NaiveAgent`` that is told nothing about time: its
 driver (``clocked_run``) calls ``react`` when the agent's own test
-(``change_detection``) flags a change. Two things differ from the agent of
-a waiting world:
+(``change_detection``) flags a change. What differs from the agent of a
+waiting world:
 
 * a reaction senses a bounded part of what it knows (``_sweep_known``):
   its resting POV and ``sweep_budget`` more, in turn (a cursor walks
-  through the known POVs, so every POV is swept again after
-  ``P / sweep_budget`` reactions); the others are unknowns this time, as a
-  lost frame is. What a reaction costs no longer grows with the POVs known.
-* a reaction can be undone (``checkpoint``/``restore``): when the world
-  changed while the agent was working, what it found spans two worlds and
-  is dropped, its probing still counted.
+  through the known POVs); the others are unknowns this time, as a lost
+  frame is. What a reaction costs no longer grows with the POVs known. A
+  search's solution is compared with the known POVs nearest to it in motor
+  space, sensed now (``_sense_near``): a solution sensing what one senses is
+  that POV, swept or not;
+* every call a reaction sends first senses a *sentinel*, the resting
+  state of before, whose sensation in this world the agent holds
+  (``Tripwire``): when it moved, the world changed while the agent was
+  working and the reaction stops (``WorldChanged``). A call's own rows are
+  known to be of one world once the next call's sentinel passes;
+* a reaction can be undone (``checkpoint``/``restore``): what it found
+  spans two worlds and is dropped, its probing still counted, except the
+  POVs whose walks were verified before the change, and the search
+  solutions whose walk the change cut (``pending``, walked later, one at a
+  time: ``walk_pending``). A POV is a set of motor states of one eye pose,
+  whatever the world; a walk is valid when all its rows saw one world.
 """
 from __future__ import annotations
 
 import copy
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
+from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.searching import SearchAndSample
+
+NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
+
+
+class WorldChanged(Exception):
+    """The sentinel's sensation left its band: the world changed."""
+
+
+class Tripwire:
+    """The agent's body with a sentinel row in front of every call while
+    armed (``arm``): its sensation is tested against the one the agent
+    holds (``change_detection.differs``); rows are the body's units.
+    ``on_pass()`` is called after every sentinel that passes."""
+
+    def __init__(self, body, on_pass=None):
+        self._body = body
+        self.n_motors = int(body.n_motors)
+        self.n_sensors = int(body.n_sensors)
+        self.description = getattr(body, "description", None)
+        self._sentinel = None
+        self._reference = None
+        self.noise_sd = 0.0
+        self.rows = 0                  # sentinel rows sensed
+        self.passed = 0                # sentinels that passed
+        self.on_pass = on_pass
+
+    @property
+    def armed(self) -> bool:
+        return self._sentinel is not None
+
+    def arm(self, motor_state, reference, noise_sd: float) -> None:
+        self._sentinel = np.asarray(motor_state, dtype=float).reshape(1, -1)
+        self._reference = np.asarray(reference, dtype=float).reshape(-1)
+        self.noise_sd = float(noise_sd)
+
+    def disarm(self) -> None:
+        self._sentinel = self._reference = None
+
+    def check(self) -> None:
+        """Sense the sentinel alone (raises ``WorldChanged``)."""
+        self.sense(np.zeros((0, self.n_motors)))
+
+    def sense(self, motor_states) -> np.ndarray:
+        motor_states = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
+        if self._sentinel is None:
+            return self._body.sense(motor_states)
+        sensed = self._body.sense(np.vstack([self._sentinel, motor_states]))
+        self.rows += 1
+        if change_detection.differs(self.noise_sd, self._reference, sensed[0]):
+            raise WorldChanged(sensed[0])
+        self.passed += 1
+        if self.on_pass is not None:
+            self.on_pass()
+        return sensed[1:]
+
+    def move(self, motor_states) -> None:
+        self.sense(motor_states)
+
+
+class _CurrentTree:
+    """A ``cKDTree`` of the current sensations built when queried: the
+    search fills rows of ``current`` (``_sense_near``) after the tree would
+    have been built."""
+
+    def __init__(self, current: np.ndarray):
+        self._current = current
+
+    def query(self, x, k=1, **kwargs):
+        return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
 
 
 class ClockedAgent(NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
-        super().__init__(body, params)
+        self._tripwire = Tripwire(body, on_pass=self._verified_now)
+        super().__init__(self._tripwire, params)
         if isinstance(sweep_budget, bool) or not isinstance(sweep_budget, (int, np.integer)) \
                 or sweep_budget < 0:
             raise ValueError(f"sweep_budget: must be an integer >= 0, got {sweep_budget!r}")
         self.sweep_budget = int(sweep_budget)
         self._sweep_cursor = 0
+        self.pending = np.zeros((0, self.n_motors))   # solutions whose walk a change cut
+        self._verified = 0          # POVs stored when the last sentinel passed
+        self._cut_walk = None       # (states, sentinels passed before the walk) of a cut walk
+        self._search_current = None
+
+    # ------------------------------------------------------------ the clock
 
     @property
     def noise_sd(self) -> float:
@@ -42,9 +132,19 @@ class ClockedAgent(NaiveAgent):
 
     @property
     def anchor_sensation(self) -> np.ndarray | None:
-        """The sensation the agent recorded at its resting state, in the
-        world of its last reaction."""
+        """The sensation recorded at the resting state in its last reaction."""
         return None if not self._pool else self._pool[0].rest_sensation.copy()
+
+    @property
+    def queries_total(self) -> int:
+        return self._body.total_rows + self._tripwire.rows
+
+    @property
+    def queries_by_stage(self) -> dict:
+        """Rows per stage; the sentinels count as resting rows."""
+        rows = dict(self._body.rows)
+        rows["rest"] = rows.get("rest", 0) + self._tripwire.rows
+        return rows
 
     def sense_again(self, motor_states) -> np.ndarray:
         """Sense ``motor_states`` (body units) afresh, not from memory:
@@ -56,15 +156,64 @@ class ClockedAgent(NaiveAgent):
         self._body.pause()
         return sensed
 
+    def react_watched(self, sensed_at_rest):
+        """``react`` with the sentinel armed: the resting state now, whose
+        sensation in this world is ``sensed_at_rest``. Raises ``WorldChanged``
+        (the agent then inside an unfinished reaction: ``restore`` it)."""
+        self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
+        self._verified = self._store.count
+        self._cut_walk = None
+        try:
+            return self.react(sensed_at_rest)
+        finally:
+            self._tripwire.disarm()
+            self._body.pause()
+
+    def walk_pending(self, sensed_at_rest) -> int:
+        """Walk the oldest pending solution, watched as a reaction is; the
+        sentinel is sensed once more after the walk. Returns the POVs added
+        (0 or 1). Raises ``WorldChanged`` (``restore`` the agent then)."""
+        if not len(self.pending):
+            return 0
+        state, self.pending = self.pending[0], self.pending[1:]
+        self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
+        try:
+            new, _ = SearchAndSample._sample_povs(self, state[None])
+            self._tripwire.check()
+        finally:
+            self._tripwire.disarm()
+            self._body.pause()
+        return len(new)
+
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""
         return copy.deepcopy({name: value for name, value in vars(self).items()
-                              if name != "_body"})
+                              if name not in ("_body", "_tripwire")})
 
-    def restore(self, saved: dict) -> None:
-        """Back to ``saved``; the rows spent since stay counted."""
+    def restore(self, saved: dict, salvage: bool = True) -> int:
+        """Back to ``saved``; the rows spent since stay counted. With
+        ``salvage``, the POVs verified since are kept and the solutions of a
+        cut walk are pending (module docstring). Returns the POVs kept."""
+        first, first_q = saved["_store"].count, len(saved["pov_queries"])
+        kept = max(0, self._verified - first) if salvage else 0
+        samples = self._store.samples[first:first + kept].copy()
+        queries = list(self.pov_queries[first_q:first_q + kept])
+        cut = self._cut_walk if salvage else None
         vars(self).update(copy.deepcopy(saved))
         self._body.phase = self._phase
+        for pov, walked in zip(samples, queries):
+            self._store.append(pov)
+            self.pov_queries.append(int(walked))
+            self.pov_events.append(self._event)
+        if cut is not None and self._tripwire.passed > cut[1]:
+            # A walk call passed: every row of the search before it saw one world.
+            self.pending = np.vstack([self.pending, cut[0]])
+        return kept
+
+    def _verified_now(self) -> None:
+        self._verified = self._store.count
+
+    # ------------------------------------------------------ bounded sweeps
 
     def _sweep_indices(self) -> np.ndarray:
         """The known POVs this reaction senses: the resting one and the next
@@ -88,3 +237,42 @@ class ClockedAgent(NaiveAgent):
         current = np.full((count, n_sensors), np.nan)
         current[chosen] = self._body.sense(self._store.samples[chosen, 0])
         return current, np.zeros((0, n_sensors))
+
+    def _search(self, requests, current, tree, split_now):
+        self._search_current = current
+        try:
+            return super()._search(requests, current,
+                                   None if tree is None else _CurrentTree(current), split_now)
+        finally:
+            self._search_current = None
+
+    def _run_searches(self, unique_targets, owner, starts):
+        solution, others, gain = super()._run_searches(unique_targets, owner, starts)
+        if self._search_current is not None and solution:
+            self._sense_near(self._search_current, np.stack(list(solution.values())))
+        return solution, others, gain
+
+    def _sense_near(self, current: np.ndarray, states: np.ndarray) -> None:
+        """Fill the rows of ``current`` not sensed now of the ``NEAR_POVS``
+        known POVs nearest (in phases, on the torus) to each of ``states``."""
+        unknown = np.flatnonzero(~np.all(np.isfinite(current), axis=1))
+        if not len(unknown):
+            return
+        samples = self._store.samples[unknown]                       # (U, N, M)
+        wanted = set()
+        for state in states:
+            gap = (samples - state + np.pi) % (2.0 * np.pi) - np.pi
+            nearest = np.linalg.norm(gap, axis=2).min(axis=1)
+            wanted.update(unknown[np.argsort(nearest)[:NEAR_POVS]].tolist())
+        ids = np.asarray(sorted(wanted), dtype=int)
+        self._body.stage = "sweep"
+        current[ids] = self._body.sense(self._store.samples[ids, 0])
+        self._body.stage = "compensation"
+
+    def _sample_povs(self, motor_states, keep_invalid=False, others=None):
+        passed = self._tripwire.passed
+        try:
+            return super()._sample_povs(motor_states, keep_invalid=keep_invalid, others=others)
+        except WorldChanged:
+            self._cut_walk = (np.array(motor_states, dtype=float), passed)
+            raise

@@ -25,7 +25,7 @@ import numpy as np
 from sensorispace_ros.core.body import SensingOnly
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.change_detection import ChangeLog
-from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
+from sensorispace_ros.core.naive.clocked_agent import ClockedAgent, WorldChanged
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.core.world_clock import ClockedBody, change_rows
@@ -38,7 +38,7 @@ class ClockTruth:
     the arm's state then, ``event_states`` ``(T + 1, 2)`` the world state at
     each kept reaction's first and last row (event 0: the start), the tests
     the agent made (``log``), ``lost_rows`` rows of undone reactions,
-    ``undone`` their number, ``rows`` / ``held_rows`` the clock at the end."""
+    ``undone`` their number, ``salvaged`` the POVs kept from them, ``rows`` / ``held_rows`` the clock at the end."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -46,6 +46,7 @@ class ClockTruth:
     log: ChangeLog
     lost_rows: int
     undone: int
+    salvaged: int
     rows: int
     held_rows: int
     state_of: object = field(repr=False, default=None)
@@ -69,17 +70,18 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
     run.event_states.append((body.state_at(0), body.state_at(max(body.row - 1, 0))))
     reference, reference_row = agent.anchor_sensation, body.row - 1
     while True:
-        low, high = change_detection.band(agent.noise_sd, reference)
-        rest = agent.rest_motor_state
-        flagged = body.hold(rest, low, high)
-        if flagged is None:
-            break
-        confirm = agent.sense_again(rest)[0]
-        changed = change_detection.differs(agent.noise_sd, reference, confirm)
-        run.log.add(reference_row, body.row - 1, changed, rest, "hold")
-        if not changed:
-            continue
-        reference, reference_row = run.react(confirm)
+        sensed = run.walk_pending(reference)
+        if sensed is None:
+            low, high = change_detection.band(agent.noise_sd, reference)
+            rest = agent.rest_motor_state
+            if body.hold(rest, low, high) is None:
+                break
+            sensed = agent.sense_again(rest)[0]
+            changed = change_detection.differs(agent.noise_sd, reference, sensed)
+            run.log.add(reference_row, body.row - 1, changed, rest, "hold")
+            if not changed:
+                continue
+        reference, reference_row = run.react(sensed)
         if progress is not None and callable(progress):
             progress(body.state, len(events))
     exploration_s = time.perf_counter() - started
@@ -95,6 +97,7 @@ class _Run:
         self.event_states: list[tuple[int, int]] = []
         self.lost_rows = 0
         self.undone = 0
+        self.salvaged = 0
 
     def react(self, sensed_at_rest: np.ndarray):
         """React until a reaction is not cut by a change; returns the new
@@ -104,7 +107,13 @@ class _Run:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
             first_row, rows_before = body.row, agent.queries_total
-            agent.react(sensed_at_rest)
+            try:
+                agent.react_watched(sensed_at_rest)
+            except WorldChanged as stop:
+                self.log.add(first_row - 1, body.row - 1, True, before_rest, "cut")
+                self._undo(saved, rows_before)
+                sensed_at_rest = np.asarray(stop.args[0], dtype=float)
+                continue
             after_rest = agent.rest_motor_state
             again = agent.sense_again(np.vstack([before_rest, after_rest]))
             cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
@@ -113,10 +122,29 @@ class _Run:
             if not cut:
                 self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
                 return again[1], body.row - 1
-            self.lost_rows += agent.queries_total - rows_before
-            self.undone += 1
-            agent.restore(saved)
+            self._undo(saved, rows_before)
             sensed_at_rest = again[0]
+
+    def walk_pending(self, reference: np.ndarray):
+        """Walk the pending solutions one by one while the world stays; returns
+        None, or the sensation at rest of a world that changed."""
+        agent, body = self.agent, self.body
+        while len(agent.pending):
+            saved = agent.checkpoint()
+            first_row, rows_before = body.row, agent.queries_total
+            try:
+                agent.walk_pending(reference)
+            except WorldChanged as stop:
+                self.log.add(first_row - 1, body.row - 1, True, agent.rest_motor_state, "walk")
+                self.lost_rows += agent.queries_total - rows_before
+                agent.restore(saved, salvage=False)
+                return np.asarray(stop.args[0], dtype=float)
+        return None
+
+    def _undo(self, saved: dict, rows_before: int) -> None:
+        self.lost_rows += self.agent.queries_total - rows_before
+        self.undone += 1
+        self.salvaged += self.agent.restore(saved)
 
     def exploration(self, world, exploration_s: float, factory):
         """The ``NaiveExploration`` of the kept reactions: the world at each
@@ -140,5 +168,6 @@ class _Run:
                           rest_jumps=self.body.rest_jumps.copy(),
                           event_states=np.asarray(self.event_states, dtype=int).reshape(-1, 2),
                           log=self.log, lost_rows=int(self.lost_rows), undone=int(self.undone),
+                          salvaged=int(self.salvaged),
                           rows=int(self.body.row), held_rows=int(self.body.held_rows),
                           state_of=self.body.state_at)
