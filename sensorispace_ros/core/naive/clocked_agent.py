@@ -12,11 +12,10 @@ waiting world:
   search's solution is compared with the known POVs nearest to it in motor
   space, sensed now (``_sense_near``): a solution sensing what one senses is
   that POV, swept or not;
-* every call a reaction sends first senses a *sentinel*, the resting
-  state of before, whose sensation in this world the agent holds
-  (``Tripwire``): when it moved, the world changed while the agent was
-  working and the reaction stops (``WorldChanged``). A call's own rows are
-  known to be of one world once the next call's sentinel passes;
+* every call a reaction sends ends with a *sentinel*, the resting state
+  of before, whose sensation in this world the agent holds (``Tripwire``):
+  when it moved, the world changed while the agent was working and the
+  reaction stops (``WorldChanged``);
 * a reaction can be undone (``checkpoint``/``restore``): what it found
   spans two worlds and is dropped, its probing still counted, except the
   POVs whose walks were verified before the change, and the search
@@ -45,9 +44,10 @@ class WorldChanged(Exception):
 
 
 class Tripwire:
-    """The agent's body with a sentinel row in front of every call while
-    armed (``arm``): its sensation is tested against the one the agent
-    holds (``change_detection.differs``); rows are the body's units.
+    """The agent's body with a sentinel row after every call while armed
+    (``arm``): its sensation is tested against the one the agent holds
+    (``change_detection.differs``): when it passes, every row of the call
+    saw the world the agent holds. Rows are the body's units.
     ``on_pass()`` is called after every sentinel that passes."""
 
     def __init__(self, body, on_pass=None):
@@ -82,14 +82,14 @@ class Tripwire:
         motor_states = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
         if self._sentinel is None:
             return self._body.sense(motor_states)
-        sensed = self._body.sense(np.vstack([self._sentinel, motor_states]))
+        sensed = self._body.sense(np.vstack([motor_states, self._sentinel]))
         self.rows += 1
-        if change_detection.differs(self.noise_sd, self._reference, sensed[0]):
-            raise WorldChanged(sensed[0])
+        if change_detection.differs(self.noise_sd, self._reference, sensed[-1]):
+            raise WorldChanged(sensed[-1])
         self.passed += 1
         if self.on_pass is not None:
             self.on_pass()
-        return sensed[1:]
+        return sensed[:-1]
 
     def move(self, motor_states) -> None:
         self.sense(motor_states)
@@ -120,7 +120,7 @@ class ClockedAgent(NaiveAgent):
         self._sweep_cursor = 0
         self.pending = np.zeros((0, self.n_motors))   # solutions whose walk a change cut
         self._verified = 0          # POVs stored when the last sentinel passed
-        self._cut_walk = None       # (states, sentinels passed before the walk) of a cut walk
+        self._cut_walk = None       # the start states of a walk a change cut
         self._search_current = None
 
     # ------------------------------------------------------------ the clock
@@ -205,9 +205,9 @@ class ClockedAgent(NaiveAgent):
             self._store.append(pov)
             self.pov_queries.append(int(walked))
             self.pov_events.append(self._event)
-        if cut is not None and self._tripwire.passed > cut[1]:
-            # A walk call passed: every row of the search before it saw one world.
-            self.pending = np.vstack([self.pending, cut[0]])
+        if cut is not None:
+            # Every call of the search before the walk passed its sentinel.
+            self.pending = np.vstack([self.pending, cut])
         return kept
 
     def _verified_now(self) -> None:
@@ -270,9 +270,9 @@ class ClockedAgent(NaiveAgent):
         self._body.stage = "compensation"
 
     def _sample_povs(self, motor_states, keep_invalid=False, others=None):
-        passed = self._tripwire.passed
         try:
             return super()._sample_povs(motor_states, keep_invalid=keep_invalid, others=others)
         except WorldChanged:
-            self._cut_walk = (np.array(motor_states, dtype=float), passed)
+            if self._tripwire.armed:
+                self._cut_walk = np.array(motor_states, dtype=float)
             raise
