@@ -67,6 +67,11 @@ class ClockedBody:
     # ------------------------------------------------------------- clock
 
     @property
+    def lights(self) -> list:
+        """The lights of every world state (ground truth)."""
+        return list(self._lights)
+
+    @property
     def ended(self) -> bool:
         """Every change has happened."""
         return self.state >= len(self.change_row)

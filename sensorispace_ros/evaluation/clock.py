@@ -57,7 +57,7 @@ def _detection_numbers(truth, world) -> dict:
     test_state = truth.state_of(np.asarray(log.test_row))
     flagged = np.asarray(log.flagged, dtype=bool)
     changed = ref_state != test_state
-    lights = [world.initial_lights] + [e.lights for e in world.events]
+    lights = truth.lights
     threshold = max(DETECTABLE_SDS * np.sqrt(2.0) * float(world.imperfections.noise),
                     DETECTABLE_FLOOR)
     detectable = np.zeros(len(flagged), dtype=bool)

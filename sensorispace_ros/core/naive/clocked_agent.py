@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
-from sensorispace_ros.core.naive.equality_sets import finite_rows
+from sensorispace_ros.core.naive.equality_sets import EqualitySetSweep, finite_rows
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
@@ -60,7 +60,6 @@ class Tripwire:
         self.noise_sd = 0.0
         self.rows = 0                  # sentinel rows sensed
         self.passed = 0                # sentinels that passed
-        self.on_pass = on_pass
 
     @property
     def armed(self) -> bool:
@@ -87,8 +86,6 @@ class Tripwire:
         if change_detection.differs(self.noise_sd, self._reference, sensed[-1]):
             raise WorldChanged(sensed[-1])
         self.passed += 1
-        if self.on_pass is not None:
-            self.on_pass()
         return sensed[:-1]
 
     def move(self, motor_states) -> None:
@@ -111,7 +108,7 @@ class ClockedAgent(NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
-        self._tripwire = Tripwire(body, on_pass=self._verified_now)
+        self._tripwire = Tripwire(body)
         super().__init__(self._tripwire, params)
         if isinstance(sweep_budget, bool) or not isinstance(sweep_budget, (int, np.integer)) \
                 or sweep_budget < 0:
@@ -119,7 +116,7 @@ class ClockedAgent(NaiveAgent):
         self.sweep_budget = int(sweep_budget)
         self._sweep_cursor = 0
         self.pending = np.zeros((0, self.n_motors))   # solutions whose walk a change cut
-        self._verified = 0          # POVs stored when the last sentinel passed
+        self._verified = 0          # POVs stored whose every row passed a sentinel
         self._cut_walk = None       # the start states of a walk a change cut
         self._search_current = None
 
@@ -156,15 +153,19 @@ class ClockedAgent(NaiveAgent):
         self._body.pause()
         return sensed
 
-    def react_watched(self, sensed_at_rest):
-        """``react`` with the sentinel armed: the resting state now, whose
-        sensation in this world is ``sensed_at_rest``. Raises ``WorldChanged``
-        (the agent then inside an unfinished reaction: ``restore`` it)."""
+    def watched(self, reaction, sensed_at_rest):
+        """``reaction(sensed_at_rest)`` (``react``) or ``reaction()``
+        (``begin_equality_pass``) with the sentinel armed: the resting state
+        now, whose sensation in this world is ``sensed_at_rest``. Raises
+        ``WorldChanged`` (the agent then inside an unfinished reaction:
+        ``restore`` it)."""
         self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
         self._verified = self._store.count
         self._cut_walk = None
         try:
-            return self.react(sensed_at_rest)
+            if reaction == self.react:
+                return reaction(sensed_at_rest)
+            return reaction()
         finally:
             self._tripwire.disarm()
             self._body.pause()
@@ -187,8 +188,12 @@ class ClockedAgent(NaiveAgent):
 
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""
-        return copy.deepcopy({name: value for name, value in vars(self).items()
-                              if name not in ("_body", "_tripwire")})
+        kept = {name: value for name, value in vars(self).items()
+                if name not in ("_body", "_tripwire")}
+        if self._sweep is not None:     # simulation 2's sweep senses through the body
+            kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
+                              if name != "body"}
+        return copy.deepcopy(kept)
 
     def restore(self, saved: dict, salvage: bool = True) -> int:
         """Back to ``saved``; the rows spent since stay counted. With
@@ -199,8 +204,15 @@ class ClockedAgent(NaiveAgent):
         samples = self._store.samples[first:first + kept].copy()
         queries = list(self.pov_queries[first_q:first_q + kept])
         cut = self._cut_walk if salvage else None
-        vars(self).update(copy.deepcopy(saved))
+        restored = copy.deepcopy(saved)
+        sweep = restored.pop("_sweep", None)
+        vars(self).update(restored)
         self._body.phase = self._phase
+        if sweep is not None:
+            self._sweep = EqualitySetSweep.__new__(EqualitySetSweep)
+            vars(self._sweep).update(sweep, body=self._body)
+        else:
+            self._sweep = None
         for pov, walked in zip(samples, queries):
             self._store.append(pov)
             self.pov_queries.append(int(walked))
@@ -209,9 +221,6 @@ class ClockedAgent(NaiveAgent):
             # Every call of the search before the walk passed its sentinel.
             self.pending = np.vstack([self.pending, cut])
         return kept
-
-    def _verified_now(self) -> None:
-        self._verified = self._store.count
 
     # ------------------------------------------------------ bounded sweeps
 
@@ -271,8 +280,11 @@ class ClockedAgent(NaiveAgent):
 
     def _sample_povs(self, motor_states, keep_invalid=False, others=None):
         try:
-            return super()._sample_povs(motor_states, keep_invalid=keep_invalid, others=others)
+            walked = super()._sample_povs(motor_states, keep_invalid=keep_invalid, others=others)
         except WorldChanged:
             if self._tripwire.armed:
                 self._cut_walk = np.array(motor_states, dtype=float)
             raise
+        # Every call of the walk (and of the search before it) passed its sentinel.
+        self._verified = self._store.count
+        return walked

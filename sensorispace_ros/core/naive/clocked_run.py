@@ -26,6 +26,7 @@ from sensorispace_ros.core.body import SensingOnly
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.change_detection import ChangeLog
 from sensorispace_ros.core.naive.clocked_agent import ClockedAgent, WorldChanged
+from sensorispace_ros.core.naive.agent import EXPLORING
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.core.world_clock import ClockedBody, change_rows
@@ -38,7 +39,8 @@ class ClockTruth:
     the arm's state then, ``event_states`` ``(T + 1, 2)`` the world state at
     each kept reaction's first and last row (event 0: the start), the tests
     the agent made (``log``), ``lost_rows`` rows of undone reactions,
-    ``undone`` their number, ``salvaged`` the POVs kept from them, ``rows`` / ``held_rows`` the clock at the end."""
+    ``undone`` their number, ``salvaged`` the POVs kept from them, ``rows`` / ``held_rows`` the clock at the end, ``lights`` of each
+    world state."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -50,42 +52,68 @@ class ClockTruth:
     rows: int
     held_rows: int
     state_of: object = field(repr=False, default=None)
+    lights: list = field(repr=False, default_factory=list)   # of each world state
 
 
 def explore_clocked(world, params: NaiveParams | None = None, *, interval: float,
-                    sweep_budget: int = 64, progress=None):
+                    sweep_budget: int = 64, equality_changes: int = 0, progress=None):
     """Run the agent through ``world.events`` on a row clock of mean
-    ``interval`` rows. Returns ``(NaiveExploration, ClockTruth)``."""
+    ``interval`` rows; then, with ``equality_changes``, through the schedule
+    once more in simulation 2 (``begin_equality_pass``) for that many of the
+    changes it detects. Returns ``(NaiveExploration, ClockTruth)``."""
     from sensorispace_ros.core.naive.run import NaiveExploration
 
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
-    events = world.events
+    events = list(world.events) * (2 if equality_changes > 0 else 1)
     body = ClockedBody(world.body(lights=world.initial_lights),
                        [world.initial_lights] + [e.lights for e in events],
                        change_rows(len(events), interval, world.seed))
-    agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
-    agent.start(world.m0, seed=world.seed)
+    agent, first_row, lost = _start(body, world, params, sweep_budget)
     run = _Run(agent, body)
-    run.event_states.append((body.state_at(0), body.state_at(max(body.row - 1, 0))))
+    run.lost_rows = lost
+    run.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
     reference, reference_row = agent.anchor_sensation, body.row - 1
+    equality_left = int(equality_changes)
     while True:
-        sensed = run.walk_pending(reference)
+        sensed = run.walk_pending(reference) if agent.phase == EXPLORING else None
         if sensed is None:
-            low, high = change_detection.band(agent.noise_sd, reference)
-            rest = agent.rest_motor_state
-            if body.hold(rest, low, high) is None:
+            sensed = run.hold(reference, reference_row)
+            if sensed is None:
                 break
-            sensed = agent.sense_again(rest)[0]
-            changed = change_detection.differs(agent.noise_sd, reference, sensed)
-            run.log.add(reference_row, body.row - 1, changed, rest, "hold")
-            if not changed:
+            if sensed is False:
                 continue
+        if agent.phase == EXPLORING and body.state > len(world.events) and equality_left:
+            reference, reference_row = run.react(sensed, agent.begin_equality_pass)
+            continue
         reference, reference_row = run.react(sensed)
+        if agent.phase != EXPLORING:
+            equality_left -= 1
+            if equality_left <= 0:
+                break
         if progress is not None and callable(progress):
             progress(body.state, len(events))
     exploration_s = time.perf_counter() - started
-    return run.exploration(world, exploration_s, NaiveExploration), run.truth()
+    return run.exploration(world, events, exploration_s, NaiveExploration), run.truth()
+
+
+def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):
+    """A started agent whose start saw one world: the start state is sensed
+    before and after ``start`` and compared by the noise the start measured;
+    a start the world changed under is made again by a new agent (its rows
+    counted as lost). Returns the agent, the start's first row and the rows lost."""
+    lost = 0
+    while True:
+        first_row = body.row
+        agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
+        before = agent.sense_again(world.m0)[0]
+        agent.start(world.m0, seed=world.seed)
+        after = agent.sense_again(world.m0)[0]
+        rest_now = agent.sense_again(agent.rest_motor_state)[0]
+        if not (change_detection.differs(agent.noise_sd, before, after) or
+                change_detection.differs(agent.noise_sd, agent.anchor_sensation, rest_now)):
+            return agent, first_row, lost
+        lost += agent.queries_total
 
 
 class _Run:
@@ -99,16 +127,31 @@ class _Run:
         self.undone = 0
         self.salvaged = 0
 
-    def react(self, sensed_at_rest: np.ndarray):
-        """React until a reaction is not cut by a change; returns the new
-        reference sensation and the row it was sensed at."""
+    def hold(self, reference: np.ndarray, reference_row: int):
+        """Hold still until the sensation at rest leaves its band; confirm by
+        sensing once more. Returns that sensation, False (not confirmed) or
+        None (the world has no change left)."""
+        agent, body = self.agent, self.body
+        low, high = change_detection.band(agent.noise_sd, reference)
+        rest = agent.rest_motor_state
+        if body.hold(rest, low, high) is None:
+            return None
+        sensed = agent.sense_again(rest)[0]
+        changed = change_detection.differs(agent.noise_sd, reference, sensed)
+        self.log.add(reference_row, body.row - 1, changed, rest, "hold")
+        return sensed if changed else False
+
+    def react(self, sensed_at_rest: np.ndarray, reaction=None):
+        """React (``reaction``, default ``agent.react``) until a reaction is
+        not cut by a change; returns the new reference sensation and the row
+        it was sensed at."""
         agent, body = self.agent, self.body
         while True:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
             first_row, rows_before = body.row, agent.queries_total
             try:
-                agent.react_watched(sensed_at_rest)
+                agent.watched(reaction or agent.react, sensed_at_rest)
             except WorldChanged as stop:
                 self.log.add(first_row - 1, body.row - 1, True, before_rest, "cut")
                 self._undo(saved, rows_before)
@@ -117,7 +160,8 @@ class _Run:
             after_rest = agent.rest_motor_state
             again = agent.sense_again(np.vstack([before_rest, after_rest]))
             cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
-                change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])
+                (agent.phase == EXPLORING and
+                 change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1]))
             self.log.add(first_row - 1, body.row - 1, cut, before_rest, "cut")
             if not cut:
                 self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
@@ -146,19 +190,19 @@ class _Run:
         self.undone += 1
         self.salvaged += self.agent.restore(saved)
 
-    def exploration(self, world, exploration_s: float, factory):
+    def exploration(self, world, events: list, exploration_s: float, factory):
         """The ``NaiveExploration`` of the kept reactions: the world at each
-        one's first row."""
+        one's first row (``events``: the changes the clock played)."""
         states = np.asarray([s for s, _ in self.event_states], dtype=int)
         centers_all = [np.asarray(world.initial_center, float)] + \
-            [np.asarray(e.center, float) for e in world.events]
-        kinds_all = ["initial"] + [e.kind for e in world.events]
+            [np.asarray(e.center, float) for e in events]
+        kinds_all = ["initial"] + [e.kind for e in events]
         layout_all = np.cumsum([k == REDISTRIBUTION for k in kinds_all])
         centers = [centers_all[s] for s in states]
         layout = [int(layout_all[s]) for s in states]
         kinds = ["initial"] + [REDISTRIBUTION if layout[t] != layout[t - 1] else "translation"
                                for t in range(1, len(states))]
-        grid_all = [-1] + [e.grid_index for e in world.events]
+        grid_all = [-1] + [e.grid_index for e in events]
         explored = factory(self.agent, centers, layout, kinds, exploration_s, 0.0)
         explored.grid_index = np.asarray([grid_all[s] for s in states], dtype=np.int64)
         return explored
@@ -170,4 +214,4 @@ class _Run:
                           log=self.log, lost_rows=int(self.lost_rows), undone=int(self.undone),
                           salvaged=int(self.salvaged),
                           rows=int(self.body.row), held_rows=int(self.body.held_rows),
-                          state_of=self.body.state_at)
+                          state_of=self.body.state_at, lights=self.body.lights)

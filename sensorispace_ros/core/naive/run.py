@@ -116,6 +116,7 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
         params = params if params is not None else NaiveParams()
         explored, clock_truth = explore_clocked(world, params, interval=change_interval,
                                                 sweep_budget=params.clock_sweep_budget,
+                                                equality_changes=params.clock_equality_changes,
                                                 progress=progress)
     elif clock == "agent":
         explored = explore_naive(world, params, progress=progress, equality_pass=equality_pass,
