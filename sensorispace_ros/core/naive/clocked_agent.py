@@ -26,13 +26,16 @@ waiting world:
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
-from sensorispace_ros.core.naive.equality_sets import EqualitySetSweep, finite_rows
+from sensorispace_ros.core.naive.anchors import anchor_requests
+from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
+    EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
@@ -90,6 +93,40 @@ class Tripwire:
 
     def move(self, motor_states) -> None:
         self.sense(motor_states)
+
+
+class AllPairsSweep(EqualitySetSweep):
+    """Simulation 2 that matches each sweep with every earlier one, not
+    only the previous: a world the agent met before is a displacement it can
+    still tell, however many changes it missed in between (``history``:
+    each sweep's sensations and ranks)."""
+
+    def observe(self) -> np.ndarray:
+        current = np.asarray(self.body.sense(self.probe_states), dtype=float)
+        self.rows += len(current)
+        self.calls += 1
+        rank = np.full(len(current), RANK_UNKNOWN)
+        tree = cKDTree(finite_rows(current, -1.0))
+        for previous, previous_rank in self.history:
+            before, after = match_sensations(previous, current, match_tol=self.match_tol,
+                                             separation=self.separation, tree=tree)
+            known = np.where(rank[after] != RANK_UNKNOWN, rank[after], previous_rank[before])
+            rank[after] = known
+            unknown = after[known == RANK_UNKNOWN]
+            if len(unknown):
+                full, rows = check_pose_rank(self.body, self.probe_states[unknown],
+                                             rank=self.rank, fd_step=self.fd_step,
+                                             rank_ratio=self.rank_ratio,
+                                             min_singular=self.min_singular,
+                                             pattern_ratio=self.pattern_ratio)
+                self.rows += rows
+                self.calls += 1
+                rank[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
+            previous_rank[before] = rank[after]
+            good = rank[after] == RANK_FULL
+            self.sets.add(before[good], after[good])
+        self.history.append((current, rank))
+        return np.zeros((0, 2), dtype=int)
 
 
 class _CurrentTree:
@@ -186,6 +223,13 @@ class ClockedAgent(NaiveAgent):
             self._body.pause()
         return len(new)
 
+    def begin_equality_pass(self) -> None:
+        """Simulation 2 with every earlier sweep matched (``AllPairsSweep``)."""
+        super().begin_equality_pass()
+        sweep = self._sweep
+        sweep.__class__ = AllPairsSweep
+        sweep.history = [(sweep._previous, sweep._previous_rank)]
+
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""
         kept = {name: value for name, value in vars(self).items()
@@ -209,7 +253,7 @@ class ClockedAgent(NaiveAgent):
         vars(self).update(restored)
         self._body.phase = self._phase
         if sweep is not None:
-            self._sweep = EqualitySetSweep.__new__(EqualitySetSweep)
+            self._sweep = AllPairsSweep.__new__(AllPairsSweep)
             vars(self._sweep).update(sweep, body=self._body)
         else:
             self._sweep = None
@@ -246,6 +290,19 @@ class ClockedAgent(NaiveAgent):
         current = np.full((count, n_sensors), np.nan)
         current[chosen] = self._body.sense(self._store.samples[chosen, 0])
         return current, np.zeros((0, n_sensors))
+
+    def _anchor_requests(self, matches, rest_hits, rank_now):
+        """``anchors.anchor_requests``; once the agent knows more POVs than
+        ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
+        per change: with a bounded sweep most snapshots go unconfirmed (their
+        matches were not sensed), not only those a redistribution made stale."""
+        params = self.params
+        if self._store.count >= params.unconfirmed_max_povs:
+            params = replace(params, unconfirmed_max_povs=self._store.count + 1,
+                             unconfirmed_attempts=min(params.unconfirmed_attempts, 1))
+        return anchor_requests(self._pool, matches, rest_hits, rank_now, params,
+                               pov_samples=self._store.samples,
+                               frontier_budget=self._frontier_budget())
 
     def _search(self, requests, current, tree, split_now):
         self._search_current = current
