@@ -40,6 +40,7 @@ from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
 NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
+WITNESSES = 8        # swept POVs sensed again after a reaction
 
 
 class WorldChanged(Exception):
@@ -156,6 +157,7 @@ class ClockedAgent(NaiveAgent):
         self._verified = 0          # POVs stored whose every row passed a sentinel
         self._cut_walk = None       # the start states of a walk a change cut
         self._search_current = None
+        self._witnesses = None      # (states, sensations) of this reaction's sweep
 
     # ------------------------------------------------------------ the clock
 
@@ -199,6 +201,7 @@ class ClockedAgent(NaiveAgent):
         self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
         self._verified = self._store.count
         self._cut_walk = None
+        self._witnesses = None
         try:
             if reaction == self.react:
                 return reaction(sensed_at_rest)
@@ -288,8 +291,22 @@ class ClockedAgent(NaiveAgent):
             return np.zeros((0, n_sensors)), np.zeros((0, n_sensors))
         chosen = self._sweep_indices()
         current = np.full((count, n_sensors), np.nan)
-        current[chosen] = self._body.sense(self._store.samples[chosen, 0])
+        sensed = self._body.sense(self._store.samples[chosen, 0])
+        current[chosen] = sensed
+        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+        top = np.argsort(-lit, kind="stable")[:WITNESSES]
+        self._witnesses = (self._store.samples[chosen[top], 0].copy(), sensed[top].copy())
         return current, np.zeros((0, n_sensors))
+
+    def witnesses_moved(self) -> bool:
+        """Sense again the witnesses of this reaction's sweep (its swept POVs
+        that sensed most): did any move? A change the resting state does not
+        see (it sees nothing before and after) shows there."""
+        if self._witnesses is None:
+            return False
+        states, held = self._witnesses
+        again = self.sense_again(self._to_body(states))
+        return any(change_detection.differs(self.noise_sd, a, b) for a, b in zip(held, again))
 
     def _anchor_requests(self, matches, rest_hits, rank_now):
         """``anchors.anchor_requests``; once the agent knows more POVs than

@@ -5,9 +5,11 @@ The world changes after a seeded number of rows (``core.world_clock``),
 wherever that falls; the agent gets no notice. It holds still at its
 resting state while its sensation stays within its noise band
 (``change_detection.band``, one ``hold`` call), reacts when it leaves it
-(confirmed by sensing the state once more), and after each reaction senses
-again its resting state of before and its new one: if either moved, the
-world changed while it worked, and the reaction is undone
+(confirmed by sensing the state once more). Every call of a reaction ends
+with a sentinel row (``clocked_agent.Tripwire``); after each reaction the
+agent senses again its resting state of before, its new one and the
+witnesses of its sweep: if any moved, the world changed while it worked,
+and the reaction is undone
 (``ClockedAgent.restore``; its rows stay counted as work lost) and made
 again in the world as it is now.
 
@@ -161,7 +163,8 @@ class _Run:
             again = agent.sense_again(np.vstack([before_rest, after_rest]))
             cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
                 (agent.phase == EXPLORING and
-                 change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1]))
+                 change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
+                or agent.witnesses_moved()
             self.log.add(first_row - 1, body.row - 1, cut, before_rest, "cut")
             if not cut:
                 self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
