@@ -58,13 +58,13 @@ class ClockTruth:
 
 
 def explore_clocked(world, params: NaiveParams | None = None, *, interval: float,
-                    sweep_budget: int = 64, equality_changes: int = 0, progress=None):
+                    exploration, sweep_budget: int = 64, equality_changes: int = 0,
+                    progress=None):
     """Run the agent through ``world.events`` on a row clock of mean
     ``interval`` rows; then, with ``equality_changes``, through the schedule
     once more in simulation 2 (``begin_equality_pass``) for that many of the
-    changes it detects. Returns ``(NaiveExploration, ClockTruth)``."""
-    from sensorispace_ros.core.naive.run import NaiveExploration
-
+    changes it detects. ``exploration``: the class of what is returned
+    (``run.NaiveExploration``). Returns ``(exploration, ClockTruth)``."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
     events = list(world.events) * (2 if equality_changes > 0 else 1)
@@ -96,7 +96,7 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
         if progress is not None and callable(progress):
             progress(body.state, len(events))
     exploration_s = time.perf_counter() - started
-    return run.exploration(world, events, exploration_s, NaiveExploration), run.truth()
+    return run.exploration(world, events, exploration_s, exploration), run.truth()
 
 
 def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):

@@ -115,6 +115,7 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
         from sensorispace_ros.core.naive.clocked_run import explore_clocked
         params = params if params is not None else NaiveParams()
         explored, clock_truth = explore_clocked(world, params, interval=change_interval,
+                                                exploration=NaiveExploration,
                                                 sweep_budget=params.clock_sweep_budget,
                                                 equality_changes=params.clock_equality_changes,
                                                 progress=progress)
