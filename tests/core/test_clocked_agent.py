@@ -27,8 +27,10 @@ def test_no_react_per_change_and_no_notice(clocked_smoke):
     world, run, metrics = clocked_smoke
     truth = run.clock
     # Changes came faster than the agent finished its work: it reacted to
-    # fewer than there were and some of its reactions were cut.
-    assert metrics["naive.clock.reactions"] < len(world.events)
+    # fewer than there were (the schedule, then simulation 2 through it
+    # again) and some of its reactions were cut.
+    assert metrics["naive.clock.changes"] == 2 * len(world.events)
+    assert metrics["naive.clock.reactions"] < metrics["naive.clock.changes"]
     assert truth.undone > 0 and truth.lost_rows > 0
     assert truth.held_rows > 0 and truth.rows > truth.held_rows
 
@@ -47,6 +49,13 @@ def test_changes_are_detected_from_the_flow(clocked_smoke):
     assert metrics["naive.clock.detectable"] > 50
     assert metrics["naive.clock.recall"] >= 0.99
     assert metrics["naive.clock.false_detection_rate"] <= 0.01
+
+
+def test_simulation_2_on_the_clock_gives_equality_sets(clocked_smoke):
+    _, run, _ = clocked_smoke
+    pairs, set_ids = run.agent.equality_sets()
+    assert run.agent.queries_by_stage.get("equality_pass", 0) > 0
+    assert len(np.unique(set_ids)) > 50 and len(pairs) > 2 * len(np.unique(set_ids))
 
 
 def test_the_same_seed_gives_the_same_run(clocked_smoke):
