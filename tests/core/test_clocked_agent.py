@@ -64,3 +64,9 @@ def test_the_same_seed_gives_the_same_run(clocked_smoke):
     again = run_naive(world, NaiveParams(**cfg["naive"]), clock="rows", change_interval=1000.0)
     assert np.array_equal(again.povs, run.povs)
     assert again.agent.queries_total == run.agent.queries_total
+
+
+def test_wall_clock_is_refused_offline():
+    cfg = config.load_config(SMOKE, {"world.clock": "wall"})
+    with pytest.raises(config.ConfigError, match=r"world\.clock"):
+        run_naive(run_world(cfg), NaiveParams(**cfg["naive"]), clock="wall")

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sensorispace_ros import config
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -123,7 +124,8 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
         explored = explore_naive(world, params, progress=progress, equality_pass=equality_pass,
                                  body_wrapper=body_wrapper)
     else:
-        raise ValueError(f"clock: must be agent or rows offline, got {clock!r}")
+        raise config.ConfigError(f"world.clock: offline runs take agent or rows, got {clock!r} "
+                                 "(wall needs the graph: docs/clock.md)")
     agent = explored.agent
     pov_s = agent.seconds_by_stage.get("pov", 0.0)
     pairs, set_ids = agent.equality_sets()
