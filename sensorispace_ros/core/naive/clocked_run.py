@@ -78,7 +78,8 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
     reference, reference_row = agent.anchor_sensation, body.row - 1
     equality_left = int(equality_changes)
     while True:
-        sensed = run.walk_pending(reference) if agent.phase == EXPLORING else None
+        sensed = run.walk_pending(reference, reference_row) if agent.phase == EXPLORING \
+            else None
         if sensed is None:
             sensed = run.hold(reference, reference_row)
             if sensed is None:
@@ -172,9 +173,10 @@ class _Run:
             self._undo(saved, rows_before)
             sensed_at_rest = again[0]
 
-    def walk_pending(self, reference: np.ndarray):
-        """Walk the pending solutions one by one while the world stays; returns
-        None, or the sensation at rest of a world that changed."""
+    def walk_pending(self, reference: np.ndarray, reference_row: int):
+        """Walk the pending solutions one by one while the world stays
+        (``reference``: the sensation at rest, sensed at ``reference_row``);
+        returns None, or the sensation at rest of a world that changed."""
         agent, body = self.agent, self.body
         while len(agent.pending):
             saved = agent.checkpoint()
@@ -182,7 +184,7 @@ class _Run:
             try:
                 agent.walk_pending(reference)
             except WorldChanged as stop:
-                self.log.add(first_row - 1, body.row - 1, True, agent.rest_motor_state, "walk")
+                self.log.add(reference_row, body.row - 1, True, agent.rest_motor_state, "walk")
                 self.lost_rows += agent.queries_total - rows_before
                 agent.restore(saved, salvage=False)
                 return np.asarray(stop.args[0], dtype=float)
