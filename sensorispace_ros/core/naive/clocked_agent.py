@@ -299,14 +299,37 @@ class ClockedAgent(NaiveAgent):
         return current, np.zeros((0, n_sensors))
 
     def witnesses_moved(self) -> bool:
-        """Sense again the witnesses of this reaction's sweep (its swept POVs
-        that sensed most): did any move? A change the resting state does not
-        see (it sees nothing before and after) shows there."""
-        if self._witnesses is None:
+        """Sense again the witnesses of this reaction: its swept POVs that
+        sensed most and, from what it sensed since the change, the states
+        that sensed most in each half of the reaction. Did any move? A change
+        the resting state does not see (it sees nothing before and after)
+        shows there."""
+        states, held = self._memory_witnesses()
+        if self._witnesses is not None:
+            states = np.vstack([self._witnesses[0], states])
+            held = np.vstack([self._witnesses[1], held])
+        if not len(states):
             return False
-        states, held = self._witnesses
         again = self.sense_again(self._to_body(states))
         return any(change_detection.differs(self.noise_sd, a, b) for a, b in zip(held, again))
+
+    def _memory_witnesses(self):
+        """``WITNESSES`` states sensed since the change that sensed most, half
+        from each half of the reaction (none without ``remember_sensations``)."""
+        memory = getattr(self._body, "_sensed", None)
+        empty = np.zeros((0, self.n_motors)), np.zeros((0, self._body.n_sensors))
+        if memory is None or memory.count == 0:
+            return empty
+        states = memory._motor_states[:memory.count]
+        sensed = memory._sensations[:memory.count]
+        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+        half = memory.count // 2
+        chosen = []
+        for part in (np.arange(half), np.arange(half, memory.count)):
+            chosen.extend(part[np.argsort(-lit[part], kind="stable")[:WITNESSES // 2]])
+        chosen = np.asarray(chosen, dtype=int)
+        chosen = chosen[lit[chosen] > 0]
+        return states[chosen].copy(), sensed[chosen].copy()
 
     def _anchor_requests(self, matches, rest_hits, rank_now):
         """``anchors.anchor_requests``; once the agent knows more POVs than

@@ -146,32 +146,32 @@ class _Run:
 
     def react(self, sensed_at_rest: np.ndarray, reaction=None):
         """React (``reaction``, default ``agent.react``) until a reaction is
-        not cut by a change; returns the new reference sensation and the row
-        it was sensed at."""
+        not cut by a change; ``sensed_at_rest`` was sensed at the last row.
+        Returns the new reference sensation and the row it was sensed at."""
         agent, body = self.agent, self.body
+        reference_row = body.row - 1
         while True:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
             first_row, rows_before = body.row, agent.queries_total
             try:
                 agent.watched(reaction or agent.react, sensed_at_rest)
-            except WorldChanged as stop:
-                self.log.add(first_row - 1, body.row - 1, True, before_rest, "cut")
-                self._undo(saved, rows_before)
-                sensed_at_rest = np.asarray(stop.args[0], dtype=float)
-                continue
-            after_rest = agent.rest_motor_state
-            again = agent.sense_again(np.vstack([before_rest, after_rest]))
-            cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
-                (agent.phase == EXPLORING and
-                 change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
-                or agent.witnesses_moved()
-            self.log.add(first_row - 1, body.row - 1, cut, before_rest, "cut")
+                after_rest = agent.rest_motor_state
+                again = agent.sense_again(np.vstack([before_rest, after_rest]))
+                cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
+                    (agent.phase == EXPLORING and
+                     change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
+                    or agent.witnesses_moved()
+            except WorldChanged:
+                cut = True
+            self.log.add(reference_row, body.row - 1, cut, before_rest, "cut")
             if not cut:
                 self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
                 return again[1], body.row - 1
             self._undo(saved, rows_before)
-            sensed_at_rest = again[0]
+            # The world as it is now, at the resting state the undone reaction started from.
+            sensed_at_rest = agent.sense_again(before_rest)[0]
+            reference_row = body.row - 1
 
     def walk_pending(self, reference: np.ndarray, reference_row: int):
         """Walk the pending solutions one by one while the world stays
@@ -180,7 +180,7 @@ class _Run:
         agent, body = self.agent, self.body
         while len(agent.pending):
             saved = agent.checkpoint()
-            first_row, rows_before = body.row, agent.queries_total
+            rows_before = agent.queries_total
             try:
                 agent.walk_pending(reference)
             except WorldChanged as stop:
