@@ -8,9 +8,9 @@ waiting world:
 * a reaction senses a bounded part of what it knows (``_sweep_known``):
   its resting POV and ``sweep_budget`` more, in turn (a cursor walks
   through the known POVs); the others are unknowns this time, as a lost
-  frame is. What a reaction costs no longer grows with the POVs known. A
+  frame is. What a reaction costs does not grow with the POVs known. A
   search's solution is compared with the known POVs nearest to it in motor
-  space, sensed now (``_sense_near``): a solution sensing what one senses is
+  space, sensed in this world (``_sense_near``): a solution sensing what one senses is
   that POV, swept or not;
 * every call a reaction sends ends with a *sentinel*, the resting state
   of before, whose sensation in this world the agent holds (``Tripwire``):
@@ -195,7 +195,7 @@ class ClockedAgent(NaiveAgent):
     def watched(self, reaction, sensed_at_rest):
         """``reaction(sensed_at_rest)`` (``react``) or ``reaction()``
         (``begin_equality_pass``) with the sentinel armed: the resting state
-        now, whose sensation in this world is ``sensed_at_rest``. Raises
+        at the call, whose sensation in this world is ``sensed_at_rest``. Raises
         ``WorldChanged`` (the agent then inside an unfinished reaction:
         ``restore`` it)."""
         self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
@@ -359,7 +359,7 @@ class ClockedAgent(NaiveAgent):
         return solution, others, gain
 
     def _sense_near(self, current: np.ndarray, states: np.ndarray) -> None:
-        """Fill the rows of ``current`` not sensed now of the ``NEAR_POVS``
+        """Fill the rows of ``current`` not sensed in this reaction of the ``NEAR_POVS``
         known POVs nearest (in phases, on the torus) to each of ``states``."""
         unknown = np.flatnonzero(~np.all(np.isfinite(current), axis=1))
         if not len(unknown):

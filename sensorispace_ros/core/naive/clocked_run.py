@@ -11,7 +11,7 @@ agent senses again its resting state of before, its new one and the
 witnesses of its sweep: if any moved, the world changed while it worked,
 and the reaction is undone
 (``ClockedAgent.restore``; its rows stay counted as work lost) and made
-again in the world as it is now.
+again in the world as it is at that row.
 
 The driver notes, for the evaluator, the world state (ground truth) at each
 kept reaction's first and last row and every test the agent made
@@ -41,8 +41,9 @@ class ClockTruth:
     the arm's state then, ``event_states`` ``(T + 1, 2)`` the world state at
     each kept reaction's first and last row (event 0: the start), the tests
     the agent made (``log``), ``lost_rows`` rows of undone reactions,
-    ``undone`` their number, ``salvaged`` the POVs kept from them, ``rows`` / ``held_rows`` the clock at the end, ``lights`` of each
-    world state."""
+    ``undone`` their number, ``salvaged`` the POVs kept from them,
+    ``rows`` / ``held_rows`` the clock at the end, ``lights`` of each world
+    state."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -169,7 +170,7 @@ class _Run:
                 self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
                 return again[1], body.row - 1
             self._undo(saved, rows_before)
-            # The world as it is now, at the resting state the undone reaction started from.
+            # The world of this row, at the resting state the undone reaction started from.
             sensed_at_rest = agent.sense_again(before_rest)[0]
             reference_row = body.row - 1
 
