@@ -164,7 +164,9 @@ def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
     return NaiveGroundTruth(
         centers=np.asarray(explored.centers, dtype=float), layout=np.asarray(explored.layout),
         kinds=list(explored.kinds),
-        grid_index=np.asarray([-1] + [e.grid_index for e in world.events], dtype=np.int64),
+        grid_index=(np.asarray([-1] + [e.grid_index for e in world.events], dtype=np.int64)
+                    if getattr(explored, "grid_index", None) is None
+                    else np.asarray(explored.grid_index, dtype=np.int64)),
         true_poses=world.arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
         initial_motor_state=np.asarray(world.m0, dtype=float),
         paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2),

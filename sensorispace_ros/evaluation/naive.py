@@ -47,6 +47,9 @@ def join_naive_run(produced: StrategyOutput, truth: RunTruth) -> StrategyOutput:
     world, result = truth.world, produced.naive_run
     started = time.perf_counter()
     evaluated = evaluate_naive_run(result, world, truth.paper_positions)
+    if result.clock is not None:
+        from sensorispace_ros.evaluation.clock import clock_metrics
+        evaluated.metrics.update(clock_metrics(result, world))
     seconds = time.perf_counter() - started
     povs = produced.povs
     true_poses = np.asarray(evaluated.true_poses)

@@ -79,6 +79,11 @@ class GraphNode(Node):
             else:
                 flat[pname] = value
         self.cfg = config.load_config(None, overrides=flat, simulated_body=self.simulated_body)
+        if self.cfg["world"]["clock"] != "agent":
+            # The graph's protocol is the lockstep one (change/<k>, /agent/settled).
+            raise config.ConfigError(f"world.clock: the graph runs only agent, got "
+                                     f"{self.cfg['world']['clock']!r} (rows runs offline: "
+                                     "docs/clock.md)")
         self.graph = config.load_graph(graph)
         self.dropped: dict[str, int] = {}
         self._cloud_readers: dict[str, messages.CloudCdrReader] = {}

@@ -182,7 +182,8 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     world = run_world(cfg, seed)
     params = NaiveParams(**cfg["naive"])
     start = time.perf_counter()
-    result = run_naive(world, params, progress=progress)
+    result = run_naive(world, params, progress=progress, clock=cfg["world"]["clock"],
+                       change_interval=cfg["world"]["change_interval"])
     elapsed = time.perf_counter() - start
     timings = {key: float(value) for key, value in result.timings_s.items()
                if key in ("exploration", "points_of_view", "equality_sets")}

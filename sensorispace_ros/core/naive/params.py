@@ -71,6 +71,8 @@ class NaiveParams:
     confirm_checks: int = _default("confirm_checks")
     remember_sensations: bool = _default("remember_sensations")
     remember_split_povs: bool = _default("remember_split_povs")
+    clock_sweep_budget: int = _default("clock_sweep_budget")
+    clock_equality_changes: int = _default("clock_equality_changes")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.

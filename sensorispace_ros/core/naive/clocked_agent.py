@@ -1,0 +1,387 @@
+"""The naive agent in a world that does not wait for it.
+
+``ClockedAgent`` is a ``NaiveAgent`` that is told nothing about time: its
+driver (``clocked_run``) calls ``react`` when the agent's own test
+(``change_detection``) flags a change. What differs from the agent of a
+waiting world:
+
+* a reaction senses a bounded part of what it knows (``_sweep_known``):
+  its resting POV and ``sweep_budget`` more, in turn (a cursor walks
+  through the known POVs); the others are unknowns this time, as a lost
+  frame is. What a reaction costs does not grow with the POVs known. A
+  search's solution is compared with the known POVs nearest to it in motor
+  space, sensed in this world (``_sense_near``): a solution sensing what one senses is
+  that POV, swept or not;
+* every call a reaction sends ends with a *sentinel*, the resting state
+  of before, whose sensation in this world the agent holds (``Tripwire``):
+  when it moved, the world changed while the agent was working and the
+  reaction stops (``WorldChanged``);
+* a reaction can be undone (``checkpoint``/``restore``): what it found
+  spans two worlds and is dropped, its probing still counted, except the
+  POVs whose walks were verified before the change, and the search
+  solutions whose walk the change cut (``pending``, walked later, one at a
+  time: ``walk_pending``). A POV is a set of motor states of one eye pose,
+  whatever the world; a walk is valid when all its rows saw one world.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import replace
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sensorispace_ros.core.naive import change_detection
+from sensorispace_ros.core.naive.agent import NaiveAgent
+from sensorispace_ros.core.naive.anchors import anchor_requests
+from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
+    EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
+from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.searching import SearchAndSample
+
+NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
+WITNESSES = 8        # swept POVs sensed again after a reaction
+
+
+class WorldChanged(Exception):
+    """The sentinel's sensation left its band: the world changed."""
+
+
+class Tripwire:
+    """The agent's body with a sentinel row after every call while armed
+    (``arm``): its sensation is tested against the one the agent holds
+    (``change_detection.differs``): when it passes, every row of the call
+    saw the world the agent holds. Rows are the body's units.
+    ``on_pass()`` is called after every sentinel that passes."""
+
+    def __init__(self, body, on_pass=None):
+        self._body = body
+        self.n_motors = int(body.n_motors)
+        self.n_sensors = int(body.n_sensors)
+        self.description = getattr(body, "description", None)
+        self._sentinel = None
+        self._reference = None
+        self.noise_sd = 0.0
+        self.rows = 0                  # sentinel rows sensed
+        self.passed = 0                # sentinels that passed
+
+    @property
+    def armed(self) -> bool:
+        return self._sentinel is not None
+
+    def arm(self, motor_state, reference, noise_sd: float) -> None:
+        self._sentinel = np.asarray(motor_state, dtype=float).reshape(1, -1)
+        self._reference = np.asarray(reference, dtype=float).reshape(-1)
+        self.noise_sd = float(noise_sd)
+
+    def disarm(self) -> None:
+        self._sentinel = self._reference = None
+
+    def check(self) -> None:
+        """Sense the sentinel alone (raises ``WorldChanged``)."""
+        self.sense(np.zeros((0, self.n_motors)))
+
+    def sense(self, motor_states) -> np.ndarray:
+        motor_states = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
+        if self._sentinel is None:
+            return self._body.sense(motor_states)
+        sensed = self._body.sense(np.vstack([motor_states, self._sentinel]))
+        self.rows += 1
+        if change_detection.differs(self.noise_sd, self._reference, sensed[-1]):
+            raise WorldChanged(sensed[-1])
+        self.passed += 1
+        return sensed[:-1]
+
+    def move(self, motor_states) -> None:
+        self.sense(motor_states)
+
+
+class AllPairsSweep(EqualitySetSweep):
+    """Simulation 2 that matches each sweep with every earlier one, not
+    only the previous: a world the agent met before is a displacement it can
+    still tell, however many changes it missed in between (``history``:
+    each sweep's sensations and ranks)."""
+
+    def observe(self) -> np.ndarray:
+        current = np.asarray(self.body.sense(self.probe_states), dtype=float)
+        self.rows += len(current)
+        self.calls += 1
+        rank = np.full(len(current), RANK_UNKNOWN)
+        tree = cKDTree(finite_rows(current, -1.0))
+        for previous, previous_rank in self.history:
+            before, after = match_sensations(previous, current, match_tol=self.match_tol,
+                                             separation=self.separation, tree=tree)
+            known = np.where(rank[after] != RANK_UNKNOWN, rank[after], previous_rank[before])
+            rank[after] = known
+            unknown = after[known == RANK_UNKNOWN]
+            if len(unknown):
+                full, rows = check_pose_rank(self.body, self.probe_states[unknown],
+                                             rank=self.rank, fd_step=self.fd_step,
+                                             rank_ratio=self.rank_ratio,
+                                             min_singular=self.min_singular,
+                                             pattern_ratio=self.pattern_ratio)
+                self.rows += rows
+                self.calls += 1
+                rank[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
+            previous_rank[before] = rank[after]
+            good = rank[after] == RANK_FULL
+            self.sets.add(before[good], after[good])
+        self.history.append((current, rank))
+        return np.zeros((0, 2), dtype=int)
+
+
+class _CurrentTree:
+    """A ``cKDTree`` of the current sensations built when queried: the
+    search fills rows of ``current`` (``_sense_near``) after the tree would
+    have been built."""
+
+    def __init__(self, current: np.ndarray):
+        self._current = current
+
+    def query(self, x, k=1, **kwargs):
+        return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
+
+
+class ClockedAgent(NaiveAgent):
+    """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
+
+    def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
+        self._tripwire = Tripwire(body)
+        super().__init__(self._tripwire, params)
+        if isinstance(sweep_budget, bool) or not isinstance(sweep_budget, (int, np.integer)) \
+                or sweep_budget < 0:
+            raise ValueError(f"sweep_budget: must be an integer >= 0, got {sweep_budget!r}")
+        self.sweep_budget = int(sweep_budget)
+        self._sweep_cursor = 0
+        self.pending = np.zeros((0, self.n_motors))   # solutions whose walk a change cut
+        self._verified = 0          # POVs stored whose every row passed a sentinel
+        self._cut_walk = None       # the start states of a walk a change cut
+        self._search_current = None
+        self._witnesses = None      # (states, sensations) of this reaction's sweep
+
+    # ------------------------------------------------------------ the clock
+
+    @property
+    def noise_sd(self) -> float:
+        """The per-receptor noise the agent measured (0 before ``start``)."""
+        return 0.0 if self.structure is None else float(self.structure.noise)
+
+    @property
+    def anchor_sensation(self) -> np.ndarray | None:
+        """The sensation recorded at the resting state in its last reaction."""
+        return None if not self._pool else self._pool[0].rest_sensation.copy()
+
+    @property
+    def queries_total(self) -> int:
+        return self._body.total_rows + self._tripwire.rows
+
+    @property
+    def queries_by_stage(self) -> dict:
+        """Rows per stage; the sentinels count as resting rows."""
+        rows = dict(self._body.rows)
+        rows["rest"] = rows.get("rest", 0) + self._tripwire.rows
+        return rows
+
+    def sense_again(self, motor_states) -> np.ndarray:
+        """Sense ``motor_states`` (body units) afresh, not from memory:
+        counted as resting rows."""
+        rows = self._phase.to_phase(np.atleast_2d(np.asarray(motor_states, dtype=float)))
+        self._body.stage = "rest"
+        with self._body.fresh():
+            sensed = self._body.sense(np.ascontiguousarray(rows))
+        self._body.pause()
+        return sensed
+
+    def watched(self, reaction, sensed_at_rest):
+        """``reaction(sensed_at_rest)`` (``react``) or ``reaction()``
+        (``begin_equality_pass``) with the sentinel armed: the resting state
+        at the call, whose sensation in this world is ``sensed_at_rest``. Raises
+        ``WorldChanged`` (the agent then inside an unfinished reaction:
+        ``restore`` it)."""
+        self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
+        self._verified = self._store.count
+        self._cut_walk = None
+        self._witnesses = None
+        try:
+            if reaction == self.react:
+                return reaction(sensed_at_rest)
+            return reaction()
+        finally:
+            self._tripwire.disarm()
+            self._body.pause()
+
+    def walk_pending(self, sensed_at_rest) -> int:
+        """Walk the oldest pending solution, watched as a reaction is; the
+        sentinel is sensed once more after the walk. Returns the POVs added
+        (0 or 1). Raises ``WorldChanged`` (``restore`` the agent then)."""
+        if not len(self.pending):
+            return 0
+        state, self.pending = self.pending[0], self.pending[1:]
+        self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
+        try:
+            new, _ = SearchAndSample._sample_povs(self, state[None])
+            self._tripwire.check()
+        finally:
+            self._tripwire.disarm()
+            self._body.pause()
+        return len(new)
+
+    def begin_equality_pass(self) -> None:
+        """Simulation 2 with every earlier sweep matched (``AllPairsSweep``)."""
+        super().begin_equality_pass()
+        sweep = self._sweep
+        sweep.__class__ = AllPairsSweep
+        sweep.history = [(sweep._previous, sweep._previous_rank)]
+
+    def checkpoint(self) -> dict:
+        """What the agent knows (its counters excluded), to undo a reaction."""
+        kept = {name: value for name, value in vars(self).items()
+                if name not in ("_body", "_tripwire")}
+        if self._sweep is not None:     # simulation 2's sweep senses through the body
+            kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
+                              if name != "body"}
+        return copy.deepcopy(kept)
+
+    def restore(self, saved: dict, salvage: bool = True) -> int:
+        """Back to ``saved``; the rows spent since stay counted. With
+        ``salvage``, the POVs verified since are kept and the solutions of a
+        cut walk are pending (module docstring). Returns the POVs kept."""
+        first, first_q = saved["_store"].count, len(saved["pov_queries"])
+        kept = max(0, self._verified - first) if salvage else 0
+        samples = self._store.samples[first:first + kept].copy()
+        queries = list(self.pov_queries[first_q:first_q + kept])
+        cut = self._cut_walk if salvage else None
+        restored = copy.deepcopy(saved)
+        sweep = restored.pop("_sweep", None)
+        vars(self).update(restored)
+        self._body.phase = self._phase
+        if sweep is not None:
+            self._sweep = AllPairsSweep.__new__(AllPairsSweep)
+            vars(self._sweep).update(sweep, body=self._body)
+        else:
+            self._sweep = None
+        for pov, walked in zip(samples, queries):
+            self._store.append(pov)
+            self.pov_queries.append(int(walked))
+            self.pov_events.append(self._event)
+        if cut is not None:
+            # Every call of the search before the walk passed its sentinel.
+            self.pending = np.vstack([self.pending, cut])
+        return kept
+
+    # ------------------------------------------------------ bounded sweeps
+
+    def _sweep_indices(self) -> np.ndarray:
+        """The known POVs this reaction senses: the resting one and the next
+        ``sweep_budget`` from the cursor (all when that is every one)."""
+        count = self._store.count
+        if count <= self.sweep_budget + 1:
+            return np.arange(count)
+        start = self._sweep_cursor % count
+        chosen = (start + np.arange(self.sweep_budget)) % count
+        self._sweep_cursor = start + self.sweep_budget
+        if self._rest_pov >= 0:
+            chosen = np.append(chosen, self._rest_pov)
+        return np.unique(chosen)
+
+    def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
+        n_sensors = self._body.n_sensors
+        count = self._store.count
+        if count == 0:
+            return np.zeros((0, n_sensors)), np.zeros((0, n_sensors))
+        chosen = self._sweep_indices()
+        current = np.full((count, n_sensors), np.nan)
+        sensed = self._body.sense(self._store.samples[chosen, 0])
+        current[chosen] = sensed
+        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+        top = np.argsort(-lit, kind="stable")[:WITNESSES]
+        self._witnesses = (self._store.samples[chosen[top], 0].copy(), sensed[top].copy())
+        return current, np.zeros((0, n_sensors))
+
+    def witnesses_moved(self) -> bool:
+        """Sense again the witnesses of this reaction: its swept POVs that
+        sensed most and, from what it sensed since the change, the states
+        that sensed most in each half of the reaction. Did any move? A change
+        the resting state does not see (it sees nothing before and after)
+        shows there."""
+        states, held = self._memory_witnesses()
+        if self._witnesses is not None:
+            states = np.vstack([self._witnesses[0], states])
+            held = np.vstack([self._witnesses[1], held])
+        if not len(states):
+            return False
+        again = self.sense_again(self._to_body(states))
+        return any(change_detection.differs(self.noise_sd, a, b) for a, b in zip(held, again))
+
+    def _memory_witnesses(self):
+        """``WITNESSES`` states sensed since the change that sensed most, half
+        from each half of the reaction (none without ``remember_sensations``)."""
+        memory = getattr(self._body, "_sensed", None)
+        empty = np.zeros((0, self.n_motors)), np.zeros((0, self._body.n_sensors))
+        if memory is None or memory.count == 0:
+            return empty
+        states = memory._motor_states[:memory.count]
+        sensed = memory._sensations[:memory.count]
+        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+        half = memory.count // 2
+        chosen = []
+        for part in (np.arange(half), np.arange(half, memory.count)):
+            chosen.extend(part[np.argsort(-lit[part], kind="stable")[:WITNESSES // 2]])
+        chosen = np.asarray(chosen, dtype=int)
+        chosen = chosen[lit[chosen] > 0]
+        return states[chosen].copy(), sensed[chosen].copy()
+
+    def _anchor_requests(self, matches, rest_hits, rank_now):
+        """``anchors.anchor_requests``; once the agent knows more POVs than
+        ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
+        per change: with a bounded sweep most snapshots go unconfirmed (their
+        matches were not sensed), not only those a redistribution made stale."""
+        params = self.params
+        if self._store.count >= params.unconfirmed_max_povs:
+            params = replace(params, unconfirmed_max_povs=self._store.count + 1,
+                             unconfirmed_attempts=min(params.unconfirmed_attempts, 1))
+        return anchor_requests(self._pool, matches, rest_hits, rank_now, params,
+                               pov_samples=self._store.samples,
+                               frontier_budget=self._frontier_budget())
+
+    def _search(self, requests, current, tree, split_now):
+        self._search_current = current
+        try:
+            return super()._search(requests, current,
+                                   None if tree is None else _CurrentTree(current), split_now)
+        finally:
+            self._search_current = None
+
+    def _run_searches(self, unique_targets, owner, starts):
+        solution, others, gain = super()._run_searches(unique_targets, owner, starts)
+        if self._search_current is not None and solution:
+            self._sense_near(self._search_current, np.stack(list(solution.values())))
+        return solution, others, gain
+
+    def _sense_near(self, current: np.ndarray, states: np.ndarray) -> None:
+        """Fill the rows of ``current`` not sensed in this reaction of the ``NEAR_POVS``
+        known POVs nearest (in phases, on the torus) to each of ``states``."""
+        unknown = np.flatnonzero(~np.all(np.isfinite(current), axis=1))
+        if not len(unknown):
+            return
+        samples = self._store.samples[unknown]                       # (U, N, M)
+        wanted = set()
+        for state in states:
+            gap = (samples - state + np.pi) % (2.0 * np.pi) - np.pi
+            nearest = np.linalg.norm(gap, axis=2).min(axis=1)
+            wanted.update(unknown[np.argsort(nearest)[:NEAR_POVS]].tolist())
+        ids = np.asarray(sorted(wanted), dtype=int)
+        self._body.stage = "sweep"
+        current[ids] = self._body.sense(self._store.samples[ids, 0])
+        self._body.stage = "compensation"
+
+    def _sample_povs(self, motor_states, keep_invalid=False, others=None):
+        try:
+            walked = super()._sample_povs(motor_states, keep_invalid=keep_invalid, others=others)
+        except WorldChanged:
+            if self._tripwire.armed:
+                self._cut_walk = np.array(motor_states, dtype=float)
+            raise
+        # Every call of the walk (and of the search before it) passed its sentinel.
+        self._verified = self._store.count
+        return walked

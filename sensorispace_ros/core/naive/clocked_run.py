@@ -1,0 +1,223 @@
+"""Offline driver of the naive agent in a world on its own clock
+(``world.clock: rows``).
+
+The world changes after a seeded number of rows (``core.world_clock``),
+wherever that falls; the agent gets no notice. It holds still at its
+resting state while its sensation stays within its noise band
+(``change_detection.band``, one ``hold`` call), reacts when it leaves it
+(confirmed by sensing the state once more). Every call of a reaction ends
+with a sentinel row (``clocked_agent.Tripwire``); after each reaction the
+agent senses again its resting state of before, its new one and the
+witnesses of its sweep: if any moved, the world changed while it worked,
+and the reaction is undone
+(``ClockedAgent.restore``; its rows stay counted as work lost) and made
+again in the world as it is at that row.
+
+The driver notes, for the evaluator, the world state (ground truth) at each
+kept reaction's first and last row and every test the agent made
+(``change_detection.ChangeLog``); the agent never sees any of it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sensorispace_ros.core.body import SensingOnly
+from sensorispace_ros.core.naive import change_detection
+from sensorispace_ros.core.naive.change_detection import ChangeLog
+from sensorispace_ros.core.naive.clocked_agent import ClockedAgent, WorldChanged
+from sensorispace_ros.core.naive.agent import EXPLORING
+from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.world import REDISTRIBUTION
+from sensorispace_ros.core.world_clock import ClockedBody, change_rows
+
+
+@dataclass
+class ClockTruth:
+    """Ground truth of a clocked run: ``change_row`` ``(C,)`` the rows the
+    world changed before, ``rest_jumps`` how far each moved the sensation at
+    the arm's state then, ``event_states`` ``(T + 1, 2)`` the world state at
+    each kept reaction's first and last row (event 0: the start), the tests
+    the agent made (``log``), ``lost_rows`` rows of undone reactions,
+    ``undone`` their number, ``salvaged`` the POVs kept from them,
+    ``rows`` / ``held_rows`` the clock at the end, ``lights`` of each world
+    state."""
+
+    change_row: np.ndarray
+    rest_jumps: np.ndarray
+    event_states: np.ndarray
+    log: ChangeLog
+    lost_rows: int
+    undone: int
+    salvaged: int
+    rows: int
+    held_rows: int
+    state_of: object = field(repr=False, default=None)
+    lights: list = field(repr=False, default_factory=list)   # of each world state
+
+
+def explore_clocked(world, params: NaiveParams | None = None, *, interval: float,
+                    exploration, sweep_budget: int = 64, equality_changes: int = 0,
+                    progress=None):
+    """Run the agent through ``world.events`` on a row clock of mean
+    ``interval`` rows; then, with ``equality_changes``, through the schedule
+    once more in simulation 2 (``begin_equality_pass``) for that many of the
+    changes it detects. ``exploration``: the class of what is returned
+    (``run.NaiveExploration``). Returns ``(exploration, ClockTruth)``."""
+    params = params if params is not None else NaiveParams()
+    started = time.perf_counter()
+    events = list(world.events) * (2 if equality_changes > 0 else 1)
+    body = ClockedBody(world.body(lights=world.initial_lights),
+                       [world.initial_lights] + [e.lights for e in events],
+                       change_rows(len(events), interval, world.seed))
+    agent, first_row, lost = _start(body, world, params, sweep_budget)
+    run = _Run(agent, body)
+    run.lost_rows = lost
+    run.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
+    reference, reference_row = agent.anchor_sensation, body.row - 1
+    equality_left = int(equality_changes)
+    while True:
+        sensed = run.walk_pending(reference, reference_row) if agent.phase == EXPLORING \
+            else None
+        if sensed is None:
+            sensed = run.hold(reference, reference_row)
+            if sensed is None:
+                break
+            if sensed is False:
+                continue
+        if agent.phase == EXPLORING and body.state > len(world.events) and equality_left:
+            reference, reference_row = run.react(sensed, agent.begin_equality_pass)
+            continue
+        reference, reference_row = run.react(sensed)
+        if agent.phase != EXPLORING:
+            equality_left -= 1
+            if equality_left <= 0:
+                break
+        if progress is not None and callable(progress):
+            progress(body.state, len(events))
+    exploration_s = time.perf_counter() - started
+    return run.exploration(world, events, exploration_s, exploration), run.truth()
+
+
+def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):
+    """A started agent whose start saw one world: the start state is sensed
+    before and after ``start`` and compared by the noise the start measured;
+    a start the world changed under is made again by a new agent (its rows
+    counted as lost). Returns the agent, the start's first row and the rows lost."""
+    lost = 0
+    while True:
+        first_row = body.row
+        agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
+        before = agent.sense_again(world.m0)[0]
+        agent.start(world.m0, seed=world.seed)
+        after = agent.sense_again(world.m0)[0]
+        rest_now = agent.sense_again(agent.rest_motor_state)[0]
+        if not (change_detection.differs(agent.noise_sd, before, after) or
+                change_detection.differs(agent.noise_sd, agent.anchor_sensation, rest_now)):
+            return agent, first_row, lost
+        lost += agent.queries_total
+
+
+class _Run:
+    """The reactions of one clocked run and what ground truth notes of them."""
+
+    def __init__(self, agent: ClockedAgent, body: ClockedBody):
+        self.agent, self.body = agent, body
+        self.log = ChangeLog()
+        self.event_states: list[tuple[int, int]] = []
+        self.lost_rows = 0
+        self.undone = 0
+        self.salvaged = 0
+
+    def hold(self, reference: np.ndarray, reference_row: int):
+        """Hold still until the sensation at rest leaves its band; confirm by
+        sensing once more. Returns that sensation, False (not confirmed) or
+        None (the world has no change left)."""
+        agent, body = self.agent, self.body
+        low, high = change_detection.band(agent.noise_sd, reference)
+        rest = agent.rest_motor_state
+        if body.hold(rest, low, high) is None:
+            return None
+        sensed = agent.sense_again(rest)[0]
+        changed = change_detection.differs(agent.noise_sd, reference, sensed)
+        self.log.add(reference_row, body.row - 1, changed, rest, "hold")
+        return sensed if changed else False
+
+    def react(self, sensed_at_rest: np.ndarray, reaction=None):
+        """React (``reaction``, default ``agent.react``) until a reaction is
+        not cut by a change; ``sensed_at_rest`` was sensed at the last row.
+        Returns the new reference sensation and the row it was sensed at."""
+        agent, body = self.agent, self.body
+        reference_row = body.row - 1
+        while True:
+            saved = agent.checkpoint()
+            before_rest = agent.rest_motor_state
+            first_row, rows_before = body.row, agent.queries_total
+            try:
+                agent.watched(reaction or agent.react, sensed_at_rest)
+                after_rest = agent.rest_motor_state
+                again = agent.sense_again(np.vstack([before_rest, after_rest]))
+                cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
+                    (agent.phase == EXPLORING and
+                     change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
+                    or agent.witnesses_moved()
+            except WorldChanged:
+                cut = True
+            self.log.add(reference_row, body.row - 1, cut, before_rest, "cut")
+            if not cut:
+                self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
+                return again[1], body.row - 1
+            self._undo(saved, rows_before)
+            # The world of this row, at the resting state the undone reaction started from.
+            sensed_at_rest = agent.sense_again(before_rest)[0]
+            reference_row = body.row - 1
+
+    def walk_pending(self, reference: np.ndarray, reference_row: int):
+        """Walk the pending solutions one by one while the world stays
+        (``reference``: the sensation at rest, sensed at ``reference_row``);
+        returns None, or the sensation at rest of a world that changed."""
+        agent, body = self.agent, self.body
+        while len(agent.pending):
+            saved = agent.checkpoint()
+            rows_before = agent.queries_total
+            try:
+                agent.walk_pending(reference)
+            except WorldChanged as stop:
+                self.log.add(reference_row, body.row - 1, True, agent.rest_motor_state, "walk")
+                self.lost_rows += agent.queries_total - rows_before
+                agent.restore(saved, salvage=False)
+                return np.asarray(stop.args[0], dtype=float)
+        return None
+
+    def _undo(self, saved: dict, rows_before: int) -> None:
+        self.lost_rows += self.agent.queries_total - rows_before
+        self.undone += 1
+        self.salvaged += self.agent.restore(saved)
+
+    def exploration(self, world, events: list, exploration_s: float, factory):
+        """The ``NaiveExploration`` of the kept reactions: the world at each
+        one's first row (``events``: the changes the clock played)."""
+        states = np.asarray([s for s, _ in self.event_states], dtype=int)
+        centers_all = [np.asarray(world.initial_center, float)] + \
+            [np.asarray(e.center, float) for e in events]
+        kinds_all = ["initial"] + [e.kind for e in events]
+        layout_all = np.cumsum([k == REDISTRIBUTION for k in kinds_all])
+        centers = [centers_all[s] for s in states]
+        layout = [int(layout_all[s]) for s in states]
+        kinds = ["initial"] + [REDISTRIBUTION if layout[t] != layout[t - 1] else "translation"
+                               for t in range(1, len(states))]
+        grid_all = [-1] + [e.grid_index for e in events]
+        explored = factory(self.agent, centers, layout, kinds, exploration_s, 0.0)
+        explored.grid_index = np.asarray([grid_all[s] for s in states], dtype=np.int64)
+        return explored
+
+    def truth(self) -> ClockTruth:
+        return ClockTruth(change_row=self.body.change_row.copy(),
+                          rest_jumps=self.body.rest_jumps.copy(),
+                          event_states=np.asarray(self.event_states, dtype=int).reshape(-1, 2),
+                          log=self.log, lost_rows=int(self.lost_rows), undone=int(self.undone),
+                          salvaged=int(self.salvaged),
+                          rows=int(self.body.row), held_rows=int(self.body.held_rows),
+                          state_of=self.body.state_at, lights=self.body.lights)

@@ -1,0 +1,173 @@
+"""A world on its own clock: the environment changes whatever the agent does.
+
+Time is the motor states the body executes (``rows``). ``change_rows`` draws
+when the world changes: after a seeded, exponentially distributed number of
+rows (mean ``interval``) from the previous change. ``ClockedBody`` wraps a
+simulated body and applies each change before the row it falls on, in the
+middle of a batch too (the rows after it see the new world): the agent gets
+no notice, no call per change.
+
+An idle agent's time passes too: ``hold`` keeps the arm at one motor state
+for as long as its sensation stays within a band the caller gives (or the
+world ends) and returns the first sensation outside it, in one call. The
+band is the caller's (the agent's test of its own noise); the body only
+watches its sensor, as a robot's threshold does. Held rows are time, not
+probing: they are counted apart (``held_rows``).
+
+Ground truth for the evaluator (never the agent's): the row of every change,
+the world state of any row (``state_at``), and for each change how far it
+moved the sensation at the resting arm (``rest_jumps``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sensorispace_ros.core.seeding import rng_for
+
+CLOCK_STREAM = "world.clock"
+HOLD_CHUNK = 4096          # held rows simulated per batch on a noisy body
+
+
+def change_rows(n_changes: int, interval: float, seed: int) -> np.ndarray:
+    """``(n_changes,)`` nondecreasing rows before which change ``k`` (1-based
+    world state ``k + 1``) takes effect: cumulative exponential gaps of mean
+    ``interval`` rows (stream ``world.clock``), at least one row each."""
+    if interval <= 0:
+        raise ValueError(f"interval: must be > 0, got {interval!r}")
+    gaps = rng_for(seed, CLOCK_STREAM).exponential(float(interval), size=int(n_changes))
+    return np.cumsum(np.maximum(1, np.ceil(gaps))).astype(np.int64)
+
+
+class ClockedBody:
+    """``body`` (a ``SimulatedBody``) in a world that changes on a row clock.
+
+    ``lights[k]`` are the lights of world state ``k`` (0: the initial one),
+    ``rows[k - 1]`` the row before which state ``k`` begins. ``sense``,
+    ``move`` and ``hold`` execute rows in order; a batch that a change falls
+    into is split there."""
+
+    def __init__(self, body, lights: list, rows: np.ndarray):
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if len(lights) != len(rows) + 1:
+            raise ValueError(f"lights: need {len(rows) + 1} states for {len(rows)} changes")
+        if len(rows) and (rows[0] < 1 or np.any(np.diff(rows) < 0)):
+            raise ValueError("rows: must be nondecreasing and >= 1")
+        self._body = body
+        self._lights = [np.asarray(x, dtype=float) for x in lights]
+        self.change_row = rows
+        self.n_motors = int(body.n_motors)
+        self.n_sensors = int(body.n_sensors)
+        self.description = getattr(body, "description", None)
+        self.row = 0                 # rows executed (probes and holds)
+        self.held_rows = 0           # of which held
+        self.state = 0               # world state of the next row
+        self.rest_jumps = np.full(len(rows), np.nan)
+        body.set_lights(self._lights[0], change=0)
+
+    # ------------------------------------------------------------- clock
+
+    @property
+    def lights(self) -> list:
+        """The lights of every world state (ground truth)."""
+        return list(self._lights)
+
+    @property
+    def ended(self) -> bool:
+        """Every change has happened."""
+        return self.state >= len(self.change_row)
+
+    def state_at(self, row) -> np.ndarray:
+        """World state of row(s) ``row`` (ground truth)."""
+        return np.searchsorted(self.change_row, np.asarray(row), side="right")
+
+    def _advance_to(self, row: int) -> None:
+        """Apply every change due before ``row``."""
+        while self.state < len(self.change_row) and self.change_row[self.state] <= row:
+            self._change()
+
+    def _change(self) -> None:
+        before = self._resting_truth()
+        self.state += 1
+        self._body.set_lights(self._lights[self.state], change=self.state)
+        after = self._resting_truth()
+        if before is not None:
+            self.rest_jumps[self.state - 1] = float(np.max(np.abs(after - before)))
+
+    def _resting_truth(self):
+        motor = getattr(self._body, "motor_state", None)
+        if motor is None:
+            return None
+        from sensorispace_ros.core.body import simulate
+        raw, _ = simulate(np.asarray(motor, float)[None], self._body.lights_world,
+                          self._body.receptor_positions, "numpy", self._body.arm)
+        code = getattr(self._body, "code", None)
+        return (raw if code is None else code.apply(raw))[0]
+
+    # ------------------------------------------------------------- body
+
+    def _segments(self, n: int):
+        """``(start, stop)`` slices of the next ``n`` rows, split at changes."""
+        start = 0
+        while start < n:
+            self._advance_to(self.row + start)
+            stop = n
+            if self.state < len(self.change_row):
+                stop = min(n, int(self.change_row[self.state]) - self.row)
+            yield start, stop
+            start = stop
+
+    def sense(self, motor_states: np.ndarray) -> np.ndarray:
+        motor_states = np.asarray(motor_states, dtype=float)
+        out = np.empty((len(motor_states), self.n_sensors))
+        for start, stop in self._segments(len(motor_states)):
+            out[start:stop] = self._body.sense(motor_states[start:stop])
+        self.row += len(motor_states)
+        self._advance_to(self.row)
+        return out
+
+    def move(self, motor_states: np.ndarray) -> None:
+        self.sense(motor_states)
+
+    def hold(self, motor_state: np.ndarray, low: np.ndarray, high: np.ndarray):
+        """Hold the arm at ``motor_state`` until its sensation leaves
+        ``[low, high]`` (per receptor; a non-finite output is no evidence).
+        Returns that sensation, or None when the world has no change left
+        (the run is over). One call."""
+        row = np.asarray(motor_state, dtype=float).reshape(1, -1)
+        while True:
+            if self.ended:
+                return None
+            n = int(self.change_row[self.state]) - self.row
+            outside = self._watch(row, max(n, 0), low, high)
+            if outside is not None:
+                return outside
+            # The next row is the first of a new world state.
+            self._advance_to(self.row)
+            outside = self._watch(row, 1, low, high)
+            if outside is not None:
+                return outside
+
+    def _watch(self, row: np.ndarray, n: int, low, high):
+        """Hold ``n`` rows in the current state; the first sensation outside
+        the band (its row counted) or None after all ``n``."""
+        noisy = getattr(self._body, "noise", None) is not None
+        done = 0
+        while done < n:
+            batch = min(n - done, HOLD_CHUNK) if noisy else 1
+            sensed = self._body.sense(np.repeat(row, batch, axis=0))
+            out = np.any((sensed < low) | (sensed > high), axis=1) & np.all(
+                np.isfinite(sensed), axis=1)
+            if out.any():
+                first = int(np.argmax(out)) + 1
+                self._count_hold(first)
+                return sensed[first - 1]
+            if not noisy:
+                # A perfect body senses the same bits until the world changes.
+                batch = n - done
+            self._count_hold(batch)
+            done += batch
+        return None
+
+    def _count_hold(self, n: int) -> None:
+        self.row += n
+        self.held_rows += n
