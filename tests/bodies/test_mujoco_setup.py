@@ -6,24 +6,23 @@ import pytest
 from sensorispace_ros.bodies import mujoco_render
 
 
-def test_no_egl_says_what_to_install(monkeypatch):
+def _without_egl(monkeypatch, backend):
     def missing():
         raise OSError("libEGL.so.1: cannot open shared object file")
 
-    monkeypatch.setenv("MUJOCO_GL", "egl")
+    monkeypatch.setenv("MUJOCO_GL", backend)
     monkeypatch.setattr(mujoco_render, "load_egl", missing)
-    problem = mujoco_render.rendering_problem()
+    return mujoco_render.rendering_problem()
+
+
+def test_no_egl_says_what_to_install(monkeypatch):
+    problem = _without_egl(monkeypatch, "egl")
     assert problem is not None and "libEGL.so.1" in problem
     assert "sudo apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri" in problem
 
 
 def test_another_backend_is_not_asked_for_egl(monkeypatch):
-    def missing():
-        raise OSError("libEGL.so.1: cannot open shared object file")
-
-    monkeypatch.setenv("MUJOCO_GL", "osmesa")
-    monkeypatch.setattr(mujoco_render, "load_egl", missing)
-    problem = mujoco_render.rendering_problem()
+    problem = _without_egl(monkeypatch, "osmesa")
     assert problem is None or "EGL" not in problem
 
 
