@@ -55,9 +55,8 @@ def render(paper: dict, naive: dict) -> str:
         (f"points of view from m0 = [{m0}] (compensated grid positions)", '648 of "64²"',
          f"**{p('pov.count')}** ({p('exploration.compensated')} compensated)",
          f"**{n('pov.count')}**: coverage **{n('naive.coverage'):.3f}** of the paper "
-         "strategy's (distinct positions over its count; the positions themselves differ by "
-         f"a lattice offset: `naive.coverage_of_paper_positions` "
-         f"{n('naive.coverage_of_paper_positions'):.2g})"),
+         "strategy's (distinct positions over its count), at its very positions "
+         f"(`naive.coverage_of_paper_positions` {n('naive.coverage_of_paper_positions'):.3f})"),
         ("state changes (redistributions) compensated", "0",
          f"**{p('exploration.state_changes_compensated')}** of {p('exploration.state_changes')}",
          f"**{n('exploration.state_changes_compensated')}** of {n('exploration.state_changes')}"),

@@ -90,8 +90,8 @@ def _seed_list(seeds: list[int]) -> str:
 METRIC_NOTES = {
     "naive.coverage_of_paper_positions":
         "the fraction of the paper strategy's very sensor positions the naive agent reaches, "
-        "not its coverage (`naive.coverage`): its anchors usually sit a lattice offset away "
-        "from them, so a value near 0 beside a coverage near 1 is expected",
+        "beside its coverage (`naive.coverage`, distinct positions over the paper strategy's "
+        "count): equal when the agent's positions are the paper strategy's",
 }
 
 
