@@ -71,7 +71,7 @@ def test_units_and_codes_leave_the_run_as_it_is(small_runs):
             # A steep code conditions some sensations worse (the rank test
             # refuses more of them): on a coarse grid a few positions are
             # reached later or not at all (on the paper's grid: docs/naive-bodies.md).
-            assert len(povs) >= 0.7 * len(reference)
+            assert len(povs) >= 0.6 * len(reference)
             continue
         # The same sensor positions, however the motors count or the receptors scale.
         assert len(povs) == len(reference), name

@@ -30,7 +30,7 @@ RUNTIME_KEYS = {
     "mcap": "mcap-ros2-support",          # a dependency of mcap-ros2-support
 }
 # runtime requirements rosdistro has no key for (installed with pip)
-WITHOUT_ROSDEP_KEY = {"ripser", "distributed", "foxglove-sdk", "zstandard"}
+WITHOUT_ROSDEP_KEY = {"ripser", "distributed", "foxglove-sdk", "zstandard", "mujoco"}
 TEST_KEYS = {"pytest": "python3-pytest", "pytest-timeout": "python3-pytest-timeout",
              "websockets": "python3-websockets"}
 # building and testing tools of the venv, not dependencies of the package

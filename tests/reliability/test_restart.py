@@ -2,8 +2,8 @@
 
 For each victim the smoke graph runs as five processes (localhost discovery,
 a free domain id, every node with ``graph.checkpoint_dir``); once the agent has
-settled change KILL_AT (120 of 284) the victim gets SIGKILL by PID and is started
-again with the same command line. Asserted:
+settled change KILL_AT (120 of the 283 of config/smoke.yaml) the victim gets
+SIGKILL by PID and is started again with the same command line. Asserted:
 
 - the run completes (the representation exits 0) and its result (POVs,
   equality rows, embeddings, the agent's counters) equals the undisturbed
@@ -11,8 +11,8 @@ again with the same command line. Asserted:
 - the bag, closed by SIGTERM at the end (a restarted recorder merges the part
   it recovered from its predecessor), loses nothing recorded before the kill.
   Precisely: when another node is the victim, the recorder lived through the
-  run and the bag holds every /agent/settled value 0..285 and every
-  /environment/event change 1..284. When the recorder is the victim, the bag
+  run and the bag holds every /agent/settled value 0..K+1 and every
+  /environment/event change 1..K, K the smoke schedule's changes. When the recorder is the victim, the bag
   holds every /agent/settled value the test's own subscriber received more
   than RECORDER_MARGIN_S (0.2 s) before it sent SIGKILL, and the event of each
   of those changes (messages sent while no recorder ran are not in it; the
@@ -46,6 +46,13 @@ PARITY_PREFIXES = ("exploration.", "quality.")
 # be starved for seconds, then take every settle at once. Killed at settle 60, one CI run
 # saw no settle arrive earlier than RECORDER_MARGIN_S before the kill, another only 47.
 KILL_AT = 120
+
+
+def _smoke_changes() -> int:
+    from sensorispace_ros.config import load_config
+    from sensorispace_ros.core.run_world import run_world
+
+    return len(run_world(load_config(SMOKE)).events)
 PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_changes_accepted")
 
 
@@ -70,7 +77,8 @@ def test_node_killed_and_restarted_mid_run_gives_the_same_result(victim, tmp_pat
     assert outcome["bag"] == {"settled_missing": [], "events_missing": [], "parts_left": []}, \
         str(outcome)
     # What the watcher got RECORDER_MARGIN_S before the kill must be a real share of the run.
-    assert outcome["bag_expected_settled"] >= (50 if victim == "recorder" else 285), str(outcome)
+    assert outcome["bag_expected_settled"] >= (50 if victim == "recorder"
+                                                else _smoke_changes() + 1), str(outcome)
     if victim == "representation":
         return          # its restart changes nothing the bag holds (it only reads history)
     analysed = analysed_metrics(tmp_path / "bag", tmp_path / "analysed")
