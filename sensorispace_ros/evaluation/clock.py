@@ -1,5 +1,5 @@
 """Ground-truth numbers of time for a naive run in a world on its own clock
-(``world.clock: rows``; ``core.naive.clocked_run.ClockTruth``): what the
+(``world.clock: rows``; ``core.clocked_run.ClockTruth``): what the
 agent detected, what the changes cost it, and whether any accepted
 compensation spans two world states. Every key is ``naive.clock.*`` or
 ``naive.accepted_across_change``.
@@ -24,7 +24,7 @@ DETECTABLE_FLOOR = 1e-9
 
 
 def clock_metrics(run, world) -> dict:
-    """``naive.clock.*`` of an offline clocked run (``run_naive(clock="rows")``)."""
+    """``naive.clock.*`` of an offline clocked run (``clocked_run.run_on_clock``, clock ``rows``)."""
     truth = run.clock
     if truth is None:
         return {}

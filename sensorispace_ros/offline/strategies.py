@@ -177,13 +177,13 @@ def run_naive_strategy(cfg: dict, seed: int, progress=None) -> StrategyOutput:
     agent's ``naive.*`` against truth, figure arrays) is joined by the
     evaluator (``evaluation.naive.join_naive_run``) from ``naive_run``."""
     from sensorispace_ros.core.naive.params import NaiveParams
-    from sensorispace_ros.core.naive.run import run_naive
+    from sensorispace_ros.core.clocked_run import run_on_clock
 
     world = run_world(cfg, seed)
     params = NaiveParams(**cfg["naive"])
     start = time.perf_counter()
-    result = run_naive(world, params, progress=progress, clock=cfg["world"]["clock"],
-                       change_interval=cfg["world"]["change_interval"])
+    result = run_on_clock(world, params, cfg["world"]["clock"],
+                          interval=cfg["world"]["change_interval"], progress=progress)
     elapsed = time.perf_counter() - start
     timings = {key: float(value) for key, value in result.timings_s.items()
                if key in ("exploration", "points_of_view", "equality_sets")}

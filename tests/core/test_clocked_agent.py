@@ -6,7 +6,7 @@ import pytest
 
 from sensorispace_ros import config
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.run import run_naive
+from sensorispace_ros.core.clocked_run import run_on_clock
 from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.evaluation.clock import clock_metrics
 from sensorispace_ros.evaluation.naive import evaluate_naive_run
@@ -18,7 +18,7 @@ SMOKE = "config/smoke.yaml"
 def clocked_smoke():
     cfg = config.load_config(SMOKE, {"world.clock": "rows", "world.change_interval": 1000.0})
     world = run_world(cfg)
-    run = run_naive(world, NaiveParams(**cfg["naive"]), clock="rows", change_interval=1000.0)
+    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=1000.0)
     metrics = {**evaluate_naive_run(run, world).metrics, **clock_metrics(run, world)}
     return world, run, metrics
 
@@ -61,7 +61,7 @@ def test_simulation_2_on_the_clock_gives_equality_sets(clocked_smoke):
 def test_the_same_seed_gives_the_same_run(clocked_smoke):
     world, run, _ = clocked_smoke
     cfg = config.load_config(SMOKE)
-    again = run_naive(world, NaiveParams(**cfg["naive"]), clock="rows", change_interval=1000.0)
+    again = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=1000.0)
     assert np.array_equal(again.povs, run.povs)
     assert again.agent.queries_total == run.agent.queries_total
 
@@ -69,4 +69,4 @@ def test_the_same_seed_gives_the_same_run(clocked_smoke):
 def test_wall_clock_is_refused_offline():
     cfg = config.load_config(SMOKE, {"world.clock": "wall"})
     with pytest.raises(config.ConfigError, match=r"world\.clock"):
-        run_naive(run_world(cfg), NaiveParams(**cfg["naive"]), clock="wall")
+        run_on_clock(run_world(cfg), NaiveParams(**cfg["naive"]), "wall", interval=1000.0)

@@ -1,7 +1,7 @@
 """The naive agent in a world that does not wait for it.
 
 ``ClockedAgent`` is a ``NaiveAgent`` that is told nothing about time: its
-driver (``clocked_run``) calls ``react`` when the agent's own test
+driver (``core.clocked_run``) calls ``react`` when the agent's own test
 (``change_detection``) flags a change. What differs from the agent of a
 waiting world:
 

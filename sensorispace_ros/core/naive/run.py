@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sensorispace_ros import config
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -55,7 +54,7 @@ class NaiveRunResult:
     metrics: dict
     timings_s: dict
     exploration: NaiveExploration = field(repr=False)
-    clock: object = field(repr=False, default=None)    # clocked_run.ClockTruth (ground truth)
+    clock: object = field(repr=False, default=None)    # ground truth: core.clocked_run.ClockTruth
 
     @property
     def agent(self) -> NaiveAgent:
@@ -98,8 +97,7 @@ def explore_naive(world, params: NaiveParams | None = None, *, progress=None,
 
 
 def run_naive(world, params: NaiveParams | None = None, *, progress=None,
-              equality_pass: bool = False, body_wrapper=SensingOnly, clock: str = "agent",
-              change_interval: float = 2000.0) -> NaiveRunResult:
+              equality_pass: bool = False, body_wrapper=SensingOnly) -> NaiveRunResult:
     """Run the naive agent through ``world.events``.
 
     ``equality_pass``: after exploring, replay the schedule once more with
@@ -107,25 +105,14 @@ def run_naive(world, params: NaiveParams | None = None, *, progress=None,
     ``body_wrapper``: what the agent receives instead of the simulator
     (default ``SensingOnly``: ``sense`` and the vector sizes).
     ``progress(done, total)`` is called every 100 events.
-    ``clock``: ``agent`` (the world waits for the agent) or ``rows`` (it
-    changes every ``change_interval`` rows on average, unannounced:
-    ``clocked_run.explore_clocked``; no equality pass).
     """
-    clock_truth = None
-    if clock == "rows":
-        from sensorispace_ros.core.naive.clocked_run import explore_clocked
-        params = params if params is not None else NaiveParams()
-        explored, clock_truth = explore_clocked(world, params, interval=change_interval,
-                                                exploration=NaiveExploration,
-                                                sweep_budget=params.clock_sweep_budget,
-                                                equality_changes=params.clock_equality_changes,
-                                                progress=progress)
-    elif clock == "agent":
-        explored = explore_naive(world, params, progress=progress, equality_pass=equality_pass,
-                                 body_wrapper=body_wrapper)
-    else:
-        raise config.ConfigError(f"world.clock: offline runs take agent or rows, got {clock!r} "
-                                 "(wall needs the graph: docs/clock.md)")
+    return summarize_naive(explore_naive(world, params, progress=progress,
+                                         equality_pass=equality_pass, body_wrapper=body_wrapper))
+
+
+def summarize_naive(explored: NaiveExploration, clock_truth=None) -> NaiveRunResult:
+    """The run's products and the agent's own timings and measures, from an
+    exploration (``clock_truth``: the ground truth of a world on its own clock)."""
     agent = explored.agent
     pov_s = agent.seconds_by_stage.get("pov", 0.0)
     pairs, set_ids = agent.equality_sets()

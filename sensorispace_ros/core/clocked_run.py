@@ -24,12 +24,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sensorispace_ros import config
 from sensorispace_ros.core.body import SensingOnly
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.change_detection import ChangeLog
 from sensorispace_ros.core.naive.clocked_agent import ClockedAgent, WorldChanged
 from sensorispace_ros.core.naive.agent import EXPLORING
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.run import (NaiveExploration, NaiveRunResult, run_naive,
+                                             summarize_naive)
 from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.core.world_clock import ClockedBody, change_rows
 
@@ -58,14 +61,30 @@ class ClockTruth:
     lights: list = field(repr=False, default_factory=list)   # of each world state
 
 
+def run_on_clock(world, params: NaiveParams, clock: str, *, interval: float,
+                 progress=None) -> NaiveRunResult:
+    """The naive agent's run in ``world`` as ``world.clock`` has it:
+    ``agent`` (the world waits for the agent: ``run.run_naive``) or ``rows``
+    (it changes every ``interval`` rows on average, unannounced:
+    ``explore_clocked``; no equality pass of the lockstep kind)."""
+    if clock == "agent":
+        return run_naive(world, params, progress=progress)
+    if clock != "rows":
+        raise config.ConfigError(f"world.clock: offline runs take agent or rows, got {clock!r} "
+                                 "(wall needs the graph: docs/clock.md)")
+    explored, truth = explore_clocked(world, params, interval=interval,
+                                      sweep_budget=params.clock_sweep_budget,
+                                      equality_changes=params.clock_equality_changes,
+                                      progress=progress)
+    return summarize_naive(explored, truth)
+
+
 def explore_clocked(world, params: NaiveParams | None = None, *, interval: float,
-                    exploration, sweep_budget: int = 64, equality_changes: int = 0,
-                    progress=None):
+                    sweep_budget: int = 64, equality_changes: int = 0, progress=None):
     """Run the agent through ``world.events`` on a row clock of mean
     ``interval`` rows; then, with ``equality_changes``, through the schedule
     once more in simulation 2 (``begin_equality_pass``) for that many of the
-    changes it detects. ``exploration``: the class of what is returned
-    (``run.NaiveExploration``). Returns ``(exploration, ClockTruth)``."""
+    changes it detects. Returns ``(NaiveExploration, ClockTruth)``."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
     events = list(world.events) * (2 if equality_changes > 0 else 1)
@@ -98,7 +117,7 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
         if progress is not None and callable(progress):
             progress(body.state, len(events))
     exploration_s = time.perf_counter() - started
-    return run.exploration(world, events, exploration_s, exploration), run.truth()
+    return run.exploration(world, events, exploration_s), run.truth()
 
 
 def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):
@@ -196,7 +215,7 @@ class _Run:
         self.undone += 1
         self.salvaged += self.agent.restore(saved)
 
-    def exploration(self, world, events: list, exploration_s: float, factory):
+    def exploration(self, world, events: list, exploration_s: float) -> NaiveExploration:
         """The ``NaiveExploration`` of the kept reactions: the world at each
         one's first row (``events``: the changes the clock played)."""
         states = np.asarray([s for s, _ in self.event_states], dtype=int)
@@ -209,7 +228,7 @@ class _Run:
         kinds = ["initial"] + [REDISTRIBUTION if layout[t] != layout[t - 1] else "translation"
                                for t in range(1, len(states))]
         grid_all = [-1] + [e.grid_index for e in events]
-        explored = factory(self.agent, centers, layout, kinds, exploration_s, 0.0)
+        explored = NaiveExploration(self.agent, centers, layout, kinds, exploration_s, 0.0)
         explored.grid_index = np.asarray([grid_all[s] for s in states], dtype=np.int64)
         return explored
 
