@@ -56,7 +56,7 @@ from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from
 from sensorispace_ros.evaluation.naive import naive_metrics
 from sensorispace_ros.evaluation.run_files import run_arrays
 from sensorispace_ros.evaluation.runs import evaluate_graph_run
-from sensorispace_ros.offline.pov_assembly import assemble_points_of_view, equality_pairs
+from sensorispace_ros.offline.pov_assembly import MIN_POVS, assemble_points_of_view, equality_pairs
 from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
 from sensorispace_ros.protocol import KIND_OF_CODE, parse_frame
@@ -126,8 +126,6 @@ def agent_data(bag_dir, description=None) -> dict:
     description = body_description(bag_dir) if description is None else description
     pov_tables = _tables(bag_dir, POVS, description=description)
     row_tables = _tables(bag_dir, ROWS)
-    if not pov_tables:
-        raise BagError(f"bag {bag_dir} holds no {POVS} message: nothing to analyse")
     ids, povs = assemble_points_of_view(list(pov_tables.values()), description.n_motors)
     rows = (np.concatenate(list(row_tables.values())) if row_tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))
@@ -268,10 +266,14 @@ def _analyze_bag(bag_dir: Path, out_dir: Path, cfg: dict | None, progress, start
     cfg = config_from_bag(bag_dir) if cfg is None else config.validate_config(cfg)
     seed = int(cfg["seed"])
     description, body_arm = body_description(bag_dir, cfg), Arm.from_config(cfg["arm"])
-    data = agent_data(bag_dir, description)
+    data, totals = agent_data(bag_dir, description), agent_totals(bag_dir)
+    if len(data["ids"]) == 0 and totals is None:
+        raise BagError(f"bag {bag_dir} holds no {POVS} and no {DONE} message: nothing to analyse")
+    if len(data["ids"]) < MIN_POVS:
+        return _analyze_too_few(bag_dir, out_dir, cfg, data, totals, description)
     povs, pairs, set_ids = data["povs"], data["pairs"], data["set_ids"]
     poses, recorded = true_poses(bag_dir, povs, description, body_arm)
-    change_events, totals = events(bag_dir), agent_totals(bag_dir)
+    change_events = events(bag_dir)
     # The Hausdorff metric's wrap is 2 pi: the POVs as angles (the same bits for rad).
     representation = build_representation(description.to_radians(povs), pairs, set_ids, cfg,
                                            seed, progress)
@@ -300,6 +302,20 @@ def _analyze_bag(bag_dir: Path, out_dir: Path, cfg: dict | None, progress, start
     counters["timings_s.total"] = time.perf_counter() - started
     return evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
                               progress=progress, truth=truth)
+
+
+def _analyze_too_few(bag_dir: Path, out_dir: Path, cfg: dict, data: dict, totals: dict | None,
+                     description) -> dict:
+    """The run directory of a bag whose agent found too few POVs for a
+    representation: its counts and a one-line outcome (``runs.evaluate_graph_run``)."""
+    counters = {"analysis.bag": str(bag_dir),
+                **{f"agent.{name}": value for name, value in (totals or {}).items()}}
+    if totals is not None:
+        counters.update({"exploration.compensated": totals["compensated"],
+                         "naive.queries_total": totals["queries"]})
+    counters["exploration.events"] = int(len(events(bag_dir)))
+    arrays = {"povs": data["povs"], "pairs": data["pairs"], "set_ids": data["set_ids"], "pov_ids": data["ids"]}
+    return evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive")
 
 
 def _grid_index(pov_frames: list, change_events: dict, from_motor: dict) -> np.ndarray:

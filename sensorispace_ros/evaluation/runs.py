@@ -71,7 +71,7 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
 
 
 def write_without_representation(produced: StrategyOutput, cfg: dict, out_dir: str | Path,
-                                 strategy: str, truth: RunTruth, started: float) -> dict:
+                                 strategy: str, truth: RunTruth, started: float | None) -> dict:
     """The run directory of a run that found too few POVs for a representation:
     metrics.json with what it found and ``outcome``, a one-line account of why
     there is no representation (no figures)."""
@@ -80,7 +80,9 @@ def write_without_representation(produced: StrategyOutput, cfg: dict, out_dir: s
     arrays = {**produced.arrays, "povs": np.asarray(produced.povs),
               "pairs": np.asarray(produced.pairs).reshape(-1, 2),
               "set_ids": np.asarray(produced.set_ids)}
-    timings = {**produced.timings_s, "total": time.perf_counter() - started}
+    timings = dict(produced.timings_s)
+    if started is not None:
+        timings["total"] = time.perf_counter() - started
     return write_run(out_dir, flat, arrays, {**cfg, "output": {**cfg["output"], "figures": False}},
                      strategy, timings)
 
@@ -122,19 +124,27 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
     counters known to the caller (``exploration.*``, ``naive.*``, timings as
     ``timings_s.*``). ``truth``: the run's ground truth when the caller
     built it (``analyze``), else built here. Ground truth from the forward
-    model fills the arrays the caller did not give.
+    model fills the arrays the caller did not give. Fewer POVs than a
+    representation needs: the run directory without one
+    (``write_without_representation``).
     """
     cfg = config_mod.validate_config(cfg)
     arrays = {key: np.asarray(value) for key, value in dict(arrays).items()}
-    representation = representation_from_arrays(arrays)
-    povs = arrays["povs"]
-    from_motor = ground_truth_from_motor(povs, cfg)
-    for key, value in from_motor.items():
-        arrays.setdefault(key, value)
     flat = {key: value for key, value in (metrics or {}).items()
             if not key.startswith("timings_s.")}
     timings = {key[len("timings_s."):]: value for key, value in (metrics or {}).items()
                if key.startswith("timings_s.")}
+    povs = arrays["povs"]
+    if len(povs) < MIN_POVS:
+        produced = StrategyOutput(povs=povs, pairs=arrays["pairs"], set_ids=arrays["set_ids"],
+                                  true_positions=None, metrics=flat, arrays={},
+                                  timings_s=timings)
+        return write_without_representation(produced, cfg, results_dir, strategy,
+                                            truth if truth is not None else RunTruth(cfg), None)
+    representation = representation_from_arrays(arrays)
+    from_motor = ground_truth_from_motor(povs, cfg)
+    for key, value in from_motor.items():
+        arrays.setdefault(key, value)
     for key, value in representation.timings_s.items():
         timings.setdefault(key, value)
     flat.setdefault("pov.count", int(len(povs)))

@@ -410,6 +410,8 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
 
 def print_summary(metrics: dict, results_dir: Path, stream) -> None:
     print(f"[launch] results in {results_dir}", file=stream)
+    if "outcome" in metrics:
+        print(f"  {metrics['outcome']}", file=stream)
     for key in ("exploration.compensated", "pov.count", "naive.coverage", "naive.wrong_poses",
                 "quality.2d.after.affine_residual", "quality.2d.after.trustworthiness",
                 "reaching.2d.after.straightness_median", "timings_s.total"):

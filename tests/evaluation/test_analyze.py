@@ -54,9 +54,11 @@ def cloud(topic, table, frame_id, stamp=1, description=PAPER_BODY):
         messages.make_header(frame_id, stamp)))
 
 
-def write_run(bag, with_poses=True, config=CONFIG, pose_first=False, description=None):
+def write_run(bag, with_poses=True, config=CONFIG, pose_first=False, description=None,
+              n_povs=P, done=True):
     """A recorded run; ``description``: the /body/description recorded (None:
-    a bag recorded before bodies described themselves, of the paper's body)."""
+    a bag recorded before bodies described themselves, of the paper's body);
+    ``n_povs`` of the P points of view published; ``done``: /agent/done recorded."""
     rng = np.random.default_rng(0)
     body = PAPER_BODY if description is None else description
     povs = rng.uniform(-np.pi, np.pi, size=(P, N, body.n_motors))
@@ -91,17 +93,19 @@ def write_run(bag, with_poses=True, config=CONFIG, pose_first=False, description
             table = {"pov": np.full(N, IDS[i]), "sample": np.arange(N),
                      **{f"m{j}": povs[i, :, j] for j in range(body.n_motors)}}
             pov_cloud = cloud("/agent/points_of_view", table, frame, description=body)
-            writer.write("/agent/points_of_view", next(t), pov_cloud)
-            if i == 2:  # a re-send of the same message must count once
+            if i < n_povs:
+                writer.write("/agent/points_of_view", next(t), pov_cloud)
+            if i == 2 < n_povs:  # a re-send of the same message must count once
                 writer.write("/agent/points_of_view", next(t), pov_cloud)
             writer.write("/agent/settled", next(t), serialize_message(UInt64(data=i + 1)))
-        for k, part in enumerate((rows[:3], rows[3:])):
+        for k, part in enumerate((rows[:3], rows[3:]) if n_povs == P else ()):
             writer.write("/agent/compensations", next(t), cloud(
                 "/agent/compensations", {"set": part[:, 0], "pov_from": IDS[part[:, 1]],
                                          "pov_to": IDS[part[:, 2]]}, f"change/{20 + k}"))
-        done = {column: [7] for column in contracts.contract("/agent/done").columns}
-        done.update({"changes": [P], "points_of_view": [P], "compensation_rows": [6]})
-        writer.write("/agent/done", next(t), cloud("/agent/done", done, f"end/{P + 1}"))
+        totals = {column: [7] for column in contracts.contract("/agent/done").columns}
+        totals.update({"changes": [P], "points_of_view": [n_povs], "compensation_rows": [6]})
+        if done:
+            writer.write("/agent/done", next(t), cloud("/agent/done", totals, f"end/{P + 1}"))
     return povs, rows
 
 
@@ -143,6 +147,25 @@ def test_the_body_description_comes_from_the_bag_or_from_the_configuration(tmp_p
     assert data["povs"].shape == (P, N, 2) and np.array_equal(data["povs"], povs)
     write_run(tmp_path / "old")                 # no /body/description: the configured body
     assert analyze.body_description(tmp_path / "old") == PAPER_BODY
+
+
+@pytest.mark.parametrize("n_povs", [0, 3])
+def test_a_bag_with_too_few_povs_gives_metrics_and_a_one_line_outcome(tmp_path, n_povs):
+    write_run(tmp_path / "bag", n_povs=n_povs)
+    metrics = analyze.analyze_bag(tmp_path / "bag", tmp_path / "out")
+    written = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert written["outcome"] == metrics["outcome"]
+    assert written["outcome"].startswith(f"no representation: the agent found {n_povs} points "
+                                         "of view (a representation needs at least 4)")
+    assert written["agent"]["points_of_view"] == n_povs
+    assert not (tmp_path / "out" / "figures").exists() or not any(
+        (tmp_path / "out" / "figures").iterdir())
+
+
+def test_a_bag_without_povs_or_an_end_of_run_is_nothing_to_analyse(tmp_path):
+    write_run(tmp_path / "bag", n_povs=0, done=False)
+    with pytest.raises(BagError, match="nothing to analyse"):
+        analyze.analyze_bag(tmp_path / "bag", tmp_path / "out")
 
 
 def test_config_and_seed_come_from_the_bag(tmp_path):

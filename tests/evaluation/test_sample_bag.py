@@ -10,7 +10,6 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from sensorispace_ros.evaluation import analyze
-from sensorispace_ros.recording.bag_copy import copy_bag
 from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 from sensorispace_ros.recording.bag_verify import verify_bag
 from sensorispace_ros import contracts, messages

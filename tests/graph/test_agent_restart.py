@@ -12,7 +12,6 @@ import time
 
 import numpy as np
 import pytest
-from std_msgs.msg import UInt64
 
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.body_description import BodyDescription

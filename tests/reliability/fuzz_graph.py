@@ -50,7 +50,7 @@ else:
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.graph import dds_environment, in_process  # noqa: E402
-from shared import REPO, SMOKE  # noqa: E402
+from shared import SMOKE  # noqa: E402
 
 CLOUD_TOPICS = ("/environment/lights", "/body/motor_command", "/body/sensation",
                 "/agent/points_of_view", "/agent/compensations", "/agent/done")

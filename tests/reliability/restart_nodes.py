@@ -32,7 +32,7 @@ else:
 
 from sensorispace_ros.graph import dds_environment, launcher  # noqa: E402
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE  # noqa: E402
-from shared import REPO, SMOKE  # noqa: E402
+from shared import SMOKE  # noqa: E402
 
 
 

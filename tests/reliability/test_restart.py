@@ -30,7 +30,6 @@ How each node resumes is in the README ("Node restarts").
 """
 from __future__ import annotations
 
-import json
 
 import pytest
 
