@@ -87,3 +87,29 @@ def test_the_graph_on_the_row_clock_gives_the_offline_metrics(tmp_path, domain_i
     np.testing.assert_array_equal(arrays["pairs"], offline.pairs)
     print({k: graph_metrics[k] for k in ("naive.clock.recall", "naive.clock.reactions",
                                          "naive.clock.undone_reactions")})
+
+
+# Changes every 0.15 s on average, the schedule once (no simulation 2): about 45 s.
+WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
+
+
+def test_the_graph_on_the_wall_clock_ends_by_itself_and_is_evaluated(tmp_path, domain_id):
+    from sensorispace_ros.core.run_world import run_world
+    from sensorispace_ros.evaluation.graph_clock import graph_clocked_run
+    from sensorispace_ros.graph.nodes.body_clock import clock_events
+
+    cfg, path = _config(tmp_path, WALL)
+    world = run_world(cfg)
+    result, nodes = _graph(tmp_path, domain_id, path)
+    agent_node, body_node, environment = nodes["agent"], nodes["body"], nodes["environment"]
+    assert agent_node.last_passive == -1 and environment.run_complete
+    graph = graph_clocked_run(agent_node.clock_run, world, clock_events(world, cfg),
+                              state_after=body_node.state_after)
+    metrics = _evaluated(graph, world)
+    # Measured, not reproducible: the world changed under the agent and it told.
+    assert metrics["naive.clock.detections"] > 0 and metrics["naive.clock.tests"] > 0
+    assert metrics["naive.accepted_across_change"] == 0
+    assert len(graph.povs) >= 4
+    assert result["nodes"]["representation"].result["povs"].shape == graph.povs.shape
+    print({k: metrics[k] for k in sorted(metrics) if k.startswith(("naive.clock.", "naive.cov",
+                                                                    "exploration.", "pov."))})
