@@ -92,11 +92,10 @@ def table_cloud(rows: np.ndarray, prefix: str, header: Header,
                        is_dense=True)
 
 
-def object_lights(rng: np.random.Generator, count: int = 10) -> np.ndarray:
-    """An object: ``count`` lights 3.5 to 7 from a centre on a 16 x 16 grid over [-6, 6]^2."""
-    centre = rng.choice(np.linspace(-6.0, 6.0, 16), size=2)
+def object_layout(rng: np.random.Generator, count: int = 10) -> np.ndarray:
+    """An object: ``count`` lights 3.5 to 7 from its centre."""
     angle, radius = rng.uniform(0, 2 * np.pi, count), rng.uniform(3.5, 7.0, count)
-    return centre + radius[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    return radius[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
 
 
 class OwnBody(Node):
@@ -123,7 +122,8 @@ class OwnBody(Node):
         # A world of its own: the lights move by themselves (an object on a grid).
         self.rng = np.random.default_rng(seed)
         self.period_s = change_period_s
-        self.lights = object_lights(self.rng)
+        self.layout = object_layout(self.rng)
+        self.lights = self.layout.copy()           # the object's centre at (0, 0)
         self.holding = None               # (number, motor, low, high, header)
         self.next_change = time.monotonic() + self.rng.exponential(self.period_s)
         self.create_timer(0.01, self.on_clock)
@@ -133,7 +133,10 @@ class OwnBody(Node):
         """The world changes when its time comes, and tells nobody."""
         if self.changes_left <= 0 or time.monotonic() < self.next_change:
             return
-        self.lights = object_lights(self.rng)
+        if self.rng.random() < 0.1:              # now and then a layout no move undoes
+            self.layout = object_layout(self.rng)
+        centre = self.rng.choice(np.linspace(-6.0, 6.0, 16), size=2)   # a move on a grid
+        self.lights = centre + self.layout
         self.changes_left -= 1
         self.next_change = time.monotonic() + self.rng.exponential(self.period_s)
         self.watch()
