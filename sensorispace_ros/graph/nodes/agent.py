@@ -136,8 +136,7 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
 
     def on_sensation(self, msg) -> None:
         tracing.stamp("agent.answer")
-        read = self.read_float_cloud("/body/sensation", msg,
-                                     kinds=("cmd", "next", "change", "end", "hold", "equality"))
+        read = self.read_float_cloud("/body/sensation", msg, kinds=self.sensation_kinds)
         if read is None:
             return
         (kind, number), cloud = read

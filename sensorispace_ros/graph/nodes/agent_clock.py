@@ -41,6 +41,9 @@ class AgentClock:
         self.clock_view: ClockOverTopics | None = None
         self.clock_run = None          # the driver, kept for the evaluator (tests)
         self.hold_pub = self.hold_packer = None
+        # The frame ids of /body/sensation this protocol reads.
+        self.sensation_kinds = ("cmd", "next", "change", "end") if not self.clocked else (
+            "cmd", "hold", "end", "equality", "change")
         if not self.clocked:
             return
         if self.graph["checkpoint_dir"]:
