@@ -124,10 +124,22 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
     built it (``analyze``), else built here. Ground truth from the forward
     model fills the arrays the caller did not give.
     """
+    started = time.perf_counter()
     cfg = config_mod.validate_config(cfg)
     arrays = {key: np.asarray(value) for key, value in dict(arrays).items()}
-    representation = representation_from_arrays(arrays)
     povs = arrays["povs"]
+    if len(povs) < MIN_POVS:        # the representation node built none (its "reason")
+        arrays.pop("reason", None)
+        produced = StrategyOutput(povs=povs, pairs=arrays["pairs"], set_ids=arrays["set_ids"],
+                                  true_positions=np.zeros((len(povs), 2)),
+                                  metrics={"pov.count": int(len(povs)),
+                                           **{k: v for k, v in (metrics or {}).items()
+                                              if not k.startswith("timings_s.")}},
+                                  arrays=arrays, timings_s={})
+        return write_without_representation(produced, cfg, results_dir, strategy,
+                                            truth if truth is not None else RunTruth(cfg),
+                                            started)
+    representation = representation_from_arrays(arrays)
     from_motor = ground_truth_from_motor(povs, cfg)
     for key, value in from_motor.items():
         arrays.setdefault(key, value)

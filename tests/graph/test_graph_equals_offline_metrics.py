@@ -21,7 +21,7 @@ ROTATIONS_SMOKE = REPO / "config" / "rotations-smoke.yaml"
 NOT_COMPARED = ("timings", "seconds", "_s.", "analysis.", "path", "version")
 # Metrics both evaluations must give (and give alike).
 REQUIRED = ("pov.count", "naive.coverage", "exploration.compensated", "naive.queries_total",
-            "exploration.state_changes_compensated")
+            "exploration.state_changes_compensated", "naive.wrong_poses")
 
 
 def _flat(metrics: dict, prefix: str = "") -> dict:
@@ -36,6 +36,9 @@ def _flat(metrics: dict, prefix: str = "") -> dict:
 
 
 def _same(a, b) -> bool:
+    """Equal, floats to their written precision (metrics.json rounds them)."""
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
     if isinstance(a, float) or isinstance(b, float):
         if isinstance(a, (int, float)) and isinstance(b, (int, float)):
             return (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=1e-6,
