@@ -179,6 +179,12 @@ class BodyOverTopics:
         if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
             raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
                              f"got {motor_states.shape}")
+        if not np.isfinite(motor_states).all():
+            # No body can be sent there, and the contract drops such a command:
+            # re-sending it would wait for ever. The run stops, naming the rows.
+            bad = np.flatnonzero(~np.isfinite(motor_states).all(axis=1))
+            raise ValueError(f"motor_states: non-finite motor values in rows {bad[:5].tolist()} "
+                             f"of {len(motor_states)} (command {self.requests + 1})")
         return motor_states
 
     def _send(self, motor_states: np.ndarray, frame_id: str | None = None) -> "_Sent":

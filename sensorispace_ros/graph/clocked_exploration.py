@@ -40,6 +40,7 @@ class ClockOverTopics:
         self.description = body.description
         self.second_round = False
         self.ended = False
+        self.holds = 0                 # /body/hold messages sent
 
     def sense(self, motor_states: np.ndarray) -> np.ndarray:
         return self._body.sense(motor_states)
@@ -48,6 +49,7 @@ class ClockOverTopics:
         self._body.move(motor_states)
 
     def hold(self, motor_state, low, high):
+        self.holds += 1
         sensed = self._body.hold(motor_state, low, high)
         self.ended = sensed is None
         return sensed

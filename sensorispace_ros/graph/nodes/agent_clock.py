@@ -41,6 +41,7 @@ class AgentClock:
         self.clocked = self.cfg["world"]["clock"] != "agent"
         self.clock_view: ClockOverTopics | None = None
         self.clock_run = None          # the driver, kept for the evaluator (tests)
+        self.clock_started = False
         self.hold_pub = self.hold_packer = None
         # The frame ids of /body/sensation this protocol reads.
         self.sensation_kinds = ("cmd", "next", "change", "end") if not self.clocked else (
@@ -76,7 +77,10 @@ class AgentClock:
                 and self.count_publishers("/body/sensation") > 0)
 
     def run_clocked(self) -> None:
-        """The whole exploration, then the results (the node's ``step``)."""
+        """The whole exploration, then the results (the node's ``step``; once)."""
+        if self.clock_started:
+            return
+        self.clock_started = True
         deadline = time.monotonic() + PEERS_TIMEOUT_S
         while not self.clock_peers_ready() and time.monotonic() < deadline:
             self.spin_once(0.05)
@@ -96,10 +100,10 @@ class AgentClock:
         self.run_over = True
         agent = self.agent
         povs = agent.points_of_view
+        pairs, set_ids = agent.equality_sets()
         everything = SimpleNamespace(
             new_povs=povs, new_pov_ids=np.arange(len(povs)), compensations=agent.compensations,
-            equality_rows=np.column_stack([agent.equality_sets()[1], agent.equality_sets()[0]])
-            if len(agent.equality_sets()[1]) else np.zeros((0, 3), dtype=int))
+            equality_rows=np.column_stack([set_ids, np.reshape(pairs, (-1, 2))]))
         header = messages.make_header(frame("change", changes - 1), self.now_ns())
         for topic, table in agent_outputs.reaction_tables(agent, everything).items():
             self.publish_table(topic, table, header)

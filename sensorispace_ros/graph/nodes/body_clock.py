@@ -40,7 +40,6 @@ class BodyClock:
     """What ``BodyNode`` does when ``world.clock`` is rows or wall."""
 
     def init_clock(self, world) -> None:
-        self.clock = self.cfg["world"]["clock"]
         self.n_events = len(world.events)
         self.clocked_body = None
         self.rows_after = {0: 0}          # command number -> rows executed after it
