@@ -14,11 +14,20 @@ another process or language would.
 
 ``--sensor-type uint16`` publishes what a 16-bit ADC would: UINT16 counts,
 round(s / FULL_SCALE * 65535), clipped to the ADC's range.
+
+``--own-world N`` (with the agent's ``world.clock: wall``): a body in a world
+that changes on its own, as a robot's does. No environment node and no
+lights message: the body moves its lights itself, N times, after seeded
+exponential gaps of mean ``--change-period`` seconds, whatever the agent
+does, and tells nobody. It answers ``/body/hold`` (one message: hold still
+until a receptor leaves the band, then answer once) and, once its world has
+no change left, answers a hold with ``end/<n>`` and exits.
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 import numpy as np
 import rclpy
@@ -48,7 +57,7 @@ LIGHTS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolic
 def parse(frame_id: str):
     """(kind, number) of a protocol frame id, or None."""
     kind, _, number = frame_id.partition("/")
-    if kind in ("change", "end", "cmd", "next") and number.isascii() and number.isdigit() \
+    if kind in ("change", "end", "cmd", "next", "hold") and number.isascii() and number.isdigit() \
             and len(number) <= 18:
         return kind, int(number)
     return None
@@ -83,9 +92,16 @@ def table_cloud(rows: np.ndarray, prefix: str, header: Header,
                        is_dense=True)
 
 
+def object_layout(rng: np.random.Generator, count: int = 10) -> np.ndarray:
+    """An object: ``count`` lights 3.5 to 7 from its centre."""
+    angle, radius = rng.uniform(0, 2 * np.pi, count), rng.uniform(3.5, 7.0, count)
+    return radius[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+
+
 class OwnBody(Node):
 
-    def __init__(self, sensor_type: str = "float64"):
+    def __init__(self, sensor_type: str = "float64", own_world: int = 0,
+                 change_period_s: float = 0.3, seed: int = 0):
         super().__init__("own_body")
         self.sensor_type = sensor_type
         self.rest = np.zeros(len(JOINTS))    # where the arm rests before its first command
@@ -98,8 +114,60 @@ class OwnBody(Node):
         description.publish(JointState(
             header=Header(frame_id=f"{UNIT}/{RECEPTORS}"), name=list(JOINTS),
             position=[PERIOD] * len(JOINTS)))
-        self.create_subscription(PointCloud2, "/environment/lights", self.on_lights, LIGHTS)
         self.create_subscription(PointCloud2, "/body/motor_command", self.on_command, DATA)
+        self.changes_left = own_world
+        if not own_world:
+            self.create_subscription(PointCloud2, "/environment/lights", self.on_lights, LIGHTS)
+            return
+        # A world of its own: the lights move by themselves (an object on a grid).
+        self.rng = np.random.default_rng(seed)
+        self.period_s = change_period_s
+        self.layout = object_layout(self.rng)
+        self.lights = self.layout.copy()           # the object's centre at (0, 0)
+        self.holding = None               # (number, motor, low, high, header)
+        self.next_change = time.monotonic() + self.rng.exponential(self.period_s)
+        self.create_timer(0.01, self.on_clock)
+        self.create_subscription(PointCloud2, "/body/hold", self.on_hold, DATA)
+
+    def on_clock(self) -> None:
+        """The world changes when its time comes, and tells nobody."""
+        if self.changes_left <= 0 or time.monotonic() < self.next_change:
+            return
+        if self.rng.random() < 0.1:              # now and then a layout no move undoes
+            self.layout = object_layout(self.rng)
+        centre = self.rng.choice(np.linspace(-6.0, 6.0, 16), size=2)   # a move on a grid
+        self.lights = centre + self.layout
+        self.changes_left -= 1
+        self.next_change = time.monotonic() + self.rng.exponential(self.period_s)
+        self.watch()
+
+    def on_hold(self, msg: PointCloud2) -> None:
+        frame = parse(msg.header.frame_id)
+        names = (*(f"m{k}" for k in range(len(JOINTS))), *(f"low{i}" for i in range(RECEPTORS)),
+                 *(f"high{i}" for i in range(RECEPTORS)))
+        row = read_table(msg, names)
+        if frame is None or frame[0] != "hold" or row is None or len(row) != 1:
+            return
+        motor, low, high = np.split(row[0], [len(JOINTS), len(JOINTS) + RECEPTORS])
+        self.holding = (frame[1], motor[None], low, high, msg.header)
+        self.watch()
+
+    def watch(self) -> None:
+        """Look at the held state: answer once the sensation leaves the band, or
+        with ``end/<n>`` once the world has no change left."""
+        if self.holding is None:
+            return
+        number, motor, low, high, header = self.holding
+        if self.changes_left <= 0:
+            header.frame_id = f"end/{number}"
+            self.holding = None
+            self.answer(motor, header)
+            self.over = True
+            return
+        sensed = self.sense(motor)[0]
+        if np.any((sensed < low) | (sensed > high)):
+            self.holding = None
+            self.answer(motor, header)
 
     def sense(self, motor: np.ndarray) -> np.ndarray:
         """One row of receptor outputs per row of motor states (degrees)."""
@@ -137,8 +205,10 @@ class OwnBody(Node):
     def on_command(self, msg: PointCloud2) -> None:
         frame = parse(msg.header.frame_id)
         motor = read_table(msg, tuple(f"m{k}" for k in range(len(JOINTS))))
-        if frame is None or frame[0] not in ("cmd", "next") or motor is None or not len(motor):
+        if frame is None or frame[0] not in ("cmd", "next", "end") or motor is None \
+                or not len(motor):
             return
+        self.over = self.over or frame[0] == "end"      # the agent ended the run
         if frame[0] == "next" and frame[1] > self.applied:
             self.held = (frame[1], motor, msg.header)    # answered once change k is applied
             return
@@ -149,9 +219,13 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="a body of one's own (docs/own-body.md)")
     parser.add_argument("--sensor-type", choices=sorted(SENSOR_TYPES), default="float64",
                         help="what the receptors publish (default float64)")
+    parser.add_argument("--own-world", type=int, default=0, metavar="N",
+                        help="a world that changes N times on its own (world.clock: wall)")
+    parser.add_argument("--change-period", type=float, default=0.3,
+                        help="mean seconds between two changes of its own world")
     args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
     rclpy.init(args=ros_args)
-    node = OwnBody(args.sensor_type)
+    node = OwnBody(args.sensor_type, args.own_world, args.change_period)
     try:
         while rclpy.ok() and not node.over:
             rclpy.spin_once(node, timeout_sec=0.2)

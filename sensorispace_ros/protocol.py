@@ -2,7 +2,7 @@
 analysis of a bag and the evaluator agree on.
 
 Frame ids (msg_schemas/topics.yaml): ``change/<k>``, ``end/<k>``,
-``cmd/<n>``, ``next/<k>``, and their parser; the code of each change kind on
+``cmd/<n>``, ``next/<k>``, ``hold/<n>``, ``equality/<k>``, and their parser; the code of each change kind on
 ``/environment/event``; the files nodes write into the run's results
 directory. Plain Python: ``recording`` and ``evaluation`` read it without
 rclpy.
@@ -14,7 +14,7 @@ from pathlib import Path
 
 from sensorispace_ros.core.world import REDISTRIBUTION, TRANSLATION
 
-FRAME_KINDS = ("change", "end", "cmd", "next")
+FRAME_KINDS = ("change", "end", "cmd", "next", "hold", "equality")
 # Numbers count changes and commands and travel as int64/uint64 elsewhere.
 MAX_FRAME_NUMBER = 2 ** 63 - 1
 

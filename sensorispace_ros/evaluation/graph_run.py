@@ -68,9 +68,13 @@ def _evaluate_agent_records(records_file: Path, arrays: dict, truth: RunTruth,
     the agent's records (its own file) joined with ground truth from the seeded
     schedule (the environment plays exactly that schedule) and the body's
     forward model. Sets ``arrays["grid_index"]``."""
+    if truth.cfg["world"]["clock"] != "agent":
+        return {"analysis.naive_records": analyze.CLOCKED_RECORDS}
     with np.load(records_file) as stored:
         records = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
-    if not np.array_equal(records.povs, arrays["povs"]):
+    found = arrays["povs"]
+    if len(records.povs) != len(found) or (len(found) and not np.array_equal(records.povs,
+                                                                              found)):
         return {"analysis.naive_records": f"{records_file} does not hold the representation's "
                                           "points of view: naive.* not evaluated"}
     poses = np.asarray(Arm.from_config(truth.cfg["arm"]).forward(records.povs[:, 0]),

@@ -200,4 +200,5 @@ def naive_truth_of_changes(truth: RunTruth, n_changes: int, poses: np.ndarray,
         centers=np.asarray(centers), layout=NaiveGroundTruth.layout_of(kinds), kinds=kinds,
         grid_index=np.asarray(grid_index, dtype=np.int64), true_poses=poses,
         initial_motor_state=np.asarray(world.m0, dtype=float),
-        paper_positions=truth.paper_positions, arm=world.arm, spacing=float(world.spacing))
+        paper_positions=truth.paper_positions, arm=world.arm, spacing=float(world.spacing),
+        **_turning(world))

@@ -128,6 +128,7 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
     representation needs: the run directory without one
     (``write_without_representation``).
     """
+    started = time.perf_counter()
     cfg = config_mod.validate_config(cfg)
     arrays = {key: np.asarray(value) for key, value in dict(arrays).items()}
     flat = {key: value for key, value in (metrics or {}).items()
@@ -135,12 +136,13 @@ def evaluate_graph_run(arrays, cfg: dict, results_dir: str | Path, metrics: dict
     timings = {key[len("timings_s."):]: value for key, value in (metrics or {}).items()
                if key.startswith("timings_s.")}
     povs = arrays["povs"]
-    if len(povs) < MIN_POVS:
+    if len(povs) < MIN_POVS:        # the representation node built none (its "reason")
         produced = StrategyOutput(povs=povs, pairs=arrays["pairs"], set_ids=arrays["set_ids"],
-                                  true_positions=None, metrics=flat, arrays={},
-                                  timings_s=timings)
+                                  true_positions=None, metrics={"pov.count": int(len(povs)), **flat},
+                                  arrays={}, timings_s=timings)
         return write_without_representation(produced, cfg, results_dir, strategy,
-                                            truth if truth is not None else RunTruth(cfg), None)
+                                            truth if truth is not None else RunTruth(cfg),
+                                            started)
     representation = representation_from_arrays(arrays)
     from_motor = ground_truth_from_motor(povs, cfg)
     for key, value in from_motor.items():

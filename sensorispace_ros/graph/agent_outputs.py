@@ -45,6 +45,19 @@ def reaction_tables(agent, reaction) -> dict[str, dict]:
     return tables
 
 
+def initial_posture(configured, n_motors: int) -> tuple[np.ndarray, str]:
+    """The agent's first motor state (proprioception, nothing of the world) and
+    what to say of it: ``arm.initial_motor_state`` when it has a value per
+    joint of this body (the simulated body starts there), otherwise every
+    joint at 0; a degenerate start is replaced by the agent itself
+    (``core.naive.start``)."""
+    posture = np.asarray(configured, float)
+    if posture.shape == (n_motors,):
+        return posture, ""
+    return np.zeros(n_motors), (f"arm.initial_motor_state has {len(posture)} values for a "
+                                f"body of {n_motors} joints: starting with every joint at 0")
+
+
 def stage_counters(agent) -> tuple[dict, list[str]]:
     """``/agent/stage_counters``' row (0 for a stage never entered, the
     structure measured, else the records' defaults) and the stages the

@@ -29,6 +29,10 @@ from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, AgentJournal, Ch
                                                   command_check)
 
 
+# A band's open side on /body/hold (a table holds no inf): the largest float64.
+BAND_LIMIT = float(np.finfo(float).max)
+
+
 class RunAborted(RuntimeError):
     """The node is shutting down while the agent waits for its body."""
 
@@ -54,7 +58,8 @@ class BodyOverTopics:
     """
 
     def __init__(self, publish_command, spin_once, n_motors: int, n_sensors: int,
-                 command_timeout_s: float = 2.0, on_retransmit=None, description=None):
+                 command_timeout_s: float = 2.0, on_retransmit=None, description=None,
+                 publish_hold=None):
         if not command_timeout_s > 0:
             raise ValueError(f"command_timeout_s: must be > 0, got {command_timeout_s!r}")
         if description is not None and (description.n_motors, description.receptors) != (
@@ -62,6 +67,10 @@ class BodyOverTopics:
             raise ValueError(f"description: {description} is not a body of {n_motors} "
                              f"motors and {n_sensors} sensors")
         self._publish_command = publish_command
+        # (motor_state (1, N), low (R,), high (R,), frame_id): a world on its own clock
+        self._publish_hold = publish_hold
+        self._pending_end: str | None = None   # end/<n>: also answers hold/<n> or end/<n>
+        self.reply_frame = ""                  # frame id of the last answer taken
         self._spin_once = spin_once
         self.n_motors = n_motors
         self.n_sensors = n_sensors
@@ -98,6 +107,36 @@ class BodyOverTopics:
             # replay takes it the same way) and the call goes out as usual.
         sent = self._send(motor_states)
         return self._receive(sent, sent.started)
+
+    def hold(self, motor_state: np.ndarray, low: np.ndarray, high: np.ndarray):
+        """Hold still at ``motor_state`` until the sensation leaves ``[low, high]``
+        (``core.world_clock.ClockedBody.hold`` over the topics): one ``/body/hold``
+        message, numbered with the commands, answered once. Returns that
+        sensation, or None when the body answers ``end/<n>`` (its world has no
+        change left). Not re-sent: a hold lasts as long as the world stays."""
+        motor_state = self._checked(np.reshape(motor_state, (1, -1)))
+        self.await_move()
+        self.await_ahead()
+        band = [np.clip(np.asarray(x, dtype=float).reshape(-1), -BAND_LIMIT, BAND_LIMIT)
+                for x in (low, high)]
+        self.requests += 1
+        frame_id = frame("hold", self.requests)
+        self._pending, self._pending_end = (frame_id, 1), frame("end", self.requests)
+        self._reply = None
+        started = time.perf_counter()
+        self._publish_hold(motor_state, band[0], band[1], frame_id)
+        reply = self._receive(_Sent(self.requests, 0, motor_state, frame_id, started, None),
+                              started, resend=False)
+        return None if self.reply_frame.startswith("end/") else reply[0]
+
+    def end_run(self, motor_state: np.ndarray) -> None:
+        """Tell the body the run is over (``end/<n>`` on ``/body/motor_command``,
+        one row: where it rests) and take its answer."""
+        motor_state = self._checked(np.reshape(motor_state, (1, -1)))
+        self.await_move()
+        self.await_ahead()
+        sent = self._send(motor_state, frame("end", self.requests + 1))
+        self._receive(sent, sent.started)
 
     def presend(self, motor_states: np.ndarray, change: int) -> None:
         """Send now the command the agent expects to send first after change
@@ -140,6 +179,12 @@ class BodyOverTopics:
         if motor_states.ndim != 2 or motor_states.shape[1] != self.n_motors:
             raise ValueError(f"motor_states must have shape (B, {self.n_motors}), "
                              f"got {motor_states.shape}")
+        if not np.isfinite(motor_states).all():
+            # No body can be sent there, and the contract drops such a command:
+            # re-sending it would wait for ever. The run stops, naming the rows.
+            bad = np.flatnonzero(~np.isfinite(motor_states).all(axis=1))
+            raise ValueError(f"motor_states: non-finite motor values in rows {bad[:5].tolist()} "
+                             f"of {len(motor_states)} (command {self.requests + 1})")
         return motor_states
 
     def _send(self, motor_states: np.ndarray, frame_id: str | None = None) -> "_Sent":
@@ -155,13 +200,13 @@ class BodyOverTopics:
                              self._replayed(number, check, recorded, len(motor_states)))
             self.replay.clear()     # answers are journaled in order: the rest is live
         frame_id = frame_id or frame("cmd", number)
-        self._pending = (frame_id, len(motor_states))
+        self._pending, self._pending_end = (frame_id, len(motor_states)), None
         self._reply = None
         started = time.perf_counter()
         self._publish_command(motor_states, frame_id)
         return _Sent(number, check, motor_states, frame_id, started, None)
 
-    def _receive(self, sent: "_Sent", since: float) -> np.ndarray:
+    def _receive(self, sent: "_Sent", since: float, resend: bool = True) -> np.ndarray:
         """Spin until ``sent`` is answered (re-sent every ``command_timeout_s``);
         ``since``: when the agent began to wait (``round_trip_s``)."""
         if sent.replayed is not None:
@@ -173,7 +218,7 @@ class BodyOverTopics:
                 raise RunAborted("shutting down while waiting for the body")
             self._spin_once(wait_s)
             now = time.perf_counter()
-            if self._reply is None and now - last_sent >= self.command_timeout_s:
+            if resend and self._reply is None and now - last_sent >= self.command_timeout_s:
                 self.retransmits += 1
                 if self._on_retransmit is not None:
                     self._on_retransmit(sent.frame_id, now - sent.started)
@@ -202,10 +247,11 @@ class BodyOverTopics:
 
     def deliver(self, frame_id: str, sensations: np.ndarray) -> bool:
         """Hand a sensation to the waiting request; False if nobody waits for it."""
-        if self._pending is None or self._pending[0] != frame_id:
+        if self._pending is None or frame_id not in (self._pending[0], self._pending_end):
             return False
         if len(sensations) != self._pending[1] or sensations.shape[1] != self.n_sensors:
             return False
         self._reply = sensations
-        self._pending = None
+        self.reply_frame = frame_id
+        self._pending = self._pending_end = None
         return True

@@ -79,11 +79,9 @@ class GraphNode(Node):
             else:
                 flat[pname] = value
         self.cfg = config.load_config(None, overrides=flat, simulated_body=self.simulated_body)
-        if self.cfg["world"]["clock"] != "agent":
-            # The graph's protocol is the lockstep one (change/<k>, /agent/settled).
-            raise config.ConfigError(f"world.clock: the graph runs only agent, got "
-                                     f"{self.cfg['world']['clock']!r} (rows runs offline: "
-                                     "docs/clock.md)")
+        # agent: the lockstep protocol (change/<k>, /agent/settled); rows, wall:
+        # the world on its own clock, no notice (docs/clock.md, graph section).
+        self.clock = self.cfg["world"]["clock"]
         self.graph = config.load_graph(graph)
         self.dropped: dict[str, int] = {}
         self._cloud_readers: dict[str, messages.CloudCdrReader] = {}

@@ -7,7 +7,7 @@ from sensorispace_ros.core.body_description import BodyDescription
 
 PAPER_BODY = BodyDescription.revolute(4, 6)
 SMALL_BODY = BodyDescription(("hip", "knee"), "deg", (360.0, 360.0), 3)
-SIZED_BY_THE_BODY = {"/body/description", "/body/motor_command", "/body/sensation",
+SIZED_BY_THE_BODY = {"/body/description", "/body/motor_command", "/body/hold", "/body/sensation",
                      "/body/joint_states", "/agent/points_of_view",
                      "/agent/compensation_records", "/viewer/sensation"}
 
@@ -44,6 +44,11 @@ def test_the_paper_body_gives_the_paper_columns():
     for topic in ("/body/joint_states", "/body/description"):
         assert contracts.contract(topic).joint_names_for(PAPER_BODY) == \
             ("joint1", "joint2", "joint3", "joint4")
+
+
+def test_a_hold_is_one_row_of_the_motor_state_and_its_band():
+    assert list(contracts.contract("/body/hold").columns_for(SMALL_BODY)) == [
+        "m0", "m1", "low0", "low1", "low2", "high0", "high1", "high2"]
 
 
 def test_another_body_gives_its_own_columns():

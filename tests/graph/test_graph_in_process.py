@@ -210,6 +210,7 @@ def _broken_descriptions() -> list:
 HOSTILE_FRAMES = {
     "/environment/lights": "change/1",
     "/body/motor_command": "cmd/1",
+    "/body/hold": "hold/1",
     "/body/sensation": "cmd/1",
     "/agent/points_of_view": "change/1",
     "/agent/compensations": "change/1",

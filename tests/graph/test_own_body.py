@@ -6,7 +6,10 @@ own on a private domain, on config/smoke.yaml. Given a start of two values,
 or none (every joint at 0: a straight arm, singular, which the agent leaves
 by itself), every process exits by itself, the agent finds points of view
 and the representation is written in a run directory of its own. Publishing
-UINT16 counts (a 16-bit sensor), the run goes to its end as well."""
+UINT16 counts (a 16-bit sensor), the run goes to its end as well. In a
+world of its own that changes on its own (``--own-world``, the agent's
+``world.clock: wall``), the body runs with the agent and the representation
+and no environment node: no lights message, and the run ends by itself."""
 from __future__ import annotations
 
 import re
@@ -26,7 +29,8 @@ OWN_BODY = REPO / "examples" / "own_body.py"
 NODES = ("agent", "representation", "environment")
 
 
-def run_own_body(tmp_path: Path, domain_id: int, extra: list[str], body_args=()) -> dict:
+def run_own_body(tmp_path: Path, domain_id: int, extra: list[str], body_args=(),
+                 nodes=NODES) -> dict:
     """The doc's commands; returns each process's exit code and log, once all have exited."""
     from sensorispace_ros.graph.dds_environment import graph_environment
 
@@ -37,8 +41,9 @@ def run_own_body(tmp_path: Path, domain_id: int, extra: list[str], body_args=())
               f"graph.results_dir:={tmp_path / 'results' / '{run}'}", *extra]
     commands = {"own_body": [str(OWN_BODY), *body_args],
                 **{name: ["-m", f"sensorispace_ros.graph.nodes.{name}", *params]
-                   for name in NODES}}
-    commands["environment"] += ["-p", "graph.wait_for_nodes:=[own_body,agent,representation]"]
+                   for name in nodes}}
+    if "environment" in commands:
+        commands["environment"] += ["-p", "graph.wait_for_nodes:=[own_body,agent,representation]"]
     processes, logs = {}, {name: tmp_path / f"{name}.log" for name in commands}
     try:
         for name, command in commands.items():
@@ -144,3 +149,22 @@ def test_sensorispace_launch_no_body_runs_with_the_own_body(tmp_path, domain_id)
     with np.load(results / "representation.npz") as stored:
         assert stored["povs"].shape[2] == 2 and len(stored["pov_ids"]) > 20
     assert not (results / "logs" / "body.log").exists()
+
+
+def test_an_own_body_in_a_world_that_changes_on_its_own(tmp_path, domain_id):
+    """docs/own-body.md, "A body in a physical world": the agent and the
+    representation, no environment node; the body's world changes on
+    its own 100 times, every 0.3 s on average, whatever the agent does. The agent
+    finds points of view, tells changes it was never told of, and the run
+    ends when the body's world has no change left."""
+    run = run_own_body(tmp_path, domain_id,
+                       ["-p", "arm.initial_motor_state:=[30.0,60.0]", "-p", "world.clock:=wall"],
+                       body_args=("--own-world", "100", "--change-period", "0.3"),
+                       nodes=("agent", "representation"))
+    logs = run["logs"]
+    assert "/environment/lights" not in logs["own_body"]
+    check_run(tmp_path, run)
+    told = re.search(r"(\d+) reactions kept, .* (\d+) changes flagged in (\d+) tests",
+                     logs["agent"])
+    assert told and int(told.group(1)) > 0 and int(told.group(2)) > 0, logs["agent"][-3000:]
+    print(told.group(0))

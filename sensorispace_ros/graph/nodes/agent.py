@@ -1,4 +1,5 @@
-"""Agent node: the naive agent (core.naive.agent.NaiveAgent, unchanged).
+"""Agent node: the naive agent (core.naive.agent.NaiveAgent, unchanged); in a
+world on its own clock the clocked agent (``graph.nodes.agent_clock``).
 
 It subscribes to ``/body/sensation`` and ``/body/description`` only, and
 starts once the body has said what it is (the latched description): the
@@ -29,11 +30,9 @@ it found (``graph.agent_outputs``); then it exits unless
 ``graph.exit_when_done`` is false. Restart after a kill -9 (with
 ``graph.checkpoint_dir``): ``graph.nodes.agent_restart``.
 
-Retransmit: a command unanswered after ``graph.command_timeout_s`` is
-published again with the same frame id (``BodyOverTopics``); a late
-duplicate answer is dropped. A passive sensation of the change the agent
-last settled makes it publish that settle again (a restarted environment
-re-sends its current change when the settle may have been lost).
+Retransmit: a command unanswered after ``graph.command_timeout_s`` is re-sent
+(``BodyOverTopics``); a late duplicate answer is dropped. A passive of the change
+last settled makes it settle again (a restarted environment lost the settle).
 """
 from __future__ import annotations
 
@@ -51,6 +50,7 @@ from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.graph import agent_outputs, tracing
 from sensorispace_ros.graph.body_over_topics import BodyOverTopics, RunAborted
 from sensorispace_ros.graph.framework import GraphNode, frame, run_node
+from sensorispace_ros.graph.nodes.agent_clock import AgentClock
 from sensorispace_ros.graph.nodes.agent_restart import AgentRestart
 from sensorispace_ros.protocol import AGENT_RECORDS_FILE, run_directory
 from sensorispace_ros.state.agent_journal import CheckpointError
@@ -60,7 +60,7 @@ TOPICS = ("/body/motor_command", "/body/sensation", "/agent/points_of_view",
           "/agent/compensation_records", "/agent/stage_counters")
 
 
-class AgentNode(AgentRestart, GraphNode):
+class AgentNode(AgentRestart, AgentClock, GraphNode):
 
     def __init__(self, **kwargs):
         super().__init__("agent", **kwargs)
@@ -87,6 +87,7 @@ class AgentNode(AgentRestart, GraphNode):
         self.run_over = self.finished = self._stepping = False
         self.exit_code = 0
         self.init_restart()
+        self.init_clock()
         if self.graph["checkpoint_dir"]:
             try:
                 self.checkpoint = self.read_checkpoint(Path(self.graph["checkpoint_dir"]))
@@ -104,9 +105,18 @@ class AgentNode(AgentRestart, GraphNode):
                                    n_motors=description.n_motors,
                                    n_sensors=description.receptors,
                                    command_timeout_s=float(self.graph["command_timeout_s"]),
-                                   on_retransmit=self.log_retransmit, description=description)
+                                   on_retransmit=lambda frame_id, waited_s: self.get_logger()
+                                   .warning(f"no answer to {frame_id} after {waited_s:.1f} s: "
+                                            f"sent again ({self.body.retransmits} so far)"),
+                                   description=description,
+                                   publish_hold=self.publish_hold)
         self.body.aborted = self.aborted
-        self.initial_motor_state = self.initial_posture(description)
+        self.initial_motor_state, said = agent_outputs.initial_posture(
+            self.cfg["arm"]["initial_motor_state"], description.n_motors)
+        if said:
+            self.get_logger().info(said)
+        if self.clocked:            # the agent is made by its driver (graph.nodes.agent_clock)
+            return self.start_clock()
         self.agent = NaiveAgent(self.body, NaiveParams(**self.cfg["naive"]))
         if self.checkpoint is not None:
             checkpoint, self.checkpoint = self.checkpoint, None
@@ -117,23 +127,6 @@ class AgentNode(AgentRestart, GraphNode):
                 self.exit_code = 2
                 self.finished = True
 
-    def initial_posture(self, description) -> np.ndarray:
-        """The agent's first motor state (proprioception, nothing of the world):
-        ``arm.initial_motor_state`` when it has a value per joint of this body
-        (the simulated body starts there), otherwise every joint at 0; a
-        degenerate start is replaced by the agent itself (``core.naive.start``)."""
-        posture = np.asarray(self.cfg["arm"]["initial_motor_state"], float)
-        if posture.shape == (description.n_motors,):
-            return posture
-        self.get_logger().info(
-            f"arm.initial_motor_state has {len(posture)} values for a body of "
-            f"{description.n_motors} joints: starting with every joint at 0")
-        return np.zeros(description.n_motors)
-
-    def log_retransmit(self, frame_id: str, waited_s: float) -> None:
-        self.get_logger().warning(f"no answer to {frame_id} after {waited_s:.1f} s: sent again "
-                                  f"({self.body.retransmits} re-sends so far)")
-
     # ------------------------------------------------------------ the run
 
     def abort(self) -> None:
@@ -143,11 +136,12 @@ class AgentNode(AgentRestart, GraphNode):
 
     def on_sensation(self, msg) -> None:
         tracing.stamp("agent.answer")
-        read = self.read_float_cloud("/body/sensation", msg,
-                                     kinds=("cmd", "next", "change", "end"))
+        read = self.read_float_cloud("/body/sensation", msg, kinds=self.sensation_kinds)
         if read is None:
             return
         (kind, number), cloud = read
+        if self.clocked:
+            return self.on_clock_sensation(kind, number, cloud)
         if kind in ("cmd", "next"):
             self.on_answer(kind, number, cloud)
             return
@@ -185,10 +179,13 @@ class AgentNode(AgentRestart, GraphNode):
 
     def step(self) -> None:
         """React to the queued passive sensations; call between callbacks, not inside one."""
-        if self._stepping or self.run_over or self.agent is None or self.finished:
+        if self._stepping or self.run_over or self.finished or (
+                self.agent is None and self.clock_view is None):
             return
         self._stepping = True
         try:
+            if self.clocked:
+                self.run_clocked()
             while self.passive and not self.run_over:
                 self.react(*self.passive.popleft())
         except RunAborted:

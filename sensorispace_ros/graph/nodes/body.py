@@ -14,7 +14,8 @@ evaluator goes to ``/body/sensor_pose`` and ``/body/joint_states``; the agent
 never subscribes to those. An imperfect body (docs/bodies.md) publishes its
 sensations in ``world.retina.dtype``, its ground truth at the joints reached,
 and numbers its commands and changes as the offline driver does, so both
-draw the same noise (``core.imperfections``).
+draw the same noise (``core.imperfections``). In a world on its own clock
+(``world.clock`` rows or wall) it announces no change: ``graph.nodes.body_clock``.
 
 Restart: with ``graph.checkpoint_dir`` set, the resting motor state
 and the number of the last lights applied are written on every command and
@@ -41,10 +42,11 @@ from rclpy.duration import Duration
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.graph import tracing
 from sensorispace_ros.graph.framework import RESTART_EXIT_CODE, GraphNode, build_world, run_node
+from sensorispace_ros.graph.nodes.body_clock import BodyClock
 from sensorispace_ros.state.resting_state import RestingStateFile
 
 
-class BodyNode(GraphNode):
+class BodyNode(BodyClock, GraphNode):
 
     simulated_body = True
 
@@ -104,6 +106,7 @@ class BodyNode(GraphNode):
         # they trigger at every change (rclpy's message took ~30 us of it).
         contracts.create_subscription(self, "/environment/lights", self.on_lights, raw=True)
         contracts.create_subscription(self, "/body/motor_command", self.on_command, raw=True)
+        self.init_clock(world)        # world.clock rows or wall: graph.nodes.body_clock
 
     def on_lights(self, msg) -> None:
         read = self.read_float_cloud("/environment/lights", msg, kinds=("change", "end"))
@@ -112,6 +115,8 @@ class BodyNode(GraphNode):
         (kind, number), cloud = read
         tracing.stamp("body.lights", number)
         lights = cloud.matrix
+        if self.clock != "agent":     # rows: the body's own schedule; wall: no notice
+            return None if self.clock == "rows" else self.clock_lights(kind, number, lights)
         if kind == "change":
             if len(lights) == 0:
                 self.drop("/environment/lights", "no lights")
@@ -148,13 +153,15 @@ class BodyNode(GraphNode):
 
     def on_command(self, msg) -> None:
         tracing.stamp("body.command")
-        read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd", "next"))
+        read = self.read_float_cloud("/body/motor_command", msg, kinds=("cmd", "next", "end"))
         if read is None:
             return
         (kind, number), command = read
         if len(command.matrix) == 0:
             self.drop("/body/motor_command", "empty batch")
             return
+        if self.clock != "agent":
+            return self.clock_command(kind, number, command)
         if kind == "next" and (number > self.lights_number or self.lights_before_kill is not None):
             # For a change not applied yet: sensed in its lights, once they come.
             self.held, self.held_for = command, number

@@ -22,6 +22,14 @@ re-sent change it already settled with its settle again). A repeated settle of
 the change before ``current`` (a restarted agent that lost the passive
 sensation of ``current``) is answered with the current lights again. Bag and
 analysis see the re-sent messages as duplicates (first occurrence wins).
+
+In a world on its own clock nothing waits for the agent: with
+``world.clock: wall`` the changes come on a ROS timer, seeded exponential
+gaps of mean ``world.change_period_s`` (stream ``world.clock``), the
+schedule played twice when the agent has an equality pass
+(``graph.nodes.body_clock.clock_events``), then ``end/<k>``; with ``rows``
+the body keeps the clock and this node publishes no lights. Either way the
+agent's settle (of its end) ends the run; no restart in these modes.
 """
 from __future__ import annotations
 
@@ -34,7 +42,10 @@ from sensorispace_ros import contracts, messages
 from sensorispace_ros.graph import tracing
 from sensorispace_ros.state.environment_record import (PROGRESS_FILE, ProgressWriter,
     decode_progress)
+from sensorispace_ros.core.seeding import rng_for
+from sensorispace_ros.core.world_clock import CLOCK_STREAM
 from sensorispace_ros.graph.framework import GraphNode, build_world, frame, run_node
+from sensorispace_ros.graph.nodes.body_clock import clock_events
 from sensorispace_ros.protocol import KIND_CODES
 
 # One participant announcement period of the graph's Fast DDS profile
@@ -48,7 +59,11 @@ class EnvironmentNode(GraphNode):
     def __init__(self, **kwargs):
         super().__init__("environment", **kwargs)
         self.world = build_world(self.cfg)
-        self.n_changes = len(self.world.events)
+        self.events = (list(self.world.events) if self.clock == "agent"
+                       else clock_events(self.world, self.cfg))
+        self.n_changes = len(self.events)
+        self.wall_timer = None
+        self.wall_gaps = rng_for(self.cfg["seed"], CLOCK_STREAM)
         self.lights_pub = contracts.create_publisher(self, "/environment/lights")
         # Published as serialized bytes (the body takes them raw): the
         # hand-over of every change waits for them.
@@ -101,7 +116,7 @@ class EnvironmentNode(GraphNode):
     def _lights_of(self, k: int) -> np.ndarray:
         """The layout after change k (the end, n + 1, keeps change n's)."""
         k = min(k, self.n_changes)
-        return self.world.initial_lights if k == 0 else self.world.events[k - 1].lights
+        return self.world.initial_lights if k == 0 else self.events[k - 1].lights
 
     def _save_progress(self) -> None:
         if self.progress_writer is not None:
@@ -151,9 +166,36 @@ class EnvironmentNode(GraphNode):
             self.start_timer.cancel()
         elif self._peers_ready():
             self.start_timer.cancel()
+            if self.clock == "rows":
+                self.current = 0
+                self.get_logger().info("world.clock rows: the body keeps the clock")
+                return
             self.publish_change(0)
+            if self.clock == "wall":
+                self.next_wall_change()
+
+    def next_wall_change(self) -> None:
+        """wall: the next change after a seeded exponential gap, whatever the agent does."""
+        gap_s = self.wall_gaps.exponential(float(self.cfg["world"]["change_period_s"]))
+        self.wall_timer = self.create_timer(gap_s, self.on_wall_timer)
+
+    def on_wall_timer(self) -> None:
+        self.destroy_timer(self.wall_timer)
+        self.wall_timer = None
+        if self.run_complete:
+            return
+        k = self.current + 1
+        if k <= self.n_changes:
+            self.publish_change(k)
+            self.next_wall_change()
+        else:
+            self.current = k
+            self.publish_lights(frame("end", k))
+            self.get_logger().info(f"world.clock wall: {self.n_changes} changes played")
 
     def on_timer(self) -> None:
+        if self.clock != "agent":
+            return
         if self.resuming:
             if self._peers_ready():
                 self.resume()
@@ -172,6 +214,12 @@ class EnvironmentNode(GraphNode):
     def on_settled(self, msg) -> None:
         k = int(msg.data)
         tracing.stamp("environment.settled", k)
+        if self.clock != "agent":       # the agent's end: the run is over
+            self.run_complete = True
+            self.timer.cancel()
+            self.get_logger().info(f"run complete: the agent ended after {k - 1} reactions")
+            self.finished = bool(self.graph["exit_when_done"])
+            return
         if k == self.settled == self.current - 1 and not self.resuming:
             # A restarted agent that lost the passive sensation of `current` re-sends
             # its last settle: the current lights again make the body send it again
@@ -205,7 +253,7 @@ class EnvironmentNode(GraphNode):
         self.current = k
         self._save_progress()
         frame_id, stamp_ns = frame("change", k), self.now_ns()
-        event = self.world.events[k - 1] if k > 0 else None
+        event = self.events[k - 1] if k > 0 else None
         if event is not None:
             self.lights = event.lights
         # The lights first: the body (then the agent) waits for them, the

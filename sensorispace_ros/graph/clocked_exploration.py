@@ -1,0 +1,98 @@
+"""The clocked agent over the body's topics (``world.clock: rows`` or ``wall``).
+
+The agent node runs the offline driver's reactions (``core.clocked_run``:
+``_start``, ``_Run``) on a ``BodyOverTopics``, in the order
+``clocked_run.explore_clocked`` runs them, so that a graph run on the row
+clock makes every call the offline run makes. Nothing tells the agent when
+the world changes: it holds still at rest (one ``/body/hold`` message) until
+its sensation leaves its noise band, and tells a change in a reaction by its
+sentinels. The body says two things besides sensations: that the run is over
+(``end/<n>``, the answer to a hold when its world has no change left) and
+that its world replays the schedule for simulation 2 (``equality/<k>``,
+``second_round``), as the offline driver switches to the equality pass.
+
+Positions on the clock, for the evaluator only (the agent never reads
+them): a driver's row ``2n + 1`` stands for the first row of command
+``n + 1`` and ``2n`` for the last row of command ``n``;
+``evaluation.graph_clock`` turns them into the body's rows and world states.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from sensorispace_ros.core.clocked_run import _Run, _start
+from sensorispace_ros.core.naive.agent import EXPLORING
+from sensorispace_ros.core.naive.params import NaiveParams
+
+
+class ClockOverTopics:
+    """What ``core.clocked_run`` drives, over a ``BodyOverTopics``: ``sense``,
+    ``move`` and ``hold`` go to the body; ``row`` and ``state_at`` are the
+    driver's positions (module docstring), ``state`` says whether the body
+    announced simulation 2."""
+
+    def __init__(self, body):
+        self._body = body
+        self.n_motors = int(body.n_motors)
+        self.n_sensors = int(body.n_sensors)
+        self.description = body.description
+        self.second_round = False
+        self.ended = False
+        self.holds = 0                 # /body/hold messages sent
+
+    def sense(self, motor_states: np.ndarray) -> np.ndarray:
+        return self._body.sense(motor_states)
+
+    def move(self, motor_states: np.ndarray) -> None:
+        self._body.move(motor_states)
+
+    def hold(self, motor_state, low, high):
+        self.holds += 1
+        sensed = self._body.hold(motor_state, low, high)
+        self.ended = sensed is None
+        return sensed
+
+    @property
+    def row(self) -> int:
+        return 2 * self._body.requests + 1
+
+    @property
+    def state(self) -> int:
+        return 1 if self.second_round else 0
+
+    @staticmethod
+    def state_at(row):
+        return np.asarray(row)
+
+
+def explore_over_topics(clock: ClockOverTopics, m0: np.ndarray, seed: int,
+                        params: NaiveParams, *, sweep_budget: int, equality_changes: int):
+    """``clocked_run.explore_clocked``'s loop on ``clock``; returns the driver
+    (``_Run``: its agent, its tests and the positions of its reactions)."""
+    agent, first_row, lost = _start(clock, SimpleNamespace(m0=m0, seed=seed), params,
+                                    sweep_budget)
+    run = _Run(agent, clock)
+    run.lost_rows = lost
+    run.event_states.append((clock.state_at(first_row), clock.state_at(clock.row - 1)))
+    reference, reference_row = agent.anchor_sensation, clock.row - 1
+    equality_left = int(equality_changes)
+    while True:
+        sensed = run.walk_pending(reference, reference_row) if agent.phase == EXPLORING \
+            else None
+        if sensed is None:
+            sensed = run.hold(reference, reference_row)
+            if sensed is None:
+                break
+            if sensed is False:
+                continue
+        if agent.phase == EXPLORING and clock.state > 0 and equality_left:
+            reference, reference_row = run.react(sensed, agent.begin_equality_pass)
+            continue
+        reference, reference_row = run.react(sensed)
+        if agent.phase != EXPLORING:
+            equality_left -= 1
+            if equality_left <= 0:
+                break
+    return run

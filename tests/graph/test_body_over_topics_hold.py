@@ -1,0 +1,58 @@
+"""BodyOverTopics' hold and end (a world on its own clock, docs/clock.md),
+without ROS: a hold is one message with the band (open sides at the largest
+float64), answered once; ``end/<n>`` answers it when the world has no change
+left; a non-finite motor state is never sent."""
+import numpy as np
+import pytest
+
+from sensorispace_ros.graph.body_over_topics import BAND_LIMIT, BodyOverTopics
+
+
+class FakeBody:
+    """Answers each publication when the proxy spins, as ``answer`` says."""
+
+    def __init__(self, answer):
+        self.sent, self.holds, self.answer = [], [], answer
+        self.proxy = None
+
+    def publish_command(self, motor_states, frame_id):
+        self.sent.append((frame_id, motor_states.copy()))
+
+    def publish_hold(self, motor_state, low, high, frame_id):
+        self.holds.append((frame_id, motor_state.copy(), low.copy(), high.copy()))
+
+    def spin_once(self, timeout_s):
+        frame_id = (self.holds or self.sent)[-1][0]
+        self.proxy.deliver(*self.answer(frame_id))
+
+
+def _proxy(answer):
+    body = FakeBody(answer)
+    body.proxy = BodyOverTopics(body.publish_command, body.spin_once, n_motors=2, n_sensors=3,
+                                publish_hold=body.publish_hold)
+    return body, body.proxy
+
+
+def test_a_hold_is_one_message_and_its_answer_the_sensation_that_left_the_band():
+    left = np.array([[0.5, 0.2, 0.1]])
+    body, proxy = _proxy(lambda frame_id: (frame_id, left))
+    sensed = proxy.hold(np.array([1.0, 2.0]), np.array([-np.inf, 0.0, 0.0]),
+                        np.array([1.0, np.inf, 1.0]))
+    np.testing.assert_array_equal(sensed, left[0])
+    [(frame_id, motor, low, high)] = body.holds
+    assert frame_id == "hold/1" and not body.sent
+    np.testing.assert_array_equal(motor, [[1.0, 2.0]])
+    assert low[0] == -BAND_LIMIT and high[1] == BAND_LIMIT and np.isfinite([low, high]).all()
+
+
+def test_a_hold_answered_with_end_says_the_run_is_over():
+    body, proxy = _proxy(lambda frame_id: ("end/" + frame_id.split("/")[1], np.zeros((1, 3))))
+    assert proxy.hold(np.zeros(2), np.zeros(3), np.ones(3)) is None
+    assert proxy.reply_frame == "end/1"
+
+
+def test_a_non_finite_motor_state_is_never_sent():
+    body, proxy = _proxy(lambda frame_id: (frame_id, np.zeros((2, 3))))
+    with pytest.raises(ValueError, match=r"non-finite motor values in rows \[1\]"):
+        proxy.sense(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+    assert not body.sent
