@@ -268,23 +268,38 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
     return structure, sized_params(params, structure, n_sensors)
 
 
+# Cloud half widths tried, as shares of ``naive.cloud_step``.
+_CLOUD_LADDER = (1.0, 0.5, 0.25)
+
+
 def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStructure:
-    """The structure of a body whose outputs are rounded: Jacobians fitted
-    over clouds of ``2 * cloud_pairs`` states around each probe
-    (``structure.measure_cloud_structure``), the clouds four times larger
-    while that reveals more of the rank or the probes disagree, up to
-    ``cloud_max_pairs``."""
-    pairs, revealed = int(params.cloud_pairs), -1
-    while True:
-        cloud = CloudStep(params.cloud_step, pairs, len(center))
+    """The structure of a body whose outputs are rounded, from Jacobians
+    fitted over clouds of ``2 * cloud_pairs`` states around each probe
+    (``structure.measure_cloud_structure``). A wider cloud averages the
+    rounding over more steps (its floor falls as 1 / width) while the
+    polynomial follows the sensation less well (its misfit grows with the
+    width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
+    lowest floor (relative to the gain) is kept; its clouds are then made
+    four times larger while that reveals more of the rank or the probes
+    disagree, up to ``cloud_max_pairs``."""
+    pairs = int(params.cloud_pairs)
+
+    def measured(width, pairs):
         with getattr(body, "fresh", contextlib.nullcontext)():
-            structure = measure_cloud_structure(
-                body, center, step=cloud, probes=params.structure_probes,
-                radius=params.structure_radius, rank_gap=params.cloud_rank_gap)
-        if 4 * pairs > params.cloud_max_pairs or (
-                structure.votes == structure.probes and structure.pose_rank <= revealed):
-            return structure
+            return measure_cloud_structure(
+                body, center, step=CloudStep(width, pairs, len(center)),
+                probes=params.structure_probes, radius=params.structure_radius,
+                rank_gap=params.cloud_rank_gap)
+
+    tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
+             for share in _CLOUD_LADDER]
+    width, structure = min(tried, key=lambda t: t[1].floor / max(t[1].gain, 1e-300))
+    revealed = -1
+    while 4 * pairs <= params.cloud_max_pairs and not (
+            structure.votes == structure.probes and structure.pose_rank <= revealed):
         revealed, pairs = structure.pose_rank, 4 * pairs
+        structure = measured(width, pairs)
+    return structure
 
 
 def averaged_sd(noise, repeats: int) -> float:
