@@ -106,3 +106,4 @@ def test_a_rounding_body_measures_its_pose_rank(start, quantum):
     structure, params = measure_body(agent._body, start, NaiveParams())
     assert (structure.pose_rank, structure.pov_dim) == (3, 1)
     assert structure.noise == pytest.approx(quantum / np.sqrt(12.0), rel=1e-6)
+    assert structure.metrics()["naive.noise_quantum"] == pytest.approx(quantum, rel=1e-6)

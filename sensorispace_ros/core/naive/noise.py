@@ -245,7 +245,7 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
     if noise.rounded:
         structure = rounded_structure(body, center, params)
         structure = replace(structure, noise=noise.sd, fd_step=max(step, params.fd_step),
-                            repeat_noise=noise.repeat_sd)
+                            repeat_noise=noise.repeat_sd, quantum=noise.quantum)
         return structure, sized_params(params, structure, n_sensors)
     noisy = step > params.fd_step
     repeats, revealed = 1, -1

@@ -54,7 +54,9 @@ class BodyStructure:
     sensory noise (``noise.SensoryNoise.sd``), ``fd_step`` the
     finite-difference step sized from it, ``weakest`` the median
     ``pose_rank``-th singular value of the agreeing probes; ``repeat_noise``
-    the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``)."""
+    the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``);
+    ``quantum`` the step of the lattice rounded outputs lie on (0: none,
+    ``SensoryNoise.quantum``)."""
 
     n_motors: int
     pose_rank: int
@@ -67,6 +69,7 @@ class BodyStructure:
     fd_step: float = 0.0
     weakest: float = 0.0
     repeat_noise: float = 0.0
+    quantum: float = 0.0
 
     @property
     def pov_dim(self) -> int:
@@ -78,7 +81,8 @@ class BodyStructure:
                 "naive.rank_gap": float(self.rank_gap), "naive.sensory_gain": float(self.gain),
                 "naive.fd_noise_floor": float(self.floor),
                 "naive.rank_votes": int(self.votes), "naive.rank_probes": int(self.probes),
-                "naive.noise_estimate": float(self.noise), "naive.fd_step": float(self.fd_step)}
+                "naive.noise_estimate": float(self.noise), "naive.fd_step": float(self.fd_step),
+                "naive.noise_quantum": float(self.quantum)}
 
 
 @dataclass(frozen=True)
