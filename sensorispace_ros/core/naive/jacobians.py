@@ -74,7 +74,8 @@ class CloudStep(float):
     the fit averages their rounding errors (sd ``quantum / sqrt(12)`` each)
     over the ``2 * pairs`` rows, which repeats cannot. The quadratic terms
     take up the curvature; the symmetric design keeps odd terms out of the
-    value. Everywhere else it is the float it equals."""
+    value (the rank probes fit a cubic, ``structure.measure_cloud_structure``).
+    Everywhere else it is the float it equals."""
 
     def __new__(cls, step: float, pairs: int, n_motors: int):
         for name, value in (("pairs", pairs), ("n_motors", n_motors)):
@@ -91,7 +92,8 @@ class CloudStep(float):
         return f"CloudStep({float(self)!r}, pairs={self.pairs}, n_motors={self.n_motors})"
 
 
-@functools.lru_cache(maxsize=16)
+# A design of 2 x 16,384 pairs and its fit take ~10 MB: a few are kept.
+@functools.lru_cache(maxsize=6)
 def cloud_design(n_motors: int, pairs: int, degree: int = 2):
     """``(offsets (1 + 2 pairs, M), fit (P, 1 + 2 pairs), slope_sd (M,))`` of
     a ``CloudStep`` in units of its step: the state, ``pairs`` Halton points
