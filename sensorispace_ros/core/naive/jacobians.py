@@ -6,9 +6,12 @@ rank is the body's pose rank as the agent measured it
 """
 from __future__ import annotations
 
+import functools
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import qmc
 
 # Outcomes of a POV sampler (``SensoryPointsOfView.reason``).
 VALID = "ok"
@@ -60,8 +63,80 @@ class SymmetricStep(float):
         return (SymmetricStep, (float(self),))
 
 
+class CloudStep(float):
+    """A finite-difference "step" (phase) whose Jacobians are fits: each
+    state is sensed with ``2 * pairs`` states around it, in pairs ``+-x``
+    over the cube of half width ``step`` (fixed Halton points), and a
+    quadratic in the motor offsets is fitted to each receptor by least
+    squares. The fit's slope is the Jacobian and its value at the state the
+    sensation. Rounding to fixed steps repeats exactly, so sensing one state
+    again tells nothing new; states a little apart round differently, and
+    the fit averages their rounding errors (sd ``quantum / sqrt(12)`` each)
+    over the ``2 * pairs`` rows, which repeats cannot. The quadratic terms
+    take up the curvature; the symmetric design keeps odd terms out of the
+    value (the rank probes fit a cubic, ``structure.measure_cloud_structure``).
+    Everywhere else it is the float it equals."""
+
+    def __new__(cls, step: float, pairs: int, n_motors: int):
+        for name, value in (("pairs", pairs), ("n_motors", n_motors)):
+            if int(value) != value or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value}")
+        value = super().__new__(cls, step)
+        value.pairs, value.n_motors = int(pairs), int(n_motors)
+        return value
+
+    def __reduce__(self):
+        return (CloudStep, (float(self), self.pairs, self.n_motors))
+
+    def __repr__(self):
+        return f"CloudStep({float(self)!r}, pairs={self.pairs}, n_motors={self.n_motors})"
+
+
+# A design of 2 x 16,384 pairs and its fit take ~10 MB: a few are kept.
+@functools.lru_cache(maxsize=6)
+def cloud_design(n_motors: int, pairs: int, degree: int = 2):
+    """``(offsets (1 + 2 pairs, M), fit (P, 1 + 2 pairs), slope_sd (M,))`` of
+    a ``CloudStep`` in units of its step: the state, ``pairs`` Halton points
+    of ``[-1, 1]^M``, their mirror images; the least-squares operator of the
+    polynomial model of ``degree`` (value, M slopes, higher terms); the
+    factor from a row's error sd to each fitted slope's sd."""
+    points = 2.0 * qmc.Halton(d=int(n_motors), scramble=False).random(int(pairs) + 1)[1:] - 1.0
+    offsets = np.vstack([np.zeros((1, n_motors)), points, -points])
+    fit = np.linalg.pinv(polynomial_model(offsets, degree))
+    return offsets, fit, np.sqrt(np.sum(fit[1:1 + n_motors] ** 2, axis=1))
+
+
+def polynomial_model(offsets: np.ndarray, degree: int = 2) -> np.ndarray:
+    """Columns 1, ``x_i``, then the products of 2 .. ``degree`` offsets
+    (each set of indices once) of offsets ``(K, M)``."""
+    n_motors = offsets.shape[1]
+    columns = [np.ones((len(offsets), 1)), offsets]
+    for order in range(2, int(degree) + 1):
+        for index in itertools.combinations_with_replacement(range(n_motors), order):
+            columns.append(np.prod(offsets[:, index], axis=1)[:, None])
+    return np.hstack(columns)
+
+
+def cloud_fit(answer: np.ndarray, fd_step: "CloudStep", degree: int = 2):
+    """``(sensations (..., S), jacobians (..., S, M), misfit sd (...))`` of a
+    ``CloudStep``'s rows ``answer`` ``(..., rows, S)`` fitted by the
+    polynomial of ``degree``; the misfit sd is the root mean square
+    residual over receptors and the fit's degrees of freedom (the error sd
+    of one sensed value, or more where the polynomial does not follow)."""
+    offsets, fit, _ = cloud_design(fd_step.n_motors, fd_step.pairs, degree)
+    coef = np.einsum("pk,...ks->...ps", fit, answer)
+    model = polynomial_model(offsets, degree)
+    residual = answer - np.einsum("kp,...ps->...ks", model, coef)
+    dof = max(len(offsets) - model.shape[1], 1)
+    misfit = np.sqrt(np.sum(residual ** 2, axis=(-2, -1)) / (dof * answer.shape[-1]))
+    jac = np.swapaxes(coef[..., 1:1 + fd_step.n_motors, :], -1, -2) / float(fd_step)
+    return coef[..., 0, :].copy(), jac, misfit
+
+
 def stencil_rows(n_motors: int, fd_step: float) -> int:
     """Rows ``jacobian_stencil`` senses per state."""
+    if isinstance(fd_step, CloudStep):
+        return 1 + 2 * fd_step.pairs
     return (2 if isinstance(fd_step, SymmetricStep) else 1) * int(n_motors) + 1
 
 
@@ -92,6 +167,9 @@ def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
 def stencil_jacobian(answer: np.ndarray, fd_step: float):
     """``(sensations (..., S), jacobians (..., S, M))`` from what the rows of
     ``jacobian_stencil`` sensed, ``answer`` ``(..., stencil_rows, S)``."""
+    if isinstance(fd_step, CloudStep):
+        sensations, jacobians, _ = cloud_fit(answer, fd_step)
+        return sensations, jacobians
     sensations = answer[..., 0, :].copy()
     if isinstance(fd_step, SymmetricStep):
         n_motors = (answer.shape[-2] - 1) // 2
@@ -106,6 +184,9 @@ def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndar
     along each joint, then ``-h`` for a ``SymmetricStep``)."""
     motor_states = np.asarray(motor_states, dtype=float)
     n_batch, n_motors = motor_states.shape
+    if isinstance(fd_step, CloudStep):
+        offsets, _, _ = cloud_design(n_motors, fd_step.pairs)
+        return (motor_states[:, None, :] + float(fd_step) * offsets[None]).reshape(-1, n_motors)
     stencil = np.repeat(motor_states[:, None, :], stencil_rows(n_motors, fd_step), axis=1)
     stencil[:, 1:n_motors + 1, :] += fd_step * np.eye(n_motors)
     if isinstance(fd_step, SymmetricStep):

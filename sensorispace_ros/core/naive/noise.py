@@ -38,9 +38,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
-from sensorispace_ros.core.naive.jacobians import SymmetricStep
+from sensorispace_ros.core.naive.jacobians import CloudStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.structure import BodyStructure, measure_structure
+from sensorispace_ros.core.naive.structure import (BodyStructure, measure_cloud_structure,
+                                                   measure_structure)
 
 # MAD -> standard deviation of a normal distribution.
 _MAD_TO_SD = 1.482602218505602
@@ -65,11 +66,19 @@ class SensoryNoise:
     ladder_sd: float
     lost_fraction: float
     slope: float = 0.0
+    quantum: float = 0.0
+
+    @property
+    def rounded(self) -> bool:
+        """The outputs lie on a lattice (``quantum``) and repeats do not
+        spread: the error is the rounding, the same at every repeat."""
+        return self.quantum > 0 and self.repeat_sd < 0.5 * self.sd
 
     def metrics(self) -> dict:
         return {"naive.noise_estimate": float(self.sd),
                 "naive.noise_repeat_sd": float(self.repeat_sd),
                 "naive.noise_ladder_sd": float(self.ladder_sd),
+                "naive.noise_quantum": float(self.quantum),
                 "naive.lost_fraction": float(self.lost_fraction)}
 
 
@@ -130,6 +139,40 @@ def ladder_spread(lines: np.ndarray) -> float:
     return 0.0
 
 
+# A lattice finer than this share of the outputs' size is rounding of the
+# float kind (float32's relative step is 6e-8): the finite-difference path
+# sized from the ladder already lives with it.
+_FINEST_LATTICE = 2.0 ** -20
+# Share of the gaps between a receptor's values that must be whole
+# multiples of the smallest one for the outputs to lie on a lattice.
+_ON_LATTICE = 0.95
+
+
+def output_lattice(sensed: np.ndarray) -> float:
+    """The step of the lattice the outputs ``(N, S)`` lie on, 0 if none: the
+    median over receptors (with at least three distinct finite values) of
+    the smallest gap between two of its values, when the gaps between the
+    values of every receptor are whole multiples of it (``_ON_LATTICE`` of
+    them) and it is coarser than float rounding (``_FINEST_LATTICE``)."""
+    values = np.asarray(sensed, dtype=float)
+    smallest, gaps = [], []
+    for column in values.T:
+        distinct = np.unique(column[np.isfinite(column)])
+        if len(distinct) >= 3:
+            step = np.diff(distinct)
+            smallest.append(step.min())
+            gaps.append(step)
+    if not smallest:
+        return 0.0
+    quantum = float(np.median(smallest))
+    finite = values[np.isfinite(values)]
+    if quantum <= _FINEST_LATTICE * float(np.max(np.abs(finite))):
+        return 0.0
+    ratio = np.concatenate(gaps) / quantum
+    on = np.abs(ratio - np.round(ratio)) <= 1e-3
+    return quantum if np.mean(on) >= _ON_LATTICE else 0.0
+
+
 def line_slope(lines: np.ndarray) -> float:
     """Largest ``|y_last - y_0| / length`` of the ladder's lines ``(L, K, S)``
     with steps of at least 1e-3 (finite ends only; 0 if none)."""
@@ -157,8 +200,15 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
     ladder_sd = ladder_spread(lines)
     finite = sensed[np.isfinite(sensed)]
     roundoff = np.finfo(float).eps * (float(np.max(np.abs(finite))) if len(finite) else 0.0)
-    return SensoryNoise(max(repeat_sd, ladder_sd, roundoff), repeat_sd, ladder_sd, lost,
-                        line_slope(lines))
+    sd = max(repeat_sd, ladder_sd, roundoff)
+    quantum = output_lattice(sensed)
+    if quantum > 0 and repeat_sd < 0.5 * sd:
+        # Rounding to a lattice errs uniformly within half a step: sd
+        # quantum / sqrt(12) (second differences of rounded values see more).
+        sd = max(repeat_sd, quantum / np.sqrt(12.0), roundoff)
+    else:
+        quantum = 0.0
+    return SensoryNoise(sd, repeat_sd, ladder_sd, lost, line_slope(lines), quantum)
 
 
 # Accepted sensory errors a match may add up: an anchor is an earlier
@@ -192,6 +242,11 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
     noise = measure_noise(body, center, repeats=params.noise_repeats,
                           line_rows=params.noise_repeats)
     step = sized_fd_step(params, noise.sd, noise.slope, n_sensors)
+    if noise.rounded:
+        structure = rounded_structure(body, center, params)
+        structure = replace(structure, noise=noise.sd, fd_step=max(step, params.fd_step),
+                            repeat_noise=noise.repeat_sd, quantum=noise.quantum)
+        return structure, sized_params(params, structure, n_sensors)
     noisy = step > params.fd_step
     repeats, revealed = 1, -1
     while True:
@@ -211,6 +266,40 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
         revealed, repeats = structure.pose_rank, 4 * repeats
     structure = replace(structure, noise=noise.sd, fd_step=step, repeat_noise=noise.repeat_sd)
     return structure, sized_params(params, structure, n_sensors)
+
+
+# Cloud half widths tried, as shares of ``naive.cloud_step``.
+_CLOUD_LADDER = (1.0, 0.5, 0.25)
+
+
+def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStructure:
+    """The structure of a body whose outputs are rounded, from Jacobians
+    fitted over clouds of ``2 * cloud_pairs`` states around each probe
+    (``structure.measure_cloud_structure``). A wider cloud averages the
+    rounding over more steps (its floor falls as 1 / width) while the
+    polynomial follows the sensation less well (its misfit grows with the
+    width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
+    lowest floor (relative to the gain) is kept; its clouds are then made
+    four times larger while that reveals more of the rank or the probes
+    disagree, up to ``cloud_max_pairs``."""
+    pairs = int(params.cloud_pairs)
+
+    def measured(width, pairs):
+        with getattr(body, "fresh", contextlib.nullcontext)():
+            return measure_cloud_structure(
+                body, center, step=CloudStep(width, pairs, len(center)),
+                probes=params.structure_probes, radius=params.structure_radius,
+                rank_gap=params.cloud_rank_gap)
+
+    tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
+             for share in _CLOUD_LADDER]
+    width, structure = min(tried, key=lambda t: t[1].floor / max(t[1].gain, 1e-300))
+    revealed = -1
+    while 4 * pairs <= params.cloud_max_pairs and not (
+            structure.votes == structure.probes and structure.pose_rank <= revealed):
+        revealed, pairs = structure.pose_rank, 4 * pairs
+        structure = measured(width, pairs)
+    return structure
 
 
 def averaged_sd(noise, repeats: int) -> float:

@@ -33,6 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sensorispace_ros.core.naive.jacobians import (cloud_design, cloud_fit,
+                                                   jacobian_stencil, stencil_rows)
+
 # Fixed directions of the probe states around the start (any body's motor
 # space): a golden-ratio sequence of cosines, normalised per state.
 _GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
@@ -51,7 +54,9 @@ class BodyStructure:
     sensory noise (``noise.SensoryNoise.sd``), ``fd_step`` the
     finite-difference step sized from it, ``weakest`` the median
     ``pose_rank``-th singular value of the agreeing probes; ``repeat_noise``
-    the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``)."""
+    the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``);
+    ``quantum`` the step of the lattice rounded outputs lie on (0: none,
+    ``SensoryNoise.quantum``)."""
 
     n_motors: int
     pose_rank: int
@@ -64,6 +69,7 @@ class BodyStructure:
     fd_step: float = 0.0
     weakest: float = 0.0
     repeat_noise: float = 0.0
+    quantum: float = 0.0
 
     @property
     def pov_dim(self) -> int:
@@ -75,7 +81,8 @@ class BodyStructure:
                 "naive.rank_gap": float(self.rank_gap), "naive.sensory_gain": float(self.gain),
                 "naive.fd_noise_floor": float(self.floor),
                 "naive.rank_votes": int(self.votes), "naive.rank_probes": int(self.probes),
-                "naive.noise_estimate": float(self.noise), "naive.fd_step": float(self.fd_step)}
+                "naive.noise_estimate": float(self.noise), "naive.fd_step": float(self.fd_step),
+                "naive.noise_quantum": float(self.quantum)}
 
 
 @dataclass(frozen=True)
@@ -251,3 +258,38 @@ def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int =
     singular = np.linalg.svd(jac, compute_uv=False)
     return structure_from_probes(singular, floor, n_motors, min_gap,
                                  None if noise_sd is None else noise_gap)
+
+
+def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
+                            radius: float = 0.1, rank_gap: float = 2.0) -> BodyStructure:
+    """Pose rank, POV dimension and gain of ``body`` around ``center`` from
+    Jacobians fitted over clouds of states (``step``, a
+    ``jacobians.CloudStep``) at ``probes`` states, in ONE ``sense`` call of
+    ``probes * (1 + 2 * step.pairs)`` rows: the measure where the outputs
+    are rounded (sensing one state again repeats its error exactly).
+
+    Each probe's Jacobian is the slope of a cubic fitted to its cloud: on
+    the symmetric cloud the quadratic terms leave the slope alone and the
+    cubic ones are fitted, so what the step's curvature still adds is of
+    fifth order (a quadratic's slope keeps the third-order part, which on
+    rendered images lifts a POV's tangent above the floor). Its floor is
+    the spectral norm its error would have if every entry erred
+    independently, ``s (sqrt(S) + sqrt(M))``, ``s`` the sd of a fitted slope
+    for the misfit the cloud itself shows. A singular value counts when it
+    is at least ``rank_gap`` floors."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    n_motors = len(center)
+    states = probe_states(center, int(probes), radius)
+    sensed = np.asarray(body.sense(jacobian_stencil(states, step)), dtype=float)
+    answer = sensed.reshape(len(states), stencil_rows(n_motors, step), -1)
+    finite = np.all(np.isfinite(answer), axis=(1, 2))
+    answer = np.where(np.isfinite(answer), answer, 0.0)
+    _, jac, misfit = cloud_fit(answer, step, degree=3)
+    _, _, slope_sd = cloud_design(n_motors, step.pairs, 3)
+    spread = np.sqrt(answer.shape[-1]) + np.sqrt(n_motors)
+    floor = misfit * float(np.max(slope_sd)) / float(step) * spread
+    # A probe with a lost row does not vote (J = 0 against a floor of 1).
+    jac[~finite], floor = 0.0, np.where(finite, floor, 1.0)
+    singular = np.linalg.svd(jac, compute_uv=False)
+    return structure_from_probes(singular, np.maximum(floor, 1e-300), n_motors,
+                                 rank_gap, rank_gap)
