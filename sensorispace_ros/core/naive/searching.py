@@ -44,9 +44,10 @@ class SearchAndSample:
         group, unique_targets, owner, starts = self._search_plan(requests, current)
         solution, others, gain = self._run_searches(unique_targets, owner, starts)
         if self._noisy and solution:
-            # Anchors at rest were averaged (``_repeats``); rows of a sweep were sensed once.
-            once = {g: requests[int(np.flatnonzero(group == g)[0])].row >= 0 for g in solution}
-            solution = self._confirm(solution, unique_targets, once)
+            # Sensings averaged in each target: anchors at rest ``_repeats``, a
+            # sweep's row as many as its chain of matches pooled (``Request.count``).
+            counts = {g: requests[int(np.flatnonzero(group == g)[0])].count for g in solution}
+            solution = self._confirm(solution, unique_targets, counts)
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
@@ -92,20 +93,36 @@ class SearchAndSample:
             sensation = self._body.rest(motor_state)
         return finite_mean(np.vstack([sensation[None], more]))
 
-    def _confirm(self, solution, unique_targets, once):
+    def _confirm(self, solution, unique_targets, counts, rounds=None, max_step=None):
         """The searches' solutions that pass ``confirm.confirm_compensations``
-        (stepped with the averaged residual); ``once[g]``: group ``g``'s
-        target was sensed once, not averaged."""
+        (refined with averaged residuals); ``counts[g]``: the sensings
+        averaged in group ``g``'s target; ``rounds`` (default
+        ``confirm_rounds``) of refinement; ``max_step`` as
+        ``confirm_compensations``'s."""
         groups = sorted(solution)
         sd2 = self.structure.noise ** 2
+        if max_step is None and self._repeats <= 1:
+            # Rounding repeats exactly: sensing again cannot refine the end;
+            # one step with the residual, accepted where the noise explains it.
+            max_step = np.inf
         self._body.stage = "compensation"
         stepped, accepted, _ = confirm_compensations(
             self._body, np.stack([solution[g] for g in groups]), unique_targets[groups],
-            np.array([sd2 if once[g] else sd2 / self._repeats for g in groups]),
+            np.array([sd2 / counts[g] for g in groups]),
             noise_sd=self.structure.noise, repeats=self._repeats,
             rank=self.structure.pose_rank, fd_step=self._fd_step,
-            confidence=self.params.noise_confidence)
+            confidence=self.params.noise_confidence, rounds=self.params.confirm_rounds if rounds is None else rounds,
+            max_error=self._max_pose_error(), max_step=max_step)
         return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
+
+    def _max_pose_error(self) -> float:
+        """The largest predicted pose error (motor space, one standard
+        deviation) a compensation may keep: ``pose_precision`` times the
+        separation of the distinct POVs found so far (``PovStore.separation``;
+        none while fewer than ``pose_precision_povs`` are known)."""
+        if self._store.count < self.params.pose_precision_povs:
+            return np.inf
+        return self.params.pose_precision * self._store.separation()
 
     def _run_searches(self, unique_targets, owner, starts):
         """The batched searches. Returns ``{group: best accepted state}``,
