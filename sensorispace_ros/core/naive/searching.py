@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
@@ -182,6 +183,27 @@ class SearchAndSample:
             owner.extend([g] * len(chosen))
         return group, unique_targets, np.asarray(owner), np.asarray(starts, dtype=float)
 
+    def _whole_on_level_set(self, walk) -> np.ndarray:
+        """Where noise sized the tolerances: which walked POVs have every
+        sample sensing their start's sensation within what two sensings
+        differ by (one call, every sample of every valid walk); a walk
+        that slid along a weak pose direction, or onto another pose with a
+        like sensation, is not one POV. True everywhere else."""
+        whole = np.ones(len(walk.valid), dtype=bool)
+        valid = np.flatnonzero(walk.valid)
+        if not self._noisy or not len(valid):
+            return whole
+        samples = walk.samples[valid]
+        sensed = self._body.sense(samples.reshape(-1, samples.shape[2]))
+        residual = sensed.reshape(len(valid), samples.shape[1], -1) - \
+            walk.target_sensations[valid][:, None, :]
+        with np.errstate(invalid="ignore"):
+            worst = np.max(np.sum(residual ** 2, axis=2), axis=1)
+        limit = _SLID ** 2 * 2.0 * self.structure.noise ** 2 * _level_set_limit(
+            self.params, samples.shape[1], residual.shape[2])
+        whole[valid] = ~(worst > limit)       # a lost row does not reject a POV
+        return whole
+
     def _sample_povs(self, motor_states: np.ndarray, keep_invalid: bool = False, others=None):
         """Sample the POVs of ``motor_states`` (one batch) and store the valid
         ones. Returns their indices and sensations; with ``keep_invalid``,
@@ -199,10 +221,11 @@ class SearchAndSample:
             surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
             min_singular=self._tol.min_singular,
             pattern_ratio=p.pattern_ratio)
+        whole = self._whole_on_level_set(walk)
         indices, sensations = [], []
         for i in range(len(motor_states)):
             # Nothing non-finite becomes a POV (a walk through lost rows).
-            if walk.valid[i] and np.all(np.isfinite(walk.samples[i])) and \
+            if walk.valid[i] and whole[i] and np.all(np.isfinite(walk.samples[i])) and \
                     np.all(np.isfinite(walk.target_sensations[i])):
                 samples = walk.samples[i]
                 if others is not None and len(others[i]):
@@ -219,6 +242,19 @@ class SearchAndSample:
                     indices.append(-1)
                     sensations.append(None)
         return indices, sensations
+
+
+# How many times what two sensings of one pose differ by a POV's sample may
+# lie from its start's sensation: the walk's own tolerances are motor steps
+# (``pov_sample_tol``), which leave a residual along the strong pose
+# directions several times the noise; a slide to another pose leaves more.
+_SLID = 4.0
+
+
+def _level_set_limit(params, n_samples: int, n_sensors: int) -> float:
+    """The chi-square quantile (``S`` degrees of freedom) no sample of a
+    whole POV exceeds at ``noise_confidence``, shared among its samples."""
+    return float(chi2.ppf(1.0 - (1.0 - params.noise_confidence) / n_samples, n_sensors))
 
 
 def _distinct(states: np.ndarray, tol: float) -> np.ndarray:
