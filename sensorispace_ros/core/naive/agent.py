@@ -372,6 +372,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         matches, rest_hits, rank_now = self._match_snapshots(current, tree)
         matches = self._test_ranks(matches, rest_hits, rank_now, current)
         rest_hits = self._verify_rest_hits(rest_hits)
+        matches = self._verify_matches(matches)
         pooled, counts = self._pool_sweep(matches, current)
         known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)
 

@@ -257,6 +257,28 @@ class SnapshotMatching:
                              max_step=_HIT_SHARE * self._max_pose_error())
         return np.where(np.isin(np.arange(len(rest_hits)), list(kept)), rest_hits, -1)
 
+    def _verify_matches(self, matches):
+        """Where noise sized the tolerances, a match of a sweep row to a
+        snapshot's row is a compensation too (the POV now senses what the
+        other sensed then): it passes the averaged test of a known POV
+        against an anchor (``_verify_rest_hits``) or is dropped, so a row
+        within the chain allowance of a sensation it does not reproduce
+        confirms nothing and adds no equality. Returns the matches kept."""
+        if not self._noisy:
+            return matches
+        kept = []
+        for snap, (before, after) in zip(self._pool, matches):
+            if not len(before):
+                kept.append((before, after))
+                continue
+            solution = {i: self._store.samples[a, 0] for i, a in enumerate(after)}
+            counts = {i: snap.count(int(b)) for i, b in enumerate(before)}
+            ok = self._confirm(solution, snap.sensations[before], counts, rounds=1,
+                               max_step=_HIT_SHARE * self._max_pose_error())
+            good = np.isin(np.arange(len(before)), list(ok))
+            kept.append((before[good], after[good]))
+        return kept
+
     def _track_frontier(self, requests, found, new_povs) -> None:
         """Moving average of the frontier searches that found a new POV."""
         frontier = [i for i, r in enumerate(requests) if r.row >= 0]
