@@ -273,8 +273,10 @@ class SnapshotMatching:
                 continue
             solution = {i: self._store.samples[a, 0] for i, a in enumerate(after)}
             counts = {i: snap.count(int(b)) for i, b in enumerate(before)}
+            # Averaging pays until the average's noise is a quarter of the target's.
+            repeats = min(self._repeats, 4 * max(counts.values()))
             ok = self._confirm(solution, snap.sensations[before], counts, rounds=1,
-                               max_step=_HIT_SHARE * self._max_pose_error())
+                               max_step=_HIT_SHARE * self._max_pose_error(), repeats=repeats)
             good = np.isin(np.arange(len(before)), list(ok))
             kept.append((before[good], after[good]))
         return kept

@@ -94,12 +94,14 @@ class SearchAndSample:
             sensation = self._body.rest(motor_state)
         return finite_mean(np.vstack([sensation[None], more]))
 
-    def _confirm(self, solution, unique_targets, counts, rounds=None, max_step=None):
+    def _confirm(self, solution, unique_targets, counts, rounds=None, max_step=None,
+                 repeats=None):
         """The searches' solutions that pass ``confirm.confirm_compensations``
         (refined with averaged residuals); ``counts[g]``: the sensings
         averaged in group ``g``'s target; ``rounds`` (default
         ``confirm_rounds``) of refinement; ``max_step`` as
-        ``confirm_compensations``'s."""
+        ``confirm_compensations``'s; ``repeats`` (default ``_repeats``) the
+        sensings averaged per round."""
         groups = sorted(solution)
         sd2 = self.structure.noise ** 2
         if max_step is None and self._repeats <= 1:
@@ -110,7 +112,7 @@ class SearchAndSample:
         stepped, accepted, _ = confirm_compensations(
             self._body, np.stack([solution[g] for g in groups]), unique_targets[groups],
             np.array([sd2 / counts[g] for g in groups]),
-            noise_sd=self.structure.noise, repeats=self._repeats,
+            noise_sd=self.structure.noise, repeats=repeats or self._repeats,
             rank=self.structure.pose_rank, fd_step=self._fd_step,
             confidence=self.params.noise_confidence, rounds=self.params.confirm_rounds if rounds is None else rounds,
             max_error=self._max_pose_error(), max_step=max_step)
