@@ -167,7 +167,11 @@ class SearchAndSample:
         starts (K, M))``."""
         p = self.params
         targets = np.stack([r.target for r in requests])
-        group = _group_rows(targets, self._tol.match)
+        # Under noise the match tolerance allows for drift along chains; two
+        # targets are one only within what two sensings of one pose differ by.
+        same = self._tol.match if self._tol.ratio == 0 else min(self._tol.match,
+                                                                self._tol.separation)
+        group = _group_rows(targets, same)
         n_groups = int(group.max()) + 1
         first = [int(np.flatnonzero(group == g)[0]) for g in range(n_groups)]
         unique_targets = targets[first]
