@@ -163,6 +163,7 @@ def test_a_noise_no_parameter_names_gives_no_wrong_pose():
     assert len(records) > 50
     anchor = np.stack([r.anchor_motor_state for r in records])
     target = world.arm.forward(anchor)
-    target[:, :2] += centers[[r.event for r in records]] - centers[[r.anchor_event for r in records]]
+    events = [r.event for r in records]
+    target[:, :2] += centers[events] - centers[[r.anchor_event for r in records]]
     found = world.arm.forward(np.stack([r.motor_state for r in records]))
     assert np.max(world.arm.pose_error(found, target)) < world.spacing / 4

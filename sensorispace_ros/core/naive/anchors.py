@@ -8,7 +8,11 @@ snapshot's sweep with the new one; a snapshot with a full-rank match is
 *confirmed* (no redistribution since), and its anchor, and the unmatched
 rows next to its matched ones (the frontier), are worth searching for.
 ``SnapshotMatching`` (a mixin of ``NaiveAgent``) does the matching, the rank
-tests it needs, the equality sets it gives and keeps the pool.
+tests it needs, the equality sets it gives and keeps the pool. Where noise
+sized the tolerances, every match (of a sweep row or of an anchor) passes
+the averaged test of a compensation, and matched rows pool the sensings of
+their chains of matches (``pooled_sweep``): a snapshot's row is then a
+target of known precision.
 """
 from __future__ import annotations
 

@@ -6,9 +6,11 @@ walks (or covers) POVs of the dimension the agent measured and stores the
 whole ones. For 0-D POVs the searches toward one target keep going after the
 first acceptance, and every distinct solution they find belongs to that
 target's POV. Tolerances on sensations are the agent's ``Tolerances``.
-Where noise sized them, a search's end passes ``confirm`` (a chi-square
-test of its averaged residual) and anchors are averaged
-(``_rest_sensation``).
+Where noise sized them, a search's end is refined and passes ``confirm``
+(chi-square tests of its averaged residual, its predicted pose error held
+to ``pose_precision`` of the separation of the POVs found), anchors are
+averaged (``_rest_sensation``), and a walked POV is kept only if all its
+samples sense its start's sensation (``_whole_on_level_set``).
 """
 from __future__ import annotations
 
@@ -114,7 +116,8 @@ class SearchAndSample:
             np.array([sd2 / counts[g] for g in groups]),
             noise_sd=self.structure.noise, repeats=repeats or self._repeats,
             rank=self.structure.pose_rank, fd_step=self._fd_step,
-            confidence=self.params.noise_confidence, rounds=self.params.confirm_rounds if rounds is None else rounds,
+            confidence=self.params.noise_confidence,
+            rounds=self.params.confirm_rounds if rounds is None else rounds,
             max_error=self._max_pose_error(), max_step=max_step)
         return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
 
@@ -191,8 +194,8 @@ class SearchAndSample:
 
     def _whole_on_level_set(self, walk) -> np.ndarray:
         """Where noise sized the tolerances: which walked POVs have every
-        sample sensing their start's sensation within what two sensings
-        differ by (one call, every sample of every valid walk); a walk
+        sample sensing their start's sensation within ``_SLID`` times what
+        two sensings differ by (one call, every sample of every valid walk); a walk
         that slid along a weak pose direction, or onto another pose with a
         like sensation, is not one POV. True everywhere else."""
         whole = np.ones(len(walk.valid), dtype=bool)
