@@ -148,3 +148,22 @@ def test_the_agent_reports_the_noise_it_measured():
     _, agent = _smoke_agent(noise=1e-8)
     assert 0.5e-8 <= agent.structure.metrics()["naive.noise_estimate"] <= 2e-8
     assert agent.params.fd_step > NaiveParams().fd_step
+
+
+def test_a_noise_no_parameter_names_gives_no_wrong_pose():
+    # Noise proportional to each output (sd 3e-5 of it): neither its kind
+    # nor its size is told to the agent. Every accepted compensation puts
+    # the eye within a quarter grid step of the pose its anchor asks for.
+    world = build_world(0, {"grid_count": 16, "initial_center": "center"})
+    wrapper = functools.partial(ImperfectSensing, seed=7919, relative=3e-5)
+    explored = explore_naive(world, NaiveParams(), body_wrapper=wrapper)
+    agent, centers = explored.agent, np.asarray(explored.centers)
+    assert agent.structure.pose_rank == 3 and len(agent.points_of_view) > 20
+    records = agent.compensations
+    assert len(records) > 50
+    anchor = np.stack([r.anchor_motor_state for r in records])
+    target = world.arm.forward(anchor)
+    events = [r.event for r in records]
+    target[:, :2] += centers[events] - centers[[r.anchor_event for r in records]]
+    found = world.arm.forward(np.stack([r.motor_state for r in records]))
+    assert np.max(world.arm.pose_error(found, target)) < world.spacing / 4

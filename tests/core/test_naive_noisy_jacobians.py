@@ -2,6 +2,7 @@
 Jacobians, the chi-square acceptance of a compensation and matching by how
 far a match stands out from the next sensation."""
 import numpy as np
+import pytest
 
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import match_sensations
@@ -180,3 +181,66 @@ def test_the_step_turns_symmetric_only_where_noise_reaches_the_weakest_direction
     assert isinstance(step, SymmetricStep) and step > 1e-3
     # Its Jacobian's noise is below the forward step's.
     assert jacobian_noise(loud, 6, step) < jacobian_noise(loud, 6, 1e-3)
+
+
+def test_a_state_off_its_target_along_the_weak_direction_is_moved_there_or_rejected():
+    # The weak pose coordinate (m2) 0.005 off: its residual lies in the
+    # Jacobian's range, which a test of the residual outside it cannot see.
+    # The rounds step it back; one round, which must accept or reject as it
+    # stands, rejects it.
+    exact = RankTwoBody()
+    target_state = np.array([0.3, 0.2, -0.4])
+    body = ImperfectSensing(exact, seed=6, noise=1e-4)
+    target = finite_mean(body.sense(np.repeat(target_state[None], 64, axis=0)))
+    states = np.repeat((target_state + [0.0, 0.0, 0.005])[None], 20, axis=0)
+    stepped, accepted, _ = _confirm(body, states, target, 1e-4 / 8)
+    assert accepted.mean() >= 0.9
+    assert np.max(np.abs(stepped[accepted, 2] - target_state[2])) < 0.002
+    _, once, _ = confirm_compensations(
+        body, states, np.repeat(target[None], len(states), axis=0),
+        np.full(len(states), (1e-4 / 8) ** 2), noise_sd=1e-4, repeats=64, rank=2,
+        fd_step=SymmetricStep(0.02), confidence=0.999, rounds=1)
+    assert not once.any()
+
+
+def test_a_pose_the_noise_does_not_pin_is_rejected():
+    # Target sensed once at noise 1e-4: the weak coordinate (gain ~0.01 per
+    # output) is known to ~1e-2; held to 1e-3 nothing passes, to 1 all do.
+    exact = RankTwoBody()
+    target_state = np.array([0.3, 0.2, -0.4])
+    body = ImperfectSensing(exact, seed=8, noise=1e-4)
+    target = body.sense(target_state[None])[0]
+    states = np.repeat(target_state[None], 10, axis=0)
+    for max_error, passing in ((1e-3, 0.0), (1.0, 0.9)):
+        _, accepted, _ = confirm_compensations(
+            body, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8),
+            noise_sd=1e-4, repeats=16, rank=2, fd_step=SymmetricStep(0.02),
+            confidence=0.999, max_error=max_error)
+        assert (accepted.mean() >= passing) if passing else not accepted.any()
+
+
+def test_matched_rows_pool_the_sensings_of_their_chain():
+    from sensorispace_ros.core.naive.anchors import Snapshot, pooled_sweep
+    old = Snapshot(0, np.array([[1.0, 1.0], [2.0, 2.0]]), np.ones(2, int), np.zeros(2),
+                   np.zeros(3), -1, counts=np.array([3, 1]))
+    current = np.array([[5.0, 5.0], [1.4, 1.4], [9.0, 9.0]])
+    # Row 1 now senses what row 0 sensed (3 sensings pooled); row 2 matched nothing.
+    pooled, counts = pooled_sweep([old], [(np.array([0]), np.array([1]))], current, cap=64)
+    assert counts.tolist() == [1, 4, 1]
+    assert np.allclose(pooled[1], (1.4 + 3 * 1.0) / 4) and np.allclose(pooled[[0, 2]],
+                                                                        current[[0, 2]])
+    _, capped = pooled_sweep([old], [(np.array([0]), np.array([1]))], current, cap=2)
+    assert capped[1] == 2
+    # A snapshot that pools nothing (a noiseless agent's) leaves the sweep as sensed.
+    plain = Snapshot(0, old.sensations, old.rank, np.zeros(2), np.zeros(3), -1)
+    pooled, counts = pooled_sweep([plain], [(np.array([0]), np.array([1]))], current, cap=64)
+    assert np.array_equal(pooled, current) and counts.tolist() == [1, 1, 1]
+
+
+def test_the_separation_of_povs_is_the_distance_between_neighbouring_loops():
+    from sensorispace_ros.core.naive.points_of_view import PovStore
+    store = PovStore(50, 2)
+    angle = np.linspace(0.0, 2 * np.pi, 50, endpoint=False)
+    for k in range(6):              # loops along joint 1 at joint 0 = 0.3 k (+- 2 pi)
+        store.append(np.stack([np.full(50, 0.3 * k + 2 * np.pi * (k % 2)), angle], axis=1))
+    assert store.separation() == pytest.approx(0.3)

@@ -278,7 +278,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         current = np.asarray(sensations).reshape(-1, self._body.n_sensors)
         self._pool = [Snapshot(0, current, np.full(len(current), RANK_FULL), rest_sensation,
                                 m0.copy(), self._rest_pov,
-                                RANK_FULL if new else RANK_UNKNOWN)]
+                                RANK_FULL if new else RANK_UNKNOWN,
+                                counts=self._pooled_counts(len(current)),
+                                rest_count=self._repeats)]
         self._body.pause()
         new = np.asarray(new, dtype=int)
         return Reaction(event=0, compensated=False, rest_motor_state=self._to_body(m0),
@@ -369,6 +371,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         tree = cKDTree(finite_rows(current, -1.0)) if len(current) else None
         matches, rest_hits, rank_now = self._match_snapshots(current, tree)
         matches = self._test_ranks(matches, rest_hits, rank_now, current)
+        rest_hits = self._verify_rest_hits(rest_hits)
+        matches = self._verify_matches(matches)
+        pooled, counts = self._pool_sweep(matches, current)
         known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)
 
         # Search for the anchors; the new POVs' sensation now is the anchor's.
@@ -377,6 +382,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         pov_rows = self._body.rows.get("pov", 0) - pov_rows_before
         if new_povs:
             current = np.vstack([current, np.asarray(new_sensations)])
+            if counts is not None:
+                pooled = np.vstack([pooled, np.asarray(new_sensations)])
+                counts = np.concatenate([counts, np.ones(len(new_povs), dtype=int)])
             rank_now = np.concatenate([rank_now, np.full(len(new_povs), RANK_FULL)])
         found_rest = {r.snapshot: found[i] for i, r in enumerate(requests)
                       if i in found and r.row < 0}
@@ -391,8 +399,9 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             self.events_compensated += 1
             self.compensation_queries.append(self._body.total_rows - rows_at_start - pov_rows)
         self._renew_pool(matches, known_comp, found_rest,
-                         Snapshot(t, current, rank_now, rest_sensation, self._rest.copy(),
-                                  self._rest_pov, int(rest_rank)))
+                         Snapshot(t, current if counts is None else pooled, rank_now,
+                                  rest_sensation, self._rest.copy(), self._rest_pov,
+                                  int(rest_rank), counts=counts, rest_count=self._repeats))
 
         new_idx = np.asarray(new_povs, dtype=int)
         return Reaction(event=t, compensated=bool(records),

@@ -8,7 +8,11 @@ snapshot's sweep with the new one; a snapshot with a full-rank match is
 *confirmed* (no redistribution since), and its anchor, and the unmatched
 rows next to its matched ones (the frontier), are worth searching for.
 ``SnapshotMatching`` (a mixin of ``NaiveAgent``) does the matching, the rank
-tests it needs, the equality sets it gives and keeps the pool.
+tests it needs, the equality sets it gives and keeps the pool. Where noise
+sized the tolerances, every match (of a sweep row or of an anchor) passes
+the averaged test of a compensation, and matched rows pool the sensings of
+their chains of matches (``pooled_sweep``): a snapshot's row is then a
+target of known precision.
 """
 from __future__ import annotations
 
@@ -26,13 +30,15 @@ from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
 class Request:
     """An anchor to search for: row ``row`` of snapshot ``snapshot``'s sweep
     (-1: its resting anchor), recorded at ``anchor_motor_state``; ``start``
-    an extra state to search from (None: none)."""
+    an extra state to search from (None: none); ``count`` the sensings
+    averaged in ``target``."""
 
     snapshot: int
     row: int
     target: np.ndarray
     anchor_motor_state: np.ndarray
     start: np.ndarray | None = None
+    count: int = 1
 
 
 @dataclass
@@ -41,7 +47,9 @@ class Snapshot:
     ``(K_t, S)`` (one per POV known then) and their ``rank`` ``(K_t,)``
     (``RANK_*``), the anchor ``rest_sensation`` at ``rest_motor_state``
     (POV ``rest_pov``, -1 if none) and its rank; ``fails``: events since it
-    last matched or was compensated."""
+    last matched or was compensated; ``counts`` ``(K_t,)`` the sensings
+    pooled in each row of ``sensations`` (None: one each; ``pooled_sweep``),
+    ``rest_count`` in ``rest_sensation``."""
 
     event: int
     sensations: np.ndarray
@@ -51,6 +59,14 @@ class Snapshot:
     rest_pov: int
     rest_rank: int = RANK_UNKNOWN
     fails: int = 0
+    counts: np.ndarray | None = None
+    rest_count: int = 1
+
+    def count(self, row: int) -> int:
+        """Sensings pooled in row ``row`` (-1: the anchor)."""
+        if row < 0:
+            return int(self.rest_count)
+        return 1 if self.counts is None else int(self.counts[row])
 
 
 def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
@@ -72,9 +88,11 @@ def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
         elif snap.rest_rank == RANK_DEFICIENT:
             continue                # a blank anchor would be "compensated" anywhere
         elif len(matches[k][0]) > 0:
-            requests.append(Request(k, -1, snap.rest_sensation, snap.rest_motor_state))
+            requests.append(Request(k, -1, snap.rest_sensation, snap.rest_motor_state,
+                                    count=snap.rest_count))
         elif unconfirmed_left > 0 and len(snap.sensations) < params.unconfirmed_max_povs:
-            requests.append(Request(k, -1, snap.rest_sensation, snap.rest_motor_state))
+            requests.append(Request(k, -1, snap.rest_sensation, snap.rest_motor_state,
+                                    count=snap.rest_count))
             unconfirmed_left -= 1
     requests.extend(frontier_requests(pool, matches, pov_samples=pov_samples,
                                       attempts=params.frontier_attempts,
@@ -104,9 +122,36 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
             snap.sensations[unmatched], k=1)
         order = np.argsort(distance, kind="stable")[:budget]
         return [Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
-                        pov_samples[unmatched[i], 0], pov_samples[after[nearest[i]], 0])
+                        pov_samples[unmatched[i], 0], pov_samples[after[nearest[i]], 0],
+                        snap.count(int(unmatched[i])))
                 for i in order]
     return []
+
+
+def pooled_sweep(pool: list, matches, current: np.ndarray, cap: int):
+    """This sweep's sensations ``current`` ``(K, S)`` pooled with what its
+    matches sensed before: a row matched to a snapshot's row senses the same
+    pose relative to the object in the same light layout, so the two are
+    sensings of one thing. Each matched row becomes the mean of its sensing
+    and the snapshot row's pooled ones (the most recent snapshot that
+    matched it; ``cap`` sensings at most, so an old mistake fades). Returns
+    ``(pooled (K, S), counts (K,))``."""
+    pooled = np.array(current, dtype=float, copy=True)
+    counts = np.ones(len(current), dtype=int)
+    done = np.zeros(len(current), dtype=bool)
+    for snap, (before, after) in zip(pool, matches):
+        if snap.counts is None or not len(after):
+            continue
+        fresh = ~done[after]
+        before, after = before[fresh], after[fresh]
+        previous = np.minimum(snap.counts[before], cap - 1)
+        finite = np.all(np.isfinite(current[after]), axis=1)
+        before, after, previous = before[finite], after[finite], previous[finite]
+        pooled[after] = (current[after] + previous[:, None] * snap.sensations[before]) \
+            / (previous + 1)[:, None]
+        counts[after] = previous + 1
+        done[after] = True
+    return pooled, counts
 
 
 def full_rank_matches(matches, rank_now):
@@ -114,10 +159,16 @@ def full_rank_matches(matches, rank_now):
     return [(b[rank_now[a] == RANK_FULL], a[rank_now[a] == RANK_FULL]) for b, a in matches]
 
 
+# A known POV matching an anchor may lie this many predicted pose errors
+# (``searching._max_pose_error``) from it: its own error and the anchor's.
+_HIT_SHARE = 4.0
+
+
 class SnapshotMatching:
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
     ``_body``, ``_store``, ``_pool``, ``_sets``, ``_rest_pov`` and
-    ``_frontier_success``, and ``_search_plan`` (``searching``)."""
+    ``_frontier_success``, ``_repeats``, ``_noisy``, and ``_search_plan`` and
+    ``_confirm`` (``searching``)."""
 
     def _match_snapshots(self, current, tree):
         """Match every snapshot's sweep, and its anchor, with this sweep
@@ -178,6 +229,61 @@ class SnapshotMatching:
                                           pattern_ratio=p.pattern_ratio)
             rank_now[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
         return full_rank_matches(matches, rank_now)
+
+    def _pooled_counts(self, rows: int) -> np.ndarray | None:
+        """Sensings pooled per row of a snapshot taken now: one each where
+        averaging pays (random noise measured), None elsewhere (nothing pooled)."""
+        return np.ones(rows, dtype=int) if self._repeats > 1 else None
+
+    def _pool_sweep(self, matches, current):
+        """``anchors.pooled_sweep`` of this sweep where the agent pools
+        sensings, else ``(current, None)``."""
+        if self._repeats <= 1:
+            return current, None
+        return pooled_sweep(self._pool, matches, current, self.params.pool_sensings)
+
+    def _verify_rest_hits(self, rest_hits):
+        """Where noise sized the tolerances, a known POV that matched an
+        anchor is a compensation found without a search: it passes the same
+        averaged test as a search's end (``searching._confirm``) or the
+        anchor is searched for instead; its pose is not refined, so its
+        Gauss-Newton step toward the anchor must be within ``_HIT_SHARE``
+        times the largest predicted pose error a compensation may keep.
+        Returns the hits kept (-1: none)."""
+        hits = np.flatnonzero(rest_hits >= 0)
+        if not self._noisy or not len(hits):
+            return rest_hits
+        solution = {int(k): self._store.samples[rest_hits[k], 0] for k in hits}
+        targets = np.stack([self._pool[k].rest_sensation for k in range(len(self._pool))])
+        counts = {int(k): self._pool[k].rest_count for k in hits}
+        self._body.stage = "compensation"
+        kept = self._confirm(solution, targets, counts, rounds=1,
+                             max_step=_HIT_SHARE * self._max_pose_error())
+        return np.where(np.isin(np.arange(len(rest_hits)), list(kept)), rest_hits, -1)
+
+    def _verify_matches(self, matches):
+        """Where noise sized the tolerances, a match of a sweep row to a
+        snapshot's row is a compensation too (the POV now senses what the
+        other sensed then): it passes the averaged test of a known POV
+        against an anchor (``_verify_rest_hits``) or is dropped, so a row
+        within the chain allowance of a sensation it does not reproduce
+        confirms nothing and adds no equality. Returns the matches kept."""
+        if not self._noisy:
+            return matches
+        kept = []
+        for snap, (before, after) in zip(self._pool, matches):
+            if not len(before):
+                kept.append((before, after))
+                continue
+            solution = {i: self._store.samples[a, 0] for i, a in enumerate(after)}
+            counts = {i: snap.count(int(b)) for i, b in enumerate(before)}
+            # Averaging pays until the average's noise is a quarter of the target's.
+            repeats = min(self._repeats, 4 * max(counts.values()))
+            ok = self._confirm(solution, snap.sensations[before], counts, rounds=1,
+                               max_step=_HIT_SHARE * self._max_pose_error(), repeats=repeats)
+            good = np.isin(np.arange(len(before)), list(ok))
+            kept.append((before[good], after[good]))
+        return kept
 
     def _track_frontier(self, requests, found, new_povs) -> None:
         """Moving average of the frontier searches that found a new POV."""

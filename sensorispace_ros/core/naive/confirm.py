@@ -5,14 +5,17 @@ is as close to the target as one sensing's noise allows. Along the pose's
 weakest direction that noise hides a displacement of ``noise /
 weakest singular value``; with a target sensed once, a state a lattice step
 away can pass. Where the agent measured noise it senses the search's end
-``repeats`` times (with its Jacobian stencil, in one call), averages, takes
-one Gauss-Newton step with the averaged residual and accepts the result
-only if the part of the residual that no pose change explains (outside the
-range of the Jacobian's ``rank`` directions) is what the noise of the
-average and of the target explains: ``|r_perp|^2 / variance`` is chi-square
-with ``S - rank`` degrees of freedom. Anchors (sensations at rest) are
-averaged as often (``NaiveAgent._rest_sensation``), so the test is tight
-where the agent can afford it.
+``repeats`` times (with its Jacobian stencil, in one call) and averages.
+The part of the residual that no pose change explains (outside the range of
+the Jacobian's ``rank`` directions) must be what the noise of the average
+and of the target explains (``|r_perp|^2 / variance`` is chi-square with
+``S - rank`` degrees of freedom); the part inside is the pose error: a
+Gauss-Newton step with the averaged residual removes it, and the state is
+sensed again until what is left there is noise too (``rounds`` at most).
+The search is coarse with single sensings; its end is refined with
+averages. Anchors (sensations at rest) are averaged as often
+(``NaiveAgent._rest_sensation``), so the test is tight where the agent can
+afford it.
 """
 from __future__ import annotations
 
@@ -34,42 +37,103 @@ def finite_mean(rows: np.ndarray) -> np.ndarray:
 
 def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
                           target_variance: np.ndarray, *, noise_sd: float, repeats: int,
-                          rank: int, fd_step: float, confidence: float):
-    """Sense every state of ``states`` ``(K, M)`` with its Jacobian stencil
-    and ``repeats - 1`` more times (one call), average, step once toward its
-    target ``targets`` ``(K, S)`` and test the residual left outside the
-    Jacobian's range against ``target_variance`` ``(K,)`` (per receptor) plus
-    the average's ``noise_sd^2 / repeats`` at ``confidence``.
+                          rank: int, fd_step: float, confidence: float, rounds: int = 3,
+                          max_error: float = np.inf, max_step: float | None = None):
+    """Refine every state of ``states`` ``(K, M)`` toward its target
+    ``targets`` ``(K, S)`` with averaged sensings and accept it only where
+    what is left of the residual is noise.
 
-    Returns ``(stepped states (K, M), accepted (K,) bool, averaged
-    sensations (K, S))``."""
+    A round senses each pending state with its Jacobian stencil and
+    ``repeats - 1`` more times (one call for all of them) and averages. The
+    residual's part outside the Jacobian's ``rank`` directions is what no pose
+    change explains: beyond the ``confidence`` quantile of ``target_variance``
+    ``(K,)`` (per receptor) plus the average's ``noise_sd^2 / repeats`` the
+    state is rejected. Its part inside them is the pose error: within what the
+    noise of two averages explains, the state is accepted after one
+    Gauss-Newton step with the averaged residual; beyond it the state takes that
+    step and is sensed again in the next round. ``rounds`` rounds at most
+    (then rejected). ``max_error``: the largest predicted pose error (one
+    standard deviation, motor space, phases) accepted: the noise of the target
+    and of the average over the Jacobian's ``rank``-th singular value, the
+    longest axis of ``variance (J^T J)^+``; a state whose pose the noise
+    does not pin that well is rejected. ``max_step`` (motor, phases): a
+    state whose Gauss-Newton step is within it is settled whatever its
+    residual in range (a known POV tested against an anchor: its pose is
+    where it was found, not refined). A search's end is only as close to its target as one
+    sensing's noise lets the search tell; the rounds take it to what the
+    averages tell, and a state a lattice step away along a weak pose direction,
+    which a single sensing cannot reject, is moved or rejected.
+
+    Returns ``(refined states (K, M), accepted (K,) bool, averaged
+    sensations at the last round (K, S))``."""
     states = np.asarray(states, dtype=float)
+    n_states, n_sensors = len(states), targets.shape[1]
+    refined = states.copy()
+    accepted = np.zeros(n_states, bool)
+    means = np.full((n_states, n_sensors), np.nan)
+    target_variance = np.asarray(target_variance, dtype=float)
+    # After a step the target's noise is in both the step and the residual:
+    # what is left in range is the difference of two averages of the state.
+    variances = (target_variance + noise_sd ** 2 / repeats,
+                 target_variance + 2.0 * noise_sd ** 2 / repeats)
+    limits = (chi2.ppf(confidence, max(n_sensors - rank, 1)), chi2.ppf(confidence, max(rank, 1)))
+    pending = np.arange(n_states)
+    for _ in range(int(rounds)):
+        if not len(pending):
+            break
+        mean, jac, whole = _averaged_with_jacobian(body, refined[pending], repeats, fd_step)
+        means[pending] = mean
+        step, explained, settled = _judge(jac, mean - targets[pending], rank, whole,
+                                          [v[pending] for v in variances], limits,
+                                          max_error, max_step)
+        refined[pending[explained]] += step[explained]
+        accepted[pending[settled]] = True
+        pending = pending[explained & ~settled]
+    refined[~accepted] = states[~accepted]
+    return refined, accepted, means
+
+
+def _judge(jac, residual, rank, whole, variances, limits, max_error, max_step):
+    """One round of ``confirm_compensations``: the Gauss-Newton step of each
+    state, whether the noise explains its residual outside the Jacobian's
+    range (and it pins its pose within ``max_error``), and whether it is
+    settled (its step within ``max_step``, or its residual inside the range
+    within noise too)."""
+    u, singular, _ = np.linalg.svd(jac, full_matrices=False)
+    along = np.einsum("bsk,bs->bk", u[:, :, :rank], residual)
+    inside = np.sum(along ** 2, axis=1)
+    outside = np.sum(residual ** 2, axis=1) - inside
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spread = np.sqrt(variances[0]) / singular[:, rank - 1]
+    step = minimum_norm_correction(jac, residual, rank)
+    explained = whole & np.isfinite(outside) & (outside <= variances[0] * limits[0]) & \
+        (spread <= max_error) & np.all(np.isfinite(step), axis=1)
+    if max_step is None:
+        settled = explained & (inside <= variances[1] * limits[1])
+    else:
+        settled = explained & (np.linalg.norm(step, axis=1) <= max_step)
+    return step, explained, settled
+
+
+def _averaged_with_jacobian(body, states, repeats, fd_step):
+    """Sense ``states`` ``(K, M)`` with their Jacobian stencils and ``repeats -
+    1`` more times, in one call. Returns ``(mean sensation (K, S), Jacobian
+    (K, S, M), whole (K,))``; a stencil with a lost row has no Jacobian
+    (zero, not ``whole``)."""
     n_states, n_motors = states.shape
-    if n_states == 0:
-        return states.copy(), np.zeros(0, bool), np.zeros((0, targets.shape[1]))
     rows = stencil_rows(n_motors, fd_step)
     stencil = jacobian_stencil(states, fd_step).reshape(n_states, rows, n_motors)
     extra = np.repeat(states[:, None, :], repeats - 1, axis=1)
     asked = np.concatenate([stencil, extra], axis=1).reshape(-1, n_motors)
     with getattr(body, "fresh", _nothing)():
-        sensed = np.asarray(body.sense(asked), dtype=float).reshape(n_states, rows + repeats - 1, -1)
+        sensed = np.asarray(body.sense(asked), dtype=float).reshape(
+            n_states, rows + repeats - 1, -1)
     _, jac = stencil_jacobian(sensed[:, :rows], fd_step)
-    # A stencil with a lost row has no Jacobian: it confirms nothing.
     whole = np.all(np.isfinite(jac), axis=(1, 2))
     jac[~whole] = 0.0
     mean = np.stack([finite_mean(np.concatenate([sensed[k, :1], sensed[k, rows:]]))
                      for k in range(n_states)])
-    residual = mean - targets
-    u, _, _ = np.linalg.svd(jac, full_matrices=False)
-    along = np.einsum("bsk,bs->bk", u[:, :, :rank], residual)
-    outside = np.sum(residual ** 2, axis=1) - np.sum(along ** 2, axis=1)
-    variance = np.asarray(target_variance, dtype=float) + noise_sd ** 2 / repeats
-    dof = max(targets.shape[1] - rank, 1)
-    accepted = np.isfinite(outside) & (outside <= variance * chi2.ppf(confidence, dof))
-    accepted &= whole
-    step = minimum_norm_correction(jac, residual, rank)
-    stepped = states + np.where(accepted[:, None], step, 0.0)
-    return stepped, accepted, mean
+    return mean, jac, whole
 
 
 class _nothing:

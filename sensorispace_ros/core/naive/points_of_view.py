@@ -35,6 +35,7 @@ class PovStore:
     def __init__(self, n_samples: int, n_motors: int):
         self._data = np.zeros((16, n_samples, n_motors))
         self.count = 0
+        self._separation = (0, 0.0)      # (POVs then, separation())
 
     def append(self, samples: np.ndarray) -> int:
         if self.count == len(self._data):
@@ -48,6 +49,31 @@ class PovStore:
     @property
     def samples(self) -> np.ndarray:
         return self._data[:self.count]
+
+    def separation(self) -> float:
+        """How far apart distinct POVs lie in motor space (phases): the
+        median over POVs of the distance from a POV's first sample to the
+        nearest sample of another POV, on the torus of phases (0 with fewer
+        than two POVs). Recomputed when the POVs have grown by an eighth
+        since the last time."""
+        count = self.count
+        cached = self._separation
+        if count < 2 or count < cached[0] * 9 / 8:
+            return cached[1] if count >= 2 else 0.0
+        from scipy.spatial import cKDTree
+        period = 2.0 * np.pi
+        samples = np.mod(self._data[:count], period)
+        owner = np.repeat(np.arange(count), samples.shape[1])
+        tree = cKDTree(samples.reshape(-1, samples.shape[2]), boxsize=period)
+        k = min(samples.shape[1] + 1, count * samples.shape[1])
+        distance, index = tree.query(samples[:, 0], k=k)
+        other = owner[index] != np.arange(count)[:, None]
+        nearest = np.where(other.any(axis=1), np.where(other, distance, np.inf).min(axis=1),
+                           np.inf)
+        value = float(np.median(nearest[np.isfinite(nearest)])) if np.isfinite(nearest).any() \
+            else 0.0
+        self._separation = (count, value)
+        return value
 
 
 def sample_sensory_points_of_view(

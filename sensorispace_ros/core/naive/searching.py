@@ -6,14 +6,17 @@ walks (or covers) POVs of the dimension the agent measured and stores the
 whole ones. For 0-D POVs the searches toward one target keep going after the
 first acceptance, and every distinct solution they find belongs to that
 target's POV. Tolerances on sensations are the agent's ``Tolerances``.
-Where noise sized them, a search's end passes ``confirm`` (a chi-square
-test of its averaged residual) and anchors are averaged
-(``_rest_sensation``).
+Where noise sized them, a search's end is refined and passes ``confirm``
+(chi-square tests of its averaged residual, its predicted pose error held
+to ``pose_precision`` of the separation of the POVs found), anchors are
+averaged (``_rest_sensation``), and a walked POV is kept only if all its
+samples sense its start's sensation (``_whole_on_level_set``).
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
@@ -44,9 +47,10 @@ class SearchAndSample:
         group, unique_targets, owner, starts = self._search_plan(requests, current)
         solution, others, gain = self._run_searches(unique_targets, owner, starts)
         if self._noisy and solution:
-            # Anchors at rest were averaged (``_repeats``); rows of a sweep were sensed once.
-            once = {g: requests[int(np.flatnonzero(group == g)[0])].row >= 0 for g in solution}
-            solution = self._confirm(solution, unique_targets, once)
+            # Sensings averaged in each target: anchors at rest ``_repeats``, a
+            # sweep's row as many as its chain of matches pooled (``Request.count``).
+            counts = {g: requests[int(np.flatnonzero(group == g)[0])].count for g in solution}
+            solution = self._confirm(solution, unique_targets, counts)
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
@@ -92,20 +96,39 @@ class SearchAndSample:
             sensation = self._body.rest(motor_state)
         return finite_mean(np.vstack([sensation[None], more]))
 
-    def _confirm(self, solution, unique_targets, once):
+    def _confirm(self, solution, unique_targets, counts, rounds=None, max_step=None,
+                 repeats=None):
         """The searches' solutions that pass ``confirm.confirm_compensations``
-        (stepped with the averaged residual); ``once[g]``: group ``g``'s
-        target was sensed once, not averaged."""
+        (refined with averaged residuals); ``counts[g]``: the sensings
+        averaged in group ``g``'s target; ``rounds`` (default
+        ``confirm_rounds``) of refinement; ``max_step`` as
+        ``confirm_compensations``'s; ``repeats`` (default ``_repeats``) the
+        sensings averaged per round."""
         groups = sorted(solution)
         sd2 = self.structure.noise ** 2
+        if max_step is None and self._repeats <= 1:
+            # Rounding repeats exactly: sensing again cannot refine the end;
+            # one step with the residual, accepted where the noise explains it.
+            max_step = np.inf
         self._body.stage = "compensation"
         stepped, accepted, _ = confirm_compensations(
             self._body, np.stack([solution[g] for g in groups]), unique_targets[groups],
-            np.array([sd2 if once[g] else sd2 / self._repeats for g in groups]),
-            noise_sd=self.structure.noise, repeats=self._repeats,
+            np.array([sd2 / counts[g] for g in groups]),
+            noise_sd=self.structure.noise, repeats=repeats or self._repeats,
             rank=self.structure.pose_rank, fd_step=self._fd_step,
-            confidence=self.params.noise_confidence)
+            confidence=self.params.noise_confidence,
+            rounds=self.params.confirm_rounds if rounds is None else rounds,
+            max_error=self._max_pose_error(), max_step=max_step)
         return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
+
+    def _max_pose_error(self) -> float:
+        """The largest predicted pose error (motor space, one standard
+        deviation) a compensation may keep: ``pose_precision`` times the
+        separation of the distinct POVs found so far (``PovStore.separation``;
+        none while fewer than ``pose_precision_povs`` are known)."""
+        if self._store.count < self.params.pose_precision_povs:
+            return np.inf
+        return self.params.pose_precision * self._store.separation()
 
     def _run_searches(self, unique_targets, owner, starts):
         """The batched searches. Returns ``{group: best accepted state}``,
@@ -147,7 +170,11 @@ class SearchAndSample:
         starts (K, M))``."""
         p = self.params
         targets = np.stack([r.target for r in requests])
-        group = _group_rows(targets, self._tol.match)
+        # Under noise the match tolerance allows for drift along chains; two
+        # targets are one only within what two sensings of one pose differ by.
+        same = self._tol.match if self._tol.ratio == 0 else min(self._tol.match,
+                                                                self._tol.separation)
+        group = _group_rows(targets, same)
         n_groups = int(group.max()) + 1
         first = [int(np.flatnonzero(group == g)[0]) for g in range(n_groups)]
         unique_targets = targets[first]
@@ -164,6 +191,27 @@ class SearchAndSample:
             starts.extend(chosen)
             owner.extend([g] * len(chosen))
         return group, unique_targets, np.asarray(owner), np.asarray(starts, dtype=float)
+
+    def _whole_on_level_set(self, walk) -> np.ndarray:
+        """Where noise sized the tolerances: which walked POVs have every
+        sample sensing their start's sensation within ``_SLID`` times what
+        two sensings differ by (one call, every sample of every valid walk); a walk
+        that slid along a weak pose direction, or onto another pose with a
+        like sensation, is not one POV. True everywhere else."""
+        whole = np.ones(len(walk.valid), dtype=bool)
+        valid = np.flatnonzero(walk.valid)
+        if not self._noisy or not len(valid):
+            return whole
+        samples = walk.samples[valid]
+        sensed = self._body.sense(samples.reshape(-1, samples.shape[2]))
+        residual = sensed.reshape(len(valid), samples.shape[1], -1) - \
+            walk.target_sensations[valid][:, None, :]
+        with np.errstate(invalid="ignore"):
+            worst = np.max(np.sum(residual ** 2, axis=2), axis=1)
+        limit = _SLID ** 2 * 2.0 * self.structure.noise ** 2 * _level_set_limit(
+            self.params, samples.shape[1], residual.shape[2])
+        whole[valid] = ~(worst > limit)       # a lost row does not reject a POV
+        return whole
 
     def _sample_povs(self, motor_states: np.ndarray, keep_invalid: bool = False, others=None):
         """Sample the POVs of ``motor_states`` (one batch) and store the valid
@@ -182,10 +230,11 @@ class SearchAndSample:
             surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
             min_singular=self._tol.min_singular,
             pattern_ratio=p.pattern_ratio)
+        whole = self._whole_on_level_set(walk)
         indices, sensations = [], []
         for i in range(len(motor_states)):
             # Nothing non-finite becomes a POV (a walk through lost rows).
-            if walk.valid[i] and np.all(np.isfinite(walk.samples[i])) and \
+            if walk.valid[i] and whole[i] and np.all(np.isfinite(walk.samples[i])) and \
                     np.all(np.isfinite(walk.target_sensations[i])):
                 samples = walk.samples[i]
                 if others is not None and len(others[i]):
@@ -202,6 +251,19 @@ class SearchAndSample:
                     indices.append(-1)
                     sensations.append(None)
         return indices, sensations
+
+
+# How many times what two sensings of one pose differ by a POV's sample may
+# lie from its start's sensation: the walk's own tolerances are motor steps
+# (``pov_sample_tol``), which leave a residual along the strong pose
+# directions several times the noise; a slide to another pose leaves more.
+_SLID = 4.0
+
+
+def _level_set_limit(params, n_samples: int, n_sensors: int) -> float:
+    """The chi-square quantile (``S`` degrees of freedom) no sample of a
+    whole POV exceeds at ``noise_confidence``, shared among its samples."""
+    return float(chi2.ppf(1.0 - (1.0 - params.noise_confidence) / n_samples, n_sensors))
 
 
 def _distinct(states: np.ndarray, tol: float) -> np.ndarray:
