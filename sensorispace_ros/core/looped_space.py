@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from ripser import ripser
 from scipy.sparse import coo_matrix
-from scipy.sparse.linalg import lsqr
+from scipy.sparse.linalg import lsqr, spsolve
 
 from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbour_scale, \
     check_distance_matrix
@@ -37,7 +37,9 @@ from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbo
 MAX_POINTS_H2 = 200        # greedy landmarks above this many points (H2 is costly)
 COEFF = 47                 # a prime larger than any winding met in practice
 MAX_LANDMARKS = 300
-MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small        # greedy landmarks above this many points (H2 is costly)
+MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small
+SYNC_ITERATIONS = 5        # rounds of synchronised_angle (steps of the sets, then the angles)
+SYNC_ANCHOR_WEIGHT = 1e-6  # pull of the metric's coordinate against the sets' steps, per POV
 
 
 def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE) -> dict:
@@ -88,7 +90,16 @@ def circular_coordinates(distance, n_loops: int = 1, max_landmarks: int = MAX_LA
     order = np.argsort(bars[:, 0] - bars[:, 1])[:n_loops]       # longest first
     DL = D[np.ix_(landmarks, landmarks)]
     nearest = np.argmin(D[:, landmarks], axis=1)
-    angles = np.array([_smooth_angle(DL, cocycles[k], *bars[k])[nearest] for k in order])
+    # ripser names a cocycle's vertices by their index among all the points:
+    # renamed here by their place among the landmarks.
+    place = np.full(n, -1, dtype=np.int64)
+    place[landmarks] = np.arange(len(landmarks))
+    renamed = []
+    for k in order:
+        cocycle = np.asarray(cocycles[k], dtype=np.int64).reshape(-1, 3).copy()
+        cocycle[:, :2] = place[cocycle[:, :2]]
+        renamed.append(cocycle)
+    angles = np.array([_smooth_angle(DL, c, *bars[k])[nearest] for c, k in zip(renamed, order)])
     return angles, bars[order]
 
 
@@ -167,3 +178,55 @@ def looped_coordinate(angles: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray
         if best is None or variance < best[2] - 1e-12:      # equals: the simpler stays
             best = (theta, c, variance)
     return best
+
+
+def synchronized_angle(theta0, pairs, set_ids, iterations: int = SYNC_ITERATIONS,
+                       anchor_weight: float = SYNC_ANCHOR_WEIGHT) -> np.ndarray:
+    """The angle coordinate ``theta0`` ``(P,)`` made consistent with the
+    equality sets (angular synchronisation, Singer 2011).
+
+    One equality set is one change seen from many POVs: along the looped
+    dimension every pair ``(i, j)`` of one set steps by the same angle
+    ``phi`` (a displacement turns every pose by the same angle), so the
+    coordinate should satisfy ``theta_j = theta_i + phi_set``. Alternately:
+    each set's step is the circular mean of its pairs' steps, then
+    ``z = exp(i theta)`` minimises ``sum |z_j - w_set z_i|^2 + anchor_weight
+    sum |z - z0|^2`` (a sparse linear system, ``w = exp(i phi)``), projected
+    back on the circle. POVs joined by the sets share one coordinate up to
+    the sets' steps: the scatter a coordinate read from the metric alone
+    has within a class of POVs the changes join (one orientation) is
+    averaged out; POVs in no pair keep ``theta0``. ``anchor_weight`` keeps
+    each component of the pair graph at its mean of ``theta0``: the sets
+    fix differences, never the offset, and a constant (every step 0) would
+    satisfy them too."""
+    theta0 = np.asarray(theta0, dtype=float).reshape(-1)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    set_ids = np.asarray(set_ids).reshape(-1)
+    if len(set_ids) != len(pairs):
+        raise ValueError(f"set_ids: {len(set_ids)} ids for {len(pairs)} pairs")
+    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(theta0)):
+        raise ValueError(f"pairs: indices must lie in [0, {len(theta0)})")
+    if int(iterations) != iterations or iterations < 1:
+        raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
+    if not anchor_weight > 0:
+        raise ValueError(f"anchor_weight must be > 0, got {anchor_weight!r}")
+    keep = pairs[:, 0] != pairs[:, 1]
+    pairs, set_ids = pairs[keep], set_ids[keep]
+    z0 = np.exp(1j * theta0)
+    if not len(pairs):
+        return np.mod(theta0, 2 * np.pi)
+    _, inverse = np.unique(set_ids, return_inverse=True)
+    i, j, n = pairs[:, 0], pairs[:, 1], len(theta0)
+    degree = np.bincount(i, minlength=n) + np.bincount(j, minlength=n)
+    z = z0
+    for _ in range(int(iterations)):
+        agreement = np.bincount(inverse, (z[j] * np.conj(z[i])).real) + \
+            1j * np.bincount(inverse, (z[j] * np.conj(z[i])).imag)
+        w = np.exp(1j * np.angle(agreement))[inverse]
+        rows = np.concatenate([i, j, np.arange(n)])
+        cols = np.concatenate([j, i, np.arange(n)])
+        values = np.concatenate([-np.conj(w), -w, degree + anchor_weight])
+        system = coo_matrix((values, (rows, cols)), shape=(n, n)).tocsc()
+        solved = spsolve(system, anchor_weight * z0)
+        z = solved / np.maximum(np.abs(solved), 1e-300)
+    return np.mod(np.angle(z), 2 * np.pi)

@@ -126,12 +126,14 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
 def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
                   set_ids: np.ndarray) -> tuple[dict, np.ndarray | None]:
     """``rotation.*``: the angle coordinate of the looped dimension read from
-    the agent's metric and equality sets (``core.looped_space``)
-    against the true orientation (circular correlation), and its
-    coefficients over the metric's two longest loops; and the coordinate."""
+    the agent's metric and equality sets (``core.looped_space``: the
+    combination of the metric's two longest loops the sets single out, then
+    synchronised with the sets) against the true orientation (circular
+    correlation; ``metric_angle_circular_correlation`` before the
+    synchronisation), its coefficients over the loops; and the coordinate."""
     from sensorispace_ros.core.looped_space import (circular_coordinates,
-                                                            circular_correlation,
-                                                            looped_coordinate)
+                                                    circular_correlation, looped_coordinate,
+                                                    synchronized_angle)
     try:
         angles, _ = circular_coordinates(distance, n_loops=2)
         found = looped_coordinate(angles, pairs, set_ids)
@@ -139,9 +141,12 @@ def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarra
         return {"rotation.angle_error": str(error)}, None
     if found is None:
         return {"rotation.angle_error": "no combination of the loops goes round the circle"}, None
-    theta, coefficients, variance = found
-    return {"rotation.angle_circular_correlation":
-            circular_correlation(theta, np.asarray(true_poses)[:, 2]),
+    metric_theta, coefficients, variance = found
+    theta = synchronized_angle(metric_theta, pairs, set_ids)
+    orientation = np.asarray(true_poses)[:, 2]
+    return {"rotation.angle_circular_correlation": circular_correlation(theta, orientation),
+            "rotation.metric_angle_circular_correlation":
+                circular_correlation(metric_theta, orientation),
             "rotation.angle_coefficients": [int(c) for c in coefficients],
             "rotation.angle_set_variance": variance}, theta
 
