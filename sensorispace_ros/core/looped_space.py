@@ -38,14 +38,28 @@ MAX_POINTS_H2 = 200        # greedy landmarks above this many points (H2 is cost
 COEFF = 47                 # a prime larger than any winding met in practice
 MAX_LANDMARKS = 300
 MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small
+GAP_MIN_LIFETIME = 0.5     # a feature of rule 'gap' outlives half a sampling step
+GAP_MIN_RATIO = 1.5        # and stands out of the next by this factor
 SYNC_ITERATIONS = 5        # rounds of synchronised_angle (steps of the sets, then the angles)
 SYNC_ANCHOR_WEIGHT = 1e-6  # pull of the metric's coordinate against the sets' steps, per POV
 
 
-def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE) -> dict:
+def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE,
+                   rule: str = "scale") -> dict:
     """``betti0``, ``betti1``, ``betti2``, ``threshold``, ``margin`` (as in
     ``core.topology.betti_numbers``) and the longest lifetimes of H1 and H2
-    of the distance matrix ``distance``."""
+    of the distance matrix ``distance``.
+
+    ``rule="scale"``: a feature counts when it outlives ``k`` times the
+    landmarks' median neighbour distance (``core.topology``'s rule). ``rule=
+    "gap"``: b0 by that rule; b1 and b2 by the largest gap of their own
+    lifetimes (``gap_count``), the rule for a product with a coarsely sampled
+    circle, whose loops outlive the sampling step by a factor 1-2 only, far
+    below ``k`` steps, while the lattice's own cells die within half a step.
+    ``threshold`` and ``margin`` then describe b0; ``h1_gap``, ``h2_gap``
+    the ratio at each cut (0: nothing counted)."""
+    if rule not in ("scale", "gap"):
+        raise ValueError(f"rule must be 'scale' or 'gap', got {rule!r}")
     D = check_distance_matrix(distance)
     if int(max_points) != max_points or max_points < 4:
         raise ValueError(f"max_points must be an integer >= 4, got {max_points!r}")
@@ -63,14 +77,42 @@ def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE
     finite0 = h0[np.isfinite(h0)]
     bettis = [len(h0) - len(finite0) + int(np.sum(finite0 > threshold)),
               int(np.sum(h1 > threshold)), int(np.sum(h2 > threshold))]
+    gaps = {}
+    if rule == "gap":
+        scale = threshold / k
+        (bettis[1], gaps["h1_gap"]), (bettis[2], gaps["h2_gap"]) = \
+            gap_count(h1, scale), gap_count(h2, scale)
+        h1, h2 = h1[:0], h2[:0]          # the margin below is b0's
     pooled = np.concatenate([finite0, h1[np.isfinite(h1)], h2[np.isfinite(h2)]])
     counted, uncounted = pooled[pooled > threshold], pooled[pooled <= threshold]
     up = counted.min() / threshold if len(counted) else np.inf
     down = threshold / uncounted.max() if len(uncounted) else np.inf
+    lifetimes = [_lifetimes(np.asarray(d, dtype=float).reshape(-1, 2)) for d in result["dgms"]]
     return {"betti0": bettis[0], "betti1": bettis[1], "betti2": bettis[2],
-            "threshold": threshold, "margin": float(min(up, down)),
-            "h1_lifetimes_top3": [float(v) for v in h1[:3]],
-            "h2_lifetimes_top3": [float(v) for v in h2[:3]]}
+            "threshold": threshold, "margin": float(min(up, down)), **gaps,
+            "h1_lifetimes_top3": [float(v) for v in lifetimes[1][:3]],
+            "h2_lifetimes_top3": [float(v) for v in lifetimes[2][:3]]}
+
+
+def gap_count(lifetimes, scale: float, min_lifetime: float = GAP_MIN_LIFETIME,
+              min_gap: float = GAP_MIN_RATIO) -> tuple[int, float]:
+    """How many of ``lifetimes`` (one dimension's) stand out: sorted longest
+    first, the cut is the largest ratio of one lifetime to the next among
+    those that outlive ``min_lifetime`` times ``scale`` (the sampling step;
+    the shortest of all is compared with that floor); the features above it count when
+    that ratio is at least ``min_gap``.
+    Returns the count and the ratio at the cut (0.0 when none counts)."""
+    life = np.sort(np.asarray(lifetimes, dtype=float).reshape(-1))[::-1]
+    life = life[np.isfinite(life)]
+    long = int(np.sum(life >= min_lifetime * scale))
+    if long == 0:
+        return 0, 0.0
+    following = np.append(life[1:], min_lifetime * scale)[:long]    # the last: the floor
+    ratio = life[:long] / following
+    cut = int(np.argmax(ratio))
+    if ratio[cut] < min_gap:
+        return 0, 0.0
+    return cut + 1, float(ratio[cut])
 
 
 

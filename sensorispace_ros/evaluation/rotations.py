@@ -115,7 +115,7 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
     spaces = {"truth": euclidean_distances(pose_key(true_poses)), "hausdorff": distance,
               **{name: euclidean_distances(emb) for name, emb in embeddings.items()}}
     for name, matrix in spaces.items():
-        for key, value in betti_up_to_h2(matrix).items():
+        for key, value in betti_up_to_h2(matrix, rule="gap").items():
             numbers[f"topology_h2.{name}.{key}"] = value
     if strategy == "naive":
         numbers.update(looped_dimensions(pairs, set_ids, max(int(space_dim), 0)).metrics())

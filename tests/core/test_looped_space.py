@@ -3,7 +3,8 @@ looped one by the equality sets (core.looped_space)."""
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.looped_space import (circular_coordinates, circular_correlation,
+from sensorispace_ros.core.looped_space import (betti_up_to_h2, circular_coordinates,
+                                                circular_correlation, gap_count,
                                                 looped_coordinate, synchronized_angle)
 from sensorispace_ros.core.topology import euclidean_distances
 
@@ -126,3 +127,32 @@ def test_synchronisation_keeps_the_coordinate_of_unpaired_povs_and_checks_its_ar
         synchronized_angle(theta0, np.array([[0, 10]]), np.array([0]))
     with pytest.raises(ValueError, match="anchor_weight"):
         synchronized_angle(theta0, pairs, ids, anchor_weight=0.0)
+
+
+def test_gap_count_cuts_at_the_largest_ratio_among_long_lifetimes():
+    assert gap_count([2.0, 1.8, 0.6, 0.5], 1.0) == (2, 3.0)
+    assert gap_count([0.3, 0.2, 0.1], 1.0) == (0, 0.0)           # all within half a step
+    assert gap_count([1.0, 0.9, 0.8, 0.7, 0.6], 1.0) == (0, 0.0)    # none stands out
+    assert gap_count([1.2], 1.0) == (1, pytest.approx(2.4))      # against half a step
+
+
+def _lattice_ring_times_octagon(spacing=1.0):
+    """Lattice points of a ring (radii 1.5-3) times 8 orientations whose
+    chord is the lattice step: the coarse sampling of a turning world."""
+    axis = np.arange(-3.0, 3.0 + 1e-9, spacing)
+    x, y = [v.ravel() for v in np.meshgrid(axis, axis)]
+    keep = (np.hypot(x, y) >= 1.5) & (np.hypot(x, y) <= 3.0)
+    a = np.arange(8) * 2 * np.pi / 8
+    radius = spacing / (2 * np.sin(np.pi / 8))
+    return np.array([[px, py, radius * np.cos(t), radius * np.sin(t)]
+                     for px, py in zip(x[keep], y[keep]) for t in a])
+
+
+def test_the_gap_rule_reads_a_coarse_ring_times_circle_where_the_scale_rule_reads_none():
+    D = euclidean_distances(_lattice_ring_times_octagon())
+    got = betti_up_to_h2(D, rule="gap")
+    assert (got["betti0"], got["betti1"], got["betti2"]) == (1, 2, 1)
+    scale = betti_up_to_h2(D)
+    assert (scale["betti1"], scale["betti2"]) == (0, 0)
+    with pytest.raises(ValueError, match="rule"):
+        betti_up_to_h2(D, rule="largest")
