@@ -24,6 +24,7 @@ from sensorispace_ros.core import world as world_mod
 FIGURE_NAME = "rotations_orientation.png"
 CLASS_GAP = 0.05          # rad: angles of one orientation class lie closer than this
 MIN_CLASS_POVS = 10       # an orientation class with fewer POVs gets no flat embedding
+MAX_CLASS_POVS = 600      # a larger class is embedded from this many of its POVs
 TIE_TOL = 1e-6            # true distances closer than this (relative) are tied
 
 
@@ -189,7 +190,8 @@ def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.
     their true positions: the largest 2-D after affine residual and the
     smallest trustworthiness (``tied_trustworthiness``: the positions are a
     lattice) over the classes of at least
-    ``MIN_CLASS_POVS`` POVs."""
+    ``MIN_CLASS_POVS`` POVs (at most ``MAX_CLASS_POVS`` of them, evenly
+    chosen, embedded)."""
     from sensorispace_ros.core import quality
     from sensorispace_ros.core.regularize import iterate_regularization
     from sensorispace_ros.core.seeding import rng_for
@@ -205,6 +207,8 @@ def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.
         members = np.flatnonzero(classes == label)
         if len(members) < MIN_CLASS_POVS:
             continue
+        if len(members) > MAX_CLASS_POVS:      # evenly by discovery order: a bounded cost
+            members = members[np.linspace(0, len(members) - 1, MAX_CLASS_POVS).astype(int)]
         place = np.full(len(classes), -1)
         place[members] = np.arange(len(members))
         inside = np.all(place[pairs] >= 0, axis=1) if len(pairs) else np.zeros(0, bool)
