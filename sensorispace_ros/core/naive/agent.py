@@ -392,7 +392,8 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             self.compensation_queries.append(self._body.total_rows - rows_at_start - pov_rows)
         self._renew_pool(matches, known_comp, found_rest,
                          Snapshot(t, current, rank_now, rest_sensation, self._rest.copy(),
-                                  self._rest_pov, int(rest_rank)))
+                                  self._rest_pov, int(rest_rank),
+                                  chained=rest_choice is not None))
 
         new_idx = np.asarray(new_povs, dtype=int)
         return Reaction(event=t, compensated=bool(records),
