@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from ripser import ripser
 from scipy.sparse import coo_matrix
-from scipy.sparse.linalg import lsqr
+from scipy.sparse.linalg import lsqr, spsolve
 
 from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbour_scale, \
     check_distance_matrix
@@ -37,13 +37,29 @@ from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbo
 MAX_POINTS_H2 = 200        # greedy landmarks above this many points (H2 is costly)
 COEFF = 47                 # a prime larger than any winding met in practice
 MAX_LANDMARKS = 300
-MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small        # greedy landmarks above this many points (H2 is costly)
+MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small
+GAP_MIN_LIFETIME = 0.5     # a feature of rule 'gap' outlives half a sampling step
+GAP_MIN_RATIO = 1.5        # and stands out of the next by this factor
+SYNC_ITERATIONS = 5        # rounds of synchronised_angle (steps of the sets, then the angles)
+SYNC_ANCHOR_WEIGHT = 1e-6  # pull of the metric's coordinate against the sets' steps, per POV
 
 
-def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE) -> dict:
+def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE,
+                   rule: str = "scale") -> dict:
     """``betti0``, ``betti1``, ``betti2``, ``threshold``, ``margin`` (as in
     ``core.topology.betti_numbers``) and the longest lifetimes of H1 and H2
-    of the distance matrix ``distance``."""
+    of the distance matrix ``distance``.
+
+    ``rule="scale"``: a feature counts when it outlives ``k`` times the
+    landmarks' median neighbour distance (``core.topology``'s rule). ``rule=
+    "gap"``: b0 by that rule; b1 and b2 by the largest gap of their own
+    lifetimes (``gap_count``), the rule for a product with a coarsely sampled
+    circle, whose loops outlive the sampling step by a factor 1-2 only, far
+    below ``k`` steps, while the lattice's own cells die within half a step.
+    ``threshold`` and ``margin`` then describe b0; ``h1_gap``, ``h2_gap``
+    the ratio at each cut (0: nothing counted)."""
+    if rule not in ("scale", "gap"):
+        raise ValueError(f"rule must be 'scale' or 'gap', got {rule!r}")
     D = check_distance_matrix(distance)
     if int(max_points) != max_points or max_points < 4:
         raise ValueError(f"max_points must be an integer >= 4, got {max_points!r}")
@@ -61,14 +77,42 @@ def betti_up_to_h2(distance, max_points: int = MAX_POINTS_H2, k: float = K_SCALE
     finite0 = h0[np.isfinite(h0)]
     bettis = [len(h0) - len(finite0) + int(np.sum(finite0 > threshold)),
               int(np.sum(h1 > threshold)), int(np.sum(h2 > threshold))]
+    gaps = {}
+    if rule == "gap":
+        scale = threshold / k
+        (bettis[1], gaps["h1_gap"]), (bettis[2], gaps["h2_gap"]) = \
+            gap_count(h1, scale), gap_count(h2, scale)
+        h1, h2 = h1[:0], h2[:0]          # the margin below is b0's
     pooled = np.concatenate([finite0, h1[np.isfinite(h1)], h2[np.isfinite(h2)]])
     counted, uncounted = pooled[pooled > threshold], pooled[pooled <= threshold]
     up = counted.min() / threshold if len(counted) else np.inf
     down = threshold / uncounted.max() if len(uncounted) else np.inf
+    lifetimes = [_lifetimes(np.asarray(d, dtype=float).reshape(-1, 2)) for d in result["dgms"]]
     return {"betti0": bettis[0], "betti1": bettis[1], "betti2": bettis[2],
-            "threshold": threshold, "margin": float(min(up, down)),
-            "h1_lifetimes_top3": [float(v) for v in h1[:3]],
-            "h2_lifetimes_top3": [float(v) for v in h2[:3]]}
+            "threshold": threshold, "margin": float(min(up, down)), **gaps,
+            "h1_lifetimes_top3": [float(v) for v in lifetimes[1][:3]],
+            "h2_lifetimes_top3": [float(v) for v in lifetimes[2][:3]]}
+
+
+def gap_count(lifetimes, scale: float, min_lifetime: float = GAP_MIN_LIFETIME,
+              min_gap: float = GAP_MIN_RATIO) -> tuple[int, float]:
+    """How many of ``lifetimes`` (one dimension's) stand out: sorted longest
+    first, the cut is the largest ratio of one lifetime to the next among
+    those that outlive ``min_lifetime`` times ``scale`` (the sampling step;
+    the shortest of all is compared with that floor); the features above it count when
+    that ratio is at least ``min_gap``.
+    Returns the count and the ratio at the cut (0.0 when none counts)."""
+    life = np.sort(np.asarray(lifetimes, dtype=float).reshape(-1))[::-1]
+    life = life[np.isfinite(life)]
+    long = int(np.sum(life >= min_lifetime * scale))
+    if long == 0:
+        return 0, 0.0
+    following = np.append(life[1:], min_lifetime * scale)[:long]    # the last: the floor
+    ratio = life[:long] / following
+    cut = int(np.argmax(ratio))
+    if ratio[cut] < min_gap:
+        return 0, 0.0
+    return cut + 1, float(ratio[cut])
 
 
 
@@ -88,7 +132,16 @@ def circular_coordinates(distance, n_loops: int = 1, max_landmarks: int = MAX_LA
     order = np.argsort(bars[:, 0] - bars[:, 1])[:n_loops]       # longest first
     DL = D[np.ix_(landmarks, landmarks)]
     nearest = np.argmin(D[:, landmarks], axis=1)
-    angles = np.array([_smooth_angle(DL, cocycles[k], *bars[k])[nearest] for k in order])
+    # ripser names a cocycle's vertices by their index among all the points:
+    # renamed here by their place among the landmarks.
+    place = np.full(n, -1, dtype=np.int64)
+    place[landmarks] = np.arange(len(landmarks))
+    renamed = []
+    for k in order:
+        cocycle = np.asarray(cocycles[k], dtype=np.int64).reshape(-1, 3).copy()
+        cocycle[:, :2] = place[cocycle[:, :2]]
+        renamed.append(cocycle)
+    angles = np.array([_smooth_angle(DL, c, *bars[k])[nearest] for c, k in zip(renamed, order)])
     return angles, bars[order]
 
 
@@ -167,3 +220,55 @@ def looped_coordinate(angles: np.ndarray, pairs: np.ndarray, set_ids: np.ndarray
         if best is None or variance < best[2] - 1e-12:      # equals: the simpler stays
             best = (theta, c, variance)
     return best
+
+
+def synchronized_angle(theta0, pairs, set_ids, iterations: int = SYNC_ITERATIONS,
+                       anchor_weight: float = SYNC_ANCHOR_WEIGHT) -> np.ndarray:
+    """The angle coordinate ``theta0`` ``(P,)`` made consistent with the
+    equality sets (angular synchronisation, Singer 2011).
+
+    One equality set is one change seen from many POVs: along the looped
+    dimension every pair ``(i, j)`` of one set steps by the same angle
+    ``phi`` (a displacement turns every pose by the same angle), so the
+    coordinate should satisfy ``theta_j = theta_i + phi_set``. Alternately:
+    each set's step is the circular mean of its pairs' steps, then
+    ``z = exp(i theta)`` minimises ``sum |z_j - w_set z_i|^2 + anchor_weight
+    sum |z - z0|^2`` (a sparse linear system, ``w = exp(i phi)``), projected
+    back on the circle. POVs joined by the sets share one coordinate up to
+    the sets' steps: the scatter a coordinate read from the metric alone
+    has within a class of POVs the changes join (one orientation) is
+    averaged out; POVs in no pair keep ``theta0``. ``anchor_weight`` keeps
+    each component of the pair graph at its mean of ``theta0``: the sets
+    fix differences, never the offset, and a constant (every step 0) would
+    satisfy them too."""
+    theta0 = np.asarray(theta0, dtype=float).reshape(-1)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    set_ids = np.asarray(set_ids).reshape(-1)
+    if len(set_ids) != len(pairs):
+        raise ValueError(f"set_ids: {len(set_ids)} ids for {len(pairs)} pairs")
+    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(theta0)):
+        raise ValueError(f"pairs: indices must lie in [0, {len(theta0)})")
+    if int(iterations) != iterations or iterations < 1:
+        raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
+    if not anchor_weight > 0:
+        raise ValueError(f"anchor_weight must be > 0, got {anchor_weight!r}")
+    keep = pairs[:, 0] != pairs[:, 1]
+    pairs, set_ids = pairs[keep], set_ids[keep]
+    z0 = np.exp(1j * theta0)
+    if not len(pairs):
+        return np.mod(theta0, 2 * np.pi)
+    _, inverse = np.unique(set_ids, return_inverse=True)
+    i, j, n = pairs[:, 0], pairs[:, 1], len(theta0)
+    degree = np.bincount(i, minlength=n) + np.bincount(j, minlength=n)
+    z = z0
+    for _ in range(int(iterations)):
+        agreement = np.bincount(inverse, (z[j] * np.conj(z[i])).real) + \
+            1j * np.bincount(inverse, (z[j] * np.conj(z[i])).imag)
+        w = np.exp(1j * np.angle(agreement))[inverse]
+        rows = np.concatenate([i, j, np.arange(n)])
+        cols = np.concatenate([j, i, np.arange(n)])
+        values = np.concatenate([-np.conj(w), -w, degree + anchor_weight])
+        system = coo_matrix((values, (rows, cols)), shape=(n, n)).tocsc()
+        solved = spsolve(system, anchor_weight * z0)
+        z = solved / np.maximum(np.abs(solved), 1e-300)
+    return np.mod(np.angle(z), 2 * np.pi)

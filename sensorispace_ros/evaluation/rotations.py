@@ -22,6 +22,10 @@ from sensorispace_ros.core import world as world_mod
 
 
 FIGURE_NAME = "rotations_orientation.png"
+CLASS_GAP = 0.05          # rad: angles of one orientation class lie closer than this
+MIN_CLASS_POVS = 10       # an orientation class with fewer POVs gets no flat embedding
+MAX_CLASS_POVS = 600      # a larger class is embedded from this many of its POVs
+TIE_TOL = 1e-6            # true distances closer than this (relative) are tied
 
 
 def turns(world) -> bool:
@@ -102,11 +106,14 @@ def orientation_class_error(orientations: np.ndarray, alpha0: float, count: int)
 
 def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndarray,
                      pairs: np.ndarray, set_ids: np.ndarray, space_dim: int,
-                     strategy: str) -> tuple[dict, np.ndarray | None]:
+                     strategy: str, cfg: dict | None = None,
+                     seed: int = 0) -> tuple[dict, np.ndarray | None]:
     """``topology_h2.*`` (Betti numbers up to H2 of the truth on plane x circle,
     the agent's metric and every embedding ``embeddings[name]``) and, for the
     naive agent, its looped and flat dimensions (``core.naive.looped_dims``);
-    ``rotation.*`` and the angle coordinate (``angle_numbers``; None without one)."""
+    ``rotation.*`` and the angle coordinate (``angle_numbers``; None without one);
+    with the run's ``cfg``, the flat embedding of the translations
+    (``translation_numbers``)."""
     from sensorispace_ros.core.naive.looped_dims import looped_dimensions
     from sensorispace_ros.core.topology import euclidean_distances
     from sensorispace_ros.core.looped_space import betti_up_to_h2
@@ -115,23 +122,127 @@ def rotation_numbers(distance: np.ndarray, embeddings: dict, true_poses: np.ndar
     spaces = {"truth": euclidean_distances(pose_key(true_poses)), "hausdorff": distance,
               **{name: euclidean_distances(emb) for name, emb in embeddings.items()}}
     for name, matrix in spaces.items():
-        for key, value in betti_up_to_h2(matrix).items():
+        for key, value in betti_up_to_h2(matrix, rule="gap").items():
             numbers[f"topology_h2.{name}.{key}"] = value
     if strategy == "naive":
         numbers.update(looped_dimensions(pairs, set_ids, max(int(space_dim), 0)).metrics())
     angle_metrics, angle = angle_numbers(distance, true_poses, pairs, set_ids)
+    if angle is not None and cfg is not None:
+        angle_metrics.update(translation_numbers(distance, true_poses, angle, pairs, set_ids,
+                                                 cfg, seed))
     return {**numbers, **angle_metrics}, angle
+
+
+def orientation_classes(angle: np.ndarray, gap: float = CLASS_GAP) -> np.ndarray:
+    """Class of each POV ``(P,)``: the angle coordinate's clusters on the
+    circle, split wherever two neighbouring angles are more than ``gap`` apart."""
+    angle = np.mod(np.asarray(angle, dtype=float).reshape(-1), 2 * np.pi)
+    if not len(angle):
+        return np.zeros(0, dtype=int)
+    order = np.argsort(angle, kind="stable")
+    sorted_angle = angle[order]
+    steps = np.diff(np.append(sorted_angle, sorted_angle[0] + 2 * np.pi))
+    cuts = np.flatnonzero(steps > gap)
+    labels = np.zeros(len(angle), dtype=int)
+    if len(cuts):
+        # start after the last cut, so a class that straddles 0 stays one
+        shifted = np.roll(np.arange(len(angle)), -(cuts[-1] + 1))
+        boundaries = np.zeros(len(angle), dtype=int)
+        boundaries[(cuts + 1) % len(angle)] = 1
+        labels[order[shifted]] = np.cumsum(boundaries[shifted]) - boundaries[shifted[0]]
+    return labels
+
+
+def tied_trustworthiness(true_positions, embedding, n_neighbors: int = 5,
+                         tie_tol: float = TIE_TOL) -> float:
+    """Venna and Kaski's trustworthiness where the truth has ties: the rank of
+    a point among another's true neighbours is one more than the number of
+    points strictly closer (within ``tie_tol`` of the largest true distance).
+    On a lattice four neighbours are equally close, and which of them an
+    embedding lists fifth is no error; scikit-learn's ranks break such ties
+    by index order, so an exact copy of a lattice, moved by 1e-4 of a step,
+    already loses 0.005 there. Without ties this is the usual measure."""
+    T = np.asarray(true_positions, dtype=float)
+    Y = np.asarray(embedding, dtype=float)
+    n, k = len(T), int(n_neighbors)
+    if Y.shape[0] != n or not 1 <= k < n / 2:
+        raise ValueError(f"need as many embedded as true points and 1 <= n_neighbors < "
+                         f"{n / 2}, got {Y.shape[0]} and {n}, n_neighbors={n_neighbors!r}")
+    dt = np.linalg.norm(T[:, None] - T[None], axis=-1)
+    dy = np.linalg.norm(Y[:, None] - Y[None], axis=-1)
+    np.fill_diagonal(dy, np.inf)
+    tol = tie_tol * float(dt.max())
+    penalty = 0.0
+    for i in range(n):
+        for j in np.argsort(dy[i], kind="stable")[:k]:
+            rank = int(np.sum(dt[i] < dt[i, j] - tol))     # itself included: 1-based
+            penalty += max(rank - k, 0)
+    return float(1.0 - 2.0 / (n * k * (2 * n - 3 * k - 1)) * penalty)
+
+
+def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.ndarray,
+                        pairs: np.ndarray, set_ids: np.ndarray, cfg: dict, seed: int) -> dict:
+    """``rotation.translation.*``: the flat embedding of the translations,
+    one orientation at a time. The POVs of one class of the angle
+    coordinate (``orientation_classes``) are embedded in 2-D from their own
+    Hausdorff distances and regularised with the equality pairs inside the
+    class (CCA and iterations as the representation's), then compared with
+    their true positions: the largest 2-D after affine residual and the
+    smallest trustworthiness (``tied_trustworthiness``: the positions are a
+    lattice) over the classes of at least
+    ``MIN_CLASS_POVS`` POVs (at most ``MAX_CLASS_POVS`` of them, evenly
+    chosen, embedded)."""
+    from sensorispace_ros.core import quality
+    from sensorispace_ros.core.regularize import iterate_regularization
+    from sensorispace_ros.core.seeding import rng_for
+    from sensorispace_ros.offline.representation import cca_params
+
+    classes = orientation_classes(angle)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    set_ids = np.asarray(set_ids).reshape(-1)
+    positions = np.asarray(true_poses, dtype=float)[:, :2]
+    residuals, trust, sizes = [], [], []
+    rng = rng_for(seed, "rotation.translation")
+    for label in np.unique(classes):
+        members = np.flatnonzero(classes == label)
+        if len(members) < MIN_CLASS_POVS:
+            continue
+        if len(members) > MAX_CLASS_POVS:      # evenly by discovery order: a bounded cost
+            members = members[np.linspace(0, len(members) - 1, MAX_CLASS_POVS).astype(int)]
+        place = np.full(len(classes), -1)
+        place[members] = np.arange(len(members))
+        inside = np.all(place[pairs] >= 0, axis=1) if len(pairs) else np.zeros(0, bool)
+        sub_pairs, sub_ids = place[pairs[inside]], set_ids[inside]
+        sub = np.asarray(distance)[np.ix_(members, members)]
+        result = iterate_regularization(
+            sub, sub_pairs, sub_ids, n_components=2,
+            n_iterations=cfg["representation"]["regularization"]["iterations"],
+            cca_params=cca_params(cfg), random_state=rng)
+        embedding = result.embeddings[-1]
+        residuals.append(quality.affine_residual(embedding, positions[members]))
+        trust.append(tied_trustworthiness(positions[members], embedding,
+                                          n_neighbors=min(5, len(members) // 2 - 1)))
+        sizes.append(len(members))
+    if not sizes:
+        return {"rotation.translation.classes": 0}
+    return {"rotation.translation.classes": len(sizes),
+            "rotation.translation.class_povs_min": int(min(sizes)),
+            "rotation.translation.affine_residual_max": float(max(residuals)),
+            "rotation.translation.affine_residual_median": float(np.median(residuals)),
+            "rotation.translation.trustworthiness_min": float(min(trust))}
 
 
 def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
                   set_ids: np.ndarray) -> tuple[dict, np.ndarray | None]:
     """``rotation.*``: the angle coordinate of the looped dimension read from
-    the agent's metric and equality sets (``core.looped_space``)
-    against the true orientation (circular correlation), and its
-    coefficients over the metric's two longest loops; and the coordinate."""
+    the agent's metric and equality sets (``core.looped_space``: the
+    combination of the metric's two longest loops the sets single out, then
+    synchronised with the sets) against the true orientation (circular
+    correlation; ``metric_angle_circular_correlation`` before the
+    synchronisation), its coefficients over the loops; and the coordinate."""
     from sensorispace_ros.core.looped_space import (circular_coordinates,
-                                                            circular_correlation,
-                                                            looped_coordinate)
+                                                    circular_correlation, looped_coordinate,
+                                                    synchronized_angle)
     try:
         angles, _ = circular_coordinates(distance, n_loops=2)
         found = looped_coordinate(angles, pairs, set_ids)
@@ -139,9 +250,12 @@ def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarra
         return {"rotation.angle_error": str(error)}, None
     if found is None:
         return {"rotation.angle_error": "no combination of the loops goes round the circle"}, None
-    theta, coefficients, variance = found
-    return {"rotation.angle_circular_correlation":
-            circular_correlation(theta, np.asarray(true_poses)[:, 2]),
+    metric_theta, coefficients, variance = found
+    theta = synchronized_angle(metric_theta, pairs, set_ids)
+    orientation = np.asarray(true_poses)[:, 2]
+    return {"rotation.angle_circular_correlation": circular_correlation(theta, orientation),
+            "rotation.metric_angle_circular_correlation":
+                circular_correlation(metric_theta, orientation),
             "rotation.angle_coefficients": [int(c) for c in coefficients],
             "rotation.angle_set_variance": variance}, theta
 

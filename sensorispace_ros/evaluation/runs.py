@@ -51,7 +51,7 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
             {f"{dim}.{stage}": representation.embedding(dim, stage)
              for dim in representation.before for stage in ("before", "after")},
             produced.arrays["true_poses"], produced.pairs, produced.set_ids,
-            flat["representation.space_dim"], strategy)
+            flat["representation.space_dim"], strategy, cfg, cfg["seed"])
         flat.update(turning_numbers)
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)

@@ -3,8 +3,9 @@ looped one by the equality sets (core.looped_space)."""
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.looped_space import (circular_coordinates,
-                                                        circular_correlation, looped_coordinate)
+from sensorispace_ros.core.looped_space import (betti_up_to_h2, circular_coordinates,
+                                                circular_correlation, gap_count,
+                                                looped_coordinate, synchronized_angle)
 from sensorispace_ros.core.topology import euclidean_distances
 
 
@@ -24,6 +25,14 @@ def test_the_coordinate_of_a_circle_goes_once_round_it():
     angles, bars = circular_coordinates(euclidean_distances(points))
     assert circular_correlation(angles[0], t) > 0.999
     assert bars.shape == (1, 2) and bars[0, 1] > 5 * bars[0, 0]
+
+
+def test_the_coordinate_on_landmarks_still_goes_once_round_the_circle():
+    # more points than landmarks: ripser names the cocycle's vertices among all points
+    t = np.random.default_rng(1).uniform(0, 2 * np.pi, 400)
+    points = np.column_stack([np.cos(t), np.sin(t)])
+    angles, _ = circular_coordinates(euclidean_distances(points), max_landmarks=60)
+    assert circular_correlation(angles[0], t) > 0.98
 
 
 def _ring_times_circle():
@@ -78,3 +87,72 @@ def test_a_coordinate_bunched_on_part_of_the_circle_is_never_the_loop():
     theta, coefficients, _ = looped_coordinate(np.vstack([constant, t]), pairs, ids)
     assert circular_correlation(theta, t) > 0.999 and coefficients[1] != 0
     assert looped_coordinate(constant[None], pairs, ids) is None
+
+
+def test_synchronisation_averages_out_the_scatter_within_a_class_the_sets_join():
+    """Eight orientation classes of 30 POVs each, a coordinate scattered by 0.4
+    rad within each class; equality sets of translations (step 0 within a
+    class) and of turns (one class to the next): the synchronised angle is the
+    orientation up to an offset."""
+    rng = np.random.default_rng(3)
+    classes, per = 8, 30
+    orientation = np.repeat(np.arange(classes) * 2 * np.pi / classes, per)
+    theta0 = orientation + 0.5 + rng.normal(0.0, 0.4, len(orientation))
+    index = np.arange(classes * per).reshape(classes, per)
+    translation = np.column_stack([index[:, :-1].ravel(), index[:, 1:].ravel()])
+    turn = np.column_stack([index[:-1, :].ravel(), index[1:, :].ravel()])
+    pairs = np.vstack([translation, turn])
+    ids = np.concatenate([np.zeros(len(translation), int), np.ones(len(turn), int)])
+    assert circular_correlation(theta0, orientation) < 0.95
+    theta = synchronized_angle(theta0, pairs, ids)
+    # What is left is the least-squares drift along each chain of
+    # translations (a step common to a set is all the sets fix).
+    assert circular_correlation(theta, orientation) > 0.99
+
+    def spread(angle):
+        return np.mean(1 - np.abs(np.mean(np.exp(1j * angle).reshape(classes, per), axis=1)))
+
+    assert spread(theta) < 0.05 * spread(theta0)
+
+
+def test_synchronisation_keeps_the_coordinate_of_unpaired_povs_and_checks_its_arguments():
+    theta0 = np.linspace(0.0, 6.0, 10)
+    pairs, ids = np.array([[0, 1], [1, 2]]), np.array([0, 0])
+    theta = synchronized_angle(theta0, pairs, ids)
+    assert np.allclose(theta[3:], theta0[3:])
+    assert np.allclose(synchronized_angle(theta0, np.zeros((0, 2)), np.zeros(0)), theta0)
+    with pytest.raises(ValueError, match="set_ids"):
+        synchronized_angle(theta0, pairs, ids[:1])
+    with pytest.raises(ValueError, match="pairs"):
+        synchronized_angle(theta0, np.array([[0, 10]]), np.array([0]))
+    with pytest.raises(ValueError, match="anchor_weight"):
+        synchronized_angle(theta0, pairs, ids, anchor_weight=0.0)
+
+
+def test_gap_count_cuts_at_the_largest_ratio_among_long_lifetimes():
+    assert gap_count([2.0, 1.8, 0.6, 0.5], 1.0) == (2, 3.0)
+    assert gap_count([0.3, 0.2, 0.1], 1.0) == (0, 0.0)           # all within half a step
+    assert gap_count([1.0, 0.9, 0.8, 0.7, 0.6], 1.0) == (0, 0.0)    # none stands out
+    assert gap_count([1.2], 1.0) == (1, pytest.approx(2.4))      # against half a step
+
+
+def _lattice_ring_times_octagon(spacing=1.0):
+    """Lattice points of a ring (radii 1.5-3) times 8 orientations whose
+    chord is the lattice step: the coarse sampling of a turning world."""
+    axis = np.arange(-3.0, 3.0 + 1e-9, spacing)
+    x, y = [v.ravel() for v in np.meshgrid(axis, axis)]
+    keep = (np.hypot(x, y) >= 1.5) & (np.hypot(x, y) <= 3.0)
+    a = np.arange(8) * 2 * np.pi / 8
+    radius = spacing / (2 * np.sin(np.pi / 8))
+    return np.array([[px, py, radius * np.cos(t), radius * np.sin(t)]
+                     for px, py in zip(x[keep], y[keep]) for t in a])
+
+
+def test_the_gap_rule_reads_a_coarse_ring_times_circle_where_the_scale_rule_reads_none():
+    D = euclidean_distances(_lattice_ring_times_octagon())
+    got = betti_up_to_h2(D, rule="gap")
+    assert (got["betti0"], got["betti1"], got["betti2"]) == (1, 2, 1)
+    scale = betti_up_to_h2(D)
+    assert (scale["betti1"], scale["betti2"]) == (0, 0)
+    with pytest.raises(ValueError, match="rule"):
+        betti_up_to_h2(D, rule="largest")

@@ -401,7 +401,8 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._renew_pool(matches, known_comp, found_rest,
                          Snapshot(t, current if counts is None else pooled, rank_now,
                                   rest_sensation, self._rest.copy(), self._rest_pov,
-                                  int(rest_rank), counts=counts, rest_count=self._repeats))
+                                  int(rest_rank), counts=counts, rest_count=self._repeats,
+                                  chained=rest_choice is not None))
 
         new_idx = np.asarray(new_povs, dtype=int)
         return Reaction(event=t, compensated=bool(records),

@@ -61,6 +61,7 @@ class Snapshot:
     fails: int = 0
     counts: np.ndarray | None = None
     rest_count: int = 1
+    chained: bool = True        # its rest is the start or a compensation of a chained anchor
 
     def count(self, row: int) -> int:
         """Sensings pooled in row ``row`` (-1: the anchor)."""
@@ -83,6 +84,8 @@ def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
     unconfirmed_left = params.unconfirmed_attempts
     for k, snap in enumerate(pool):
         hit = rest_hits[k]
+        if params.chained_anchors and not snap.chained:
+            continue                # its anchor does not relate to the start (chained_anchors)
         if hit >= 0 and rank_now[hit] == RANK_FULL:
             known_comp[k] = int(hit)
         elif snap.rest_rank == RANK_DEFICIENT:
@@ -323,7 +326,9 @@ class SnapshotMatching:
             superseded = comp_pov is not None and comp_pov == self._rest_pov
             if not superseded and snap.fails < p.snapshot_patience:
                 kept.append(snap)
-        self._pool = ([snapshot] + kept)[:p.max_snapshots]
+        if p.chained_anchors and not snapshot.chained:
+            snapshot = None         # an anchor unrelated to the start is never searched
+        self._pool = (([snapshot] if snapshot is not None else []) + kept)[:p.max_snapshots]
 
     def _anchor_requests(self, matches, rest_hits, rank_now):
         """``anchors.anchor_requests`` on the pool, with this event's frontier budget."""

@@ -188,6 +188,8 @@ class SearchAndSample:
             if len(current):
                 nearest = np.argsort(np.linalg.norm(current - target, axis=1))[:p.lm_restarts]
                 chosen.extend(self._store.samples[nearest, 0])
+            if p.probe_grid:
+                chosen.extend(self._probe_starts(target))
             starts.extend(chosen)
             owner.extend([g] * len(chosen))
         return group, unique_targets, np.asarray(owner), np.asarray(starts, dtype=float)
@@ -212,6 +214,24 @@ class SearchAndSample:
             self.params, samples.shape[1], residual.shape[2])
         whole[valid] = ~(worst > limit)       # a lost row does not reject a POV
         return whole
+
+    def _probe_starts(self, target: np.ndarray) -> np.ndarray:
+        """The ``probe_starts`` states of the probe grid (``probe_grid``
+        phases per joint over a full turn, sensed once per change) that sense
+        most like ``target``: starts far from every known POV, for targets
+        a turn of the object moved out of reach of local searches."""
+        p = self.params
+        if getattr(self, "_probe_event", None) != self._event:
+            axis = np.linspace(-np.pi, np.pi, p.probe_grid, endpoint=False)
+            grid = np.stack(np.meshgrid(*[axis] * self.n_motors, indexing="ij"), -1)
+            grid = grid.reshape(-1, self.n_motors)
+            self._body.stage = "compensation"          # its rows are the searches' cost
+            self._probe = (grid, finite_rows(self._body.sense(grid), np.inf))
+            self._probe_event = self._event
+        grid, sensed = self._probe
+        distance = np.linalg.norm(sensed - target, axis=1)
+        order = np.argsort(distance, kind="stable")[:p.probe_starts]
+        return grid[order[np.isfinite(distance[order])]]
 
     def _sample_povs(self, motor_states: np.ndarray, keep_invalid: bool = False, others=None):
         """Sample the POVs of ``motor_states`` (one batch) and store the valid
