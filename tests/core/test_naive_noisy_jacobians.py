@@ -244,3 +244,33 @@ def test_the_separation_of_povs_is_the_distance_between_neighbouring_loops():
     for k in range(6):              # loops along joint 1 at joint 0 = 0.3 k (+- 2 pi)
         store.append(np.stack([np.full(50, 0.3 * k + 2 * np.pi * (k % 2)), angle], axis=1))
     assert store.separation() == pytest.approx(0.3)
+
+
+def test_a_repaired_row_whose_sensation_is_lost_keeps_its_state_and_fails():
+    """repair_rows: Gauss-Newton on rows of a linear body; one row's sensing is
+    lost (NaN) every time. The others reach their targets; the lost one keeps
+    its state, is reported as not repaired, and no non-finite motor state is
+    ever sensed."""
+    from sensorispace_ros.core.naive.jacobians import repair_rows
+
+    gain = np.array([[1.0, 0.0], [0.0, 2.0], [1.0, 1.0]])
+    asked = []
+
+    class LinearBody:
+        def sense(self, motor_states):
+            motor_states = np.asarray(motor_states, dtype=float)
+            asked.append(motor_states.copy())
+            out = motor_states @ gain.T
+            out[np.abs(motor_states[:, 0] - 0.5) < 0.2] = np.nan   # the lost row's region
+            return out
+
+    flat = np.array([[0.0, 0.0], [0.5, 0.5], [1.0, -1.0]])
+    before = flat.copy()
+    target = np.array([[0.1, 0.2], [0.6, 0.4], [0.9, -0.8]]) @ gain.T
+    calls, sensed, failed = repair_rows(LinearBody(), flat, target, np.arange(3), rank=2,
+                                        fd_step=1e-6, tol=1e-9, rounds=3)
+    assert list(failed) == [1]
+    np.testing.assert_array_equal(flat[1], before[1])
+    np.testing.assert_allclose(flat[[0, 2]], [[0.1, 0.2], [0.9, -0.8]], atol=1e-6)
+    assert all(np.isfinite(rows).all() for rows in asked)
+    assert calls == len(sensed) and 1 in sensed[0]

@@ -269,8 +269,8 @@ def repair_rows(body, flat: np.ndarray, target: np.ndarray, rows: np.ndarray, *,
     the ``rows`` of ``flat`` (in place) until each row's step is within
     ``tol`` (phase). Returns ``(calls, rows sensed per repaired row (list,
     one per call, of the rows then sensed), the rows that never got
-    there)``."""
-    calls, sensed = 0, []
+    there)``; a row whose sensation was lost keeps its state and never gets there."""
+    calls, sensed, lost = 0, [], []
     for _ in range(rounds):
         if not len(rows):
             break
@@ -278,7 +278,9 @@ def repair_rows(body, flat: np.ndarray, target: np.ndarray, rows: np.ndarray, *,
         calls += 1
         sensed.append(rows.copy())
         step = minimum_norm_correction(jac, sensation - target[rows], rank)
+        finite = np.isfinite(step).all(axis=1)      # a lost row: no step, not repaired
+        lost.append(rows[~finite])
+        rows, step = rows[finite], step[finite]
         flat[rows] += step
-        with np.errstate(invalid="ignore"):
-            rows = rows[~(np.linalg.norm(step, axis=1) <= tol)]
-    return calls, sensed, rows
+        rows = rows[~(np.linalg.norm(step, axis=1) <= tol)]
+    return calls, sensed, np.concatenate([rows, *lost]).astype(int)

@@ -314,7 +314,7 @@ class LoopWalk:
                 residual = sensation - flat_target
                 max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
                 step = minimum_norm_correction(nearest_jac, residual, self.rank)
-                flat = flat + step
+                flat = flat + _finite_or_zero(step)     # a lost row is not a step
             with np.errstate(invalid="ignore"):
                 stray = ~(np.linalg.norm(step, axis=1) <= sample_tol)
             if stray.any():
@@ -336,6 +336,12 @@ class LoopWalk:
             np.add.at(self.queries, owner[rows], self.rows_per_state)
         for p in np.unique(owner[failed]):
             self.reason[p] = NOT_CLOSED
+
+
+def _finite_or_zero(step: np.ndarray) -> np.ndarray:
+    """``step`` with its rows that are not finite (a lost sensation) at zero:
+    such a row stays where it was and counts as stray."""
+    return np.where(np.isfinite(step).all(axis=1, keepdims=True), step, 0.0)
 
 
 def resample_loop_spline(path: np.ndarray, n_samples: int = 100) -> np.ndarray:
