@@ -158,6 +158,7 @@ class ClockedAgent(NaiveAgent):
         self._cut_walk = None       # the start states of a walk a change cut
         self._search_current = None
         self._witnesses = None      # (states, sensations) of this reaction's sweep
+        self.cut_stage = None       # the stage a sentinel stopped last
 
     # ------------------------------------------------------------ the clock
 
@@ -206,6 +207,9 @@ class ClockedAgent(NaiveAgent):
             if reaction == self.react:
                 return reaction(sensed_at_rest)
             return reaction()
+        except WorldChanged:
+            self.cut_stage = self._body.stage
+            raise
         finally:
             self._tripwire.disarm()
             self._body.pause()
