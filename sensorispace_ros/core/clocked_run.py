@@ -49,7 +49,8 @@ class ClockTruth:
     state; ``lost_by_stage`` the lost rows per stage of the agent,
     ``cuts_by_stage`` the stage each change that cut a reaction or a
     pending walk fell in (``check``: the checks after a reaction),
-    ``pending_povs`` the POVs added by walks of pending solutions."""
+    ``pending_povs`` the POVs added by walks of pending solutions,
+    ``crossed`` the reactions kept whose walk went on through a change."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -63,6 +64,7 @@ class ClockTruth:
     lost_by_stage: dict = field(default_factory=dict)
     cuts_by_stage: dict = field(default_factory=dict)
     pending_povs: int = 0
+    crossed: int = 0
     state_of: object = field(repr=False, default=None)
     lights: list = field(repr=False, default_factory=list)   # of each world state
 
@@ -156,6 +158,7 @@ class _Run:
         self.undone = 0
         self.salvaged = 0
         self.pending_povs = 0
+        self.crossed = 0
         self.lost_by_stage: dict[str, int] = {}
         self.cut_in: dict[str, int] = {}
 
@@ -183,11 +186,18 @@ class _Run:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
             first_row, rows_before = body.row, agent.queries_total
-            stages_before, cut_in = agent.queries_by_stage, "check"
+            stages_before, cut_in, sent = agent.queries_by_stage, "check", agent.rows_sent
             try:
                 agent.watched(reaction or agent.react, sensed_at_rest)
                 after_rest = agent.rest_motor_state
                 again = agent.sense_again(np.vstack([before_rest, after_rest]))
+                if agent.crossing is not None:
+                    # Kept; the world its sweep saw is gone: react again at
+                    # once, for a snapshot of the world as it is.
+                    self._crossed(reference_row, first_row, first_row - sent, before_rest, again)
+                    sensed_at_rest = again[0]
+                    reference_row = body.row - 2
+                    continue
                 cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
                     (agent.phase == EXPLORING and
                      change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
@@ -203,6 +213,21 @@ class _Run:
             sensed_at_rest = agent.sense_again(before_rest)[0]
             reference_row = body.row - 1
 
+    def _crossed(self, reference_row: int, first_row: int, offset: int, rest: np.ndarray,
+                 again: np.ndarray) -> None:
+        """Note a reaction whose walk went on through a change
+        (``ClockedAgent._cross``): its search's rows, up to the last sentinel
+        before the change (row ``offset + crossing["passed"] - 1``), saw one
+        world, its walk another; ``again``: its resting state sensed after it."""
+        agent, body = self.agent, self.body
+        crossing = agent.crossing
+        self.log.add(reference_row, offset + crossing["fired"] - 1, True, rest, "walk")
+        moved = change_detection.differs(agent.noise_sd, crossing["reference"], again[0])
+        self.log.add(offset + crossing["latest"] - 1, body.row - 2, moved, rest, "cut")
+        self.crossed += 1
+        self.event_states.append((body.state_at(first_row),
+                                  body.state_at(offset + crossing["passed"] - 1)))
+
     def walk_pending(self, reference: np.ndarray, reference_row: int):
         """Walk the pending solutions one by one while the world stays
         (``reference``: the sensation at rest, sensed at ``reference_row``);
@@ -213,6 +238,10 @@ class _Run:
             rows_before, stages_before = agent.queries_total, agent.queries_by_stage
             try:
                 self.pending_povs += agent.walk_pending(reference)
+                if agent.crossing is not None:
+                    fired = body.row - agent.rows_sent + agent.crossing["fired"] - 1
+                    self.log.add(reference_row, fired, True, agent.rest_motor_state, "walk")
+                    return agent.sense_again(agent.rest_motor_state)[0]
             except WorldChanged as stop:
                 self.log.add(reference_row, body.row - 1, True, agent.rest_motor_state, "walk")
                 self._count_lost(rows_before, stages_before, "pending_walk")
@@ -261,4 +290,5 @@ class _Run:
                           rows=int(self.body.row), held_rows=int(self.body.held_rows),
                           lost_by_stage=dict(self.lost_by_stage),
                           cuts_by_stage=dict(self.cut_in), pending_povs=int(self.pending_povs),
+                          crossed=int(self.crossed),
                           state_of=self.body.state_at, lights=self.body.lights)
