@@ -94,7 +94,7 @@ def test_a_walk_goes_on_through_a_change_to_the_same_pov():
     # given in the old one; every row of the walk kept saw one world.
     cfg = config.load_config(SMOKE)
     world = run_world(cfg)
-    params = NaiveParams(**cfg["naive"])
+    params = NaiveParams(**{**cfg["naive"], "clock_walk_attempts": 4})
     calm, _ = _agent_in_two_worlds(world, params, change_after=10 ** 8)
     cut, body = _agent_in_two_worlds(world, params, change_after=120)
     state = calm.points_of_view[0, len(calm.points_of_view[0]) // 3][None]
@@ -117,11 +117,33 @@ def test_a_walk_goes_on_through_a_change_to_the_same_pov():
     assert body.state_at(offset + cut.crossing["latest"]) == 1
 
 
-def test_walks_through_changes_keep_their_reactions(clocked_smoke):
-    _, run, metrics = clocked_smoke
+@pytest.fixture(scope="module")
+def walking_through():
+    overrides = {"world.clock": "rows", "world.change_interval": 1000.0,
+                 "naive.clock_walk_attempts": 4}
+    cfg = config.load_config(SMOKE, overrides)
+    world = run_world(cfg)
+    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=1000.0)
+    return {**evaluate_naive_run(run, world).metrics, **clock_metrics(run, world)}
+
+
+def test_walks_through_changes_keep_their_reactions(clocked_smoke, walking_through):
+    metrics = walking_through
     assert metrics["naive.clock.crossed_reactions"] > 0
     assert metrics["naive.clock.walks_restarted"] >= metrics["naive.clock.crossed_reactions"]
     assert metrics["naive.accepted_across_change"] == 0
+    assert metrics["naive.wrong_poses"] == 0 and metrics["naive.state_changes_accepted"] == 0
+    assert metrics["naive.clock.recall"] >= 0.99
+    assert metrics["naive.clock.false_detection_rate"] <= 0.01
+    # Walks no longer thrown away: fewer rows lost than when a cut undoes the reaction.
+    assert clocked_smoke[2]["naive.clock.crossed_reactions"] == 0
+    assert metrics["naive.clock.lost_rows_by_stage.pov"] < \
+        clocked_smoke[2]["naive.clock.lost_rows_by_stage.pov"]
+
+
+def test_clock_walk_attempts_is_checked_at_start_up():
+    with pytest.raises(config.ConfigError, match=r"clock_walk_attempts"):
+        config.load_config(SMOKE, {"naive.clock_walk_attempts": 0})
 
 
 def test_lost_rows_are_counted_by_stage(clocked_smoke):

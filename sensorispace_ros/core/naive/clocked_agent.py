@@ -41,7 +41,6 @@ from sensorispace_ros.core.naive.searching import SearchAndSample
 
 NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
 WITNESSES = 8        # swept POVs sensed again after a reaction
-WALK_ATTEMPTS = 4    # worlds a batch of walks is started in before its solutions go pending
 
 
 class WorldChanged(Exception):
@@ -237,7 +236,8 @@ class ClockedAgent(NaiveAgent):
         state, self.pending = self.pending[0], self.pending[1:]
         self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
         self.crossing = None
-        self._body.forget()
+        if self.params.clock_walk_attempts > 1:
+            self._body.forget()
         try:
             new, _ = self._walk_through(state[None])
             self._tripwire.check()
@@ -396,7 +396,8 @@ class ClockedAgent(NaiveAgent):
         self._body.stage = "compensation"
 
     def _sample_povs(self, motor_states, keep_invalid=False, others=None):
-        if self._tripwire.armed and self.witnesses_moved():
+        if self._tripwire.armed and self.params.clock_walk_attempts > 1 and \
+                self.witnesses_moved():
             # A change the sentinel does not see cut the search: a walk must
             # not carry it into a reaction kept across a change (``_cross``).
             self.cut_stage = "compensation"
@@ -414,16 +415,17 @@ class ClockedAgent(NaiveAgent):
 
     def _walk_through(self, motor_states, keep_invalid=False, others=None):
         """``SearchAndSample._sample_povs``, started again in the new world
-        when a change cuts it (``WALK_ATTEMPTS`` worlds at most): the states
+        when a change cuts it (``params.clock_walk_attempts`` worlds at most): the states
         of one eye pose sense alike in any world, so the level set through a
         solution is its POV whichever world it is walked in. A walk is kept
         when every one of its rows saw one world."""
-        for attempt in range(WALK_ATTEMPTS):
+        attempts = self.params.clock_walk_attempts
+        for attempt in range(attempts):
             try:
                 return SearchAndSample._sample_povs(self, motor_states, keep_invalid=keep_invalid,
                                                     others=others)
             except WorldChanged as stop:
-                if not self._tripwire.armed or attempt == WALK_ATTEMPTS - 1:
+                if not self._tripwire.armed or attempt == attempts - 1:
                     raise
                 self._cross(np.asarray(stop.args[0], dtype=float))
         raise AssertionError("unreachable")
