@@ -12,7 +12,8 @@ smallest interval whose coverage reaches ``--target``::
     nice -n 10 .venv/bin/python bench/clock_study.py --config config/paper.yaml \\
         --lockstep 648 --out /tmp/clock_study_paper
 
-``--noise 1e-3`` sets ``world.retina.noise`` (the agent measures it; nothing tells it).
+``--noise 1e-3`` sets ``world.retina.noise`` (the agent measures it; nothing tells it);
+``--set naive.clock_walk_attempts=4`` any other parameter.
 Runs are one process, one after the other; ``--intervals`` takes a subset and
 ``--resume`` keeps the runs ``study.json`` already holds.
 """
@@ -36,14 +37,21 @@ COLUMNS = [("distinct positions", "naive.distinct_positions"), ("coverage", "cov
            ("lost rows", "naive.clock.lost_rows"), ("wall (s)", "wall_s")]
 
 
-def overrides(seed: int, noise: float) -> dict:
+def overrides(seed: int, noise: float, settings=()) -> dict:
+    """Config overrides: the seed, the sensor noise, ``key=value`` settings (YAML values)."""
+    import yaml
+
     values = {"seed": seed}
     if noise:
         values["world.retina.noise"] = noise
+    for setting in settings:
+        key, _, value = setting.partition("=")
+        values[key.strip()] = yaml.safe_load(value)
     return values
 
 
-def explore(config_path: str, seed: int, noise: float, clock: str, interval: float) -> dict:
+def explore(config_path: str, seed: int, noise: float, clock: str, interval: float,
+            settings=()) -> dict:
     """One exploration on ``clock``; its ground-truth numbers."""
     from sensorispace_ros import config
     from sensorispace_ros.core.clocked_run import run_on_clock
@@ -52,7 +60,7 @@ def explore(config_path: str, seed: int, noise: float, clock: str, interval: flo
     from sensorispace_ros.evaluation.clock import clock_metrics
     from sensorispace_ros.evaluation.naive import evaluate_naive_run
 
-    cfg = config.load_config(config_path, {**overrides(seed, noise), "world.clock": clock,
+    cfg = config.load_config(config_path, {**overrides(seed, noise, settings), "world.clock": clock,
                                            "world.change_interval": float(interval)})
     world = run_world(cfg)
     started = time.perf_counter()
@@ -79,7 +87,7 @@ def cell(row: dict, key: str) -> str:
     if key == "naive.clock.false_detection_rate":
         return f"{100 * value:.2g} %"
     if isinstance(value, float):
-        return f"{value:.3g}"
+        return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
     return f"{value:,}" if isinstance(value, int) else str(value)
 
 
@@ -140,6 +148,8 @@ def main() -> None:
     parser.add_argument("--out", default="/tmp/clock_study")
     parser.add_argument("--figure", default=None, help="also write the figure here")
     parser.add_argument("--resume", action="store_true")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a config override, e.g. naive.clock_walk_attempts=4")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -147,19 +157,19 @@ def main() -> None:
     done = json.loads(store.read_text()) if args.resume and store.exists() else {}
     lockstep = args.lockstep if args.lockstep is not None else done.get("lockstep")
     if lockstep is None:
-        lockstep = explore(args.config, args.seed, args.noise, "agent", 1.0)[
+        lockstep = explore(args.config, args.seed, args.noise, "agent", 1.0, args.set)[
             "naive.distinct_positions"]
     rows = [r for r in done.get("rows", []) if r["interval"] in args.intervals]
     for interval in args.intervals:
         if any(r["interval"] == interval for r in rows):
             continue
-        row = explore(args.config, args.seed, args.noise, "rows", interval)
+        row = explore(args.config, args.seed, args.noise, "rows", interval, args.set)
         row["interval"] = int(interval)
         row["coverage"] = row["naive.distinct_positions"] / lockstep
         rows.append(row)
         rows.sort(key=lambda r: r["interval"])
         store.write_text(json.dumps({"config": args.config, "seed": args.seed,
-                                     "noise": args.noise, "lockstep": lockstep,
+                                     "noise": args.noise, "set": args.set, "lockstep": lockstep,
                                      "rows": rows}, indent=1))
         print(f"interval {interval:g}: coverage {row['coverage']:.3f}, wrong "
               f"{row.get('naive.wrong_poses')}, {row['wall_s']} s", flush=True)
