@@ -127,6 +127,7 @@ def figure(rows: list, lockstep: int, target: float, path: str, title: str) -> N
     axes[1].set_ylabel("count")
     axes[2].plot(x, [r.get("naive.clock.queries_per_pov", 0) for r in rows], "o-")
     axes[2].set_ylabel("motor states probed per POV")
+    axes[2].set_yscale("log")
     for ax in axes:
         ax.set_xscale("log")
         ax.set_xlabel("mean change interval (rows)")
