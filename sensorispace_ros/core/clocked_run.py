@@ -46,7 +46,11 @@ class ClockTruth:
     the agent made (``log``), ``lost_rows`` rows of undone reactions,
     ``undone`` their number, ``salvaged`` the POVs kept from them,
     ``rows`` / ``held_rows`` the clock at the end, ``lights`` of each world
-    state."""
+    state; ``lost_by_stage`` the lost rows per stage of the agent,
+    ``cuts_by_stage`` the stage each change that cut a reaction or a
+    pending walk fell in (``check``: the checks after a reaction),
+    ``pending_povs`` the POVs added by walks of pending solutions,
+    ``crossed`` the reactions kept whose walk went on through a change."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -57,6 +61,10 @@ class ClockTruth:
     salvaged: int
     rows: int
     held_rows: int
+    lost_by_stage: dict = field(default_factory=dict)
+    cuts_by_stage: dict = field(default_factory=dict)
+    pending_povs: int = 0
+    crossed: int = 0
     state_of: object = field(repr=False, default=None)
     lights: list = field(repr=False, default_factory=list)   # of each world state
 
@@ -149,6 +157,10 @@ class _Run:
         self.lost_rows = 0
         self.undone = 0
         self.salvaged = 0
+        self.pending_povs = 0
+        self.crossed = 0
+        self.lost_by_stage: dict[str, int] = {}
+        self.cut_in: dict[str, int] = {}
 
     def hold(self, reference: np.ndarray, reference_row: int):
         """Hold still until the sensation at rest leaves its band; confirm by
@@ -174,24 +186,47 @@ class _Run:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
             first_row, rows_before = body.row, agent.queries_total
+            stages_before, cut_in, sent = agent.queries_by_stage, "check", agent.rows_sent
             try:
                 agent.watched(reaction or agent.react, sensed_at_rest)
                 after_rest = agent.rest_motor_state
                 again = agent.sense_again(np.vstack([before_rest, after_rest]))
+                if agent.crossing is not None:
+                    # Kept; the world its sweep saw is gone: react again at
+                    # once, for a snapshot of the world as it is.
+                    self._crossed(reference_row, first_row, first_row - sent, before_rest, again)
+                    sensed_at_rest = again[0]
+                    reference_row = body.row - 2
+                    continue
                 cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
                     (agent.phase == EXPLORING and
                      change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
                     or agent.witnesses_moved()
             except WorldChanged:
-                cut = True
+                cut, cut_in = True, agent.cut_stage
             self.log.add(reference_row, body.row - 1, cut, before_rest, "cut")
             if not cut:
                 self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
                 return again[1], body.row - 1
-            self._undo(saved, rows_before)
+            self._undo(saved, rows_before, stages_before, cut_in)
             # The world of this row, at the resting state the undone reaction started from.
             sensed_at_rest = agent.sense_again(before_rest)[0]
             reference_row = body.row - 1
+
+    def _crossed(self, reference_row: int, first_row: int, offset: int, rest: np.ndarray,
+                 again: np.ndarray) -> None:
+        """Note a reaction whose walk went on through a change
+        (``ClockedAgent._cross``): its search's rows, up to the last sentinel
+        before the change (row ``offset + crossing["passed"] - 1``), saw one
+        world, its walk another; ``again``: its resting state sensed after it."""
+        agent, body = self.agent, self.body
+        crossing = agent.crossing
+        self.log.add(reference_row, offset + crossing["fired"] - 1, True, rest, "walk")
+        moved = change_detection.differs(agent.noise_sd, crossing["reference"], again[0])
+        self.log.add(offset + crossing["latest"] - 1, body.row - 2, moved, rest, "cut")
+        self.crossed += 1
+        self.event_states.append((body.state_at(first_row),
+                                  body.state_at(offset + crossing["passed"] - 1)))
 
     def walk_pending(self, reference: np.ndarray, reference_row: int):
         """Walk the pending solutions one by one while the world stays
@@ -200,18 +235,32 @@ class _Run:
         agent, body = self.agent, self.body
         while len(agent.pending):
             saved = agent.checkpoint()
-            rows_before = agent.queries_total
+            rows_before, stages_before = agent.queries_total, agent.queries_by_stage
             try:
-                agent.walk_pending(reference)
+                self.pending_povs += agent.walk_pending(reference)
+                if agent.crossing is not None:
+                    fired = body.row - agent.rows_sent + agent.crossing["fired"] - 1
+                    self.log.add(reference_row, fired, True, agent.rest_motor_state, "walk")
+                    return agent.sense_again(agent.rest_motor_state)[0]
             except WorldChanged as stop:
                 self.log.add(reference_row, body.row - 1, True, agent.rest_motor_state, "walk")
-                self.lost_rows += agent.queries_total - rows_before
+                self._count_lost(rows_before, stages_before, "pending_walk")
                 agent.restore(saved, salvage=False)
                 return np.asarray(stop.args[0], dtype=float)
         return None
 
-    def _undo(self, saved: dict, rows_before: int) -> None:
+    def _count_lost(self, rows_before: int, stages_before: dict, cut_in: str) -> None:
+        """Count the rows since ``rows_before`` as lost, per stage, and the
+        stage (``cut_in``) a change cut."""
         self.lost_rows += self.agent.queries_total - rows_before
+        for stage, rows in self.agent.queries_by_stage.items():
+            lost = rows - stages_before.get(stage, 0)
+            if lost:
+                self.lost_by_stage[stage] = self.lost_by_stage.get(stage, 0) + lost
+        self.cut_in[cut_in] = self.cut_in.get(cut_in, 0) + 1
+
+    def _undo(self, saved: dict, rows_before: int, stages_before: dict, cut_in: str) -> None:
+        self._count_lost(rows_before, stages_before, cut_in)
         self.undone += 1
         self.salvaged += self.agent.restore(saved)
 
@@ -239,4 +288,7 @@ class _Run:
                           log=self.log, lost_rows=int(self.lost_rows), undone=int(self.undone),
                           salvaged=int(self.salvaged),
                           rows=int(self.body.row), held_rows=int(self.body.held_rows),
+                          lost_by_stage=dict(self.lost_by_stage),
+                          cuts_by_stage=dict(self.cut_in), pending_povs=int(self.pending_povs),
+                          crossed=int(self.crossed),
                           state_of=self.body.state_at, lights=self.body.lights)

@@ -45,6 +45,13 @@ def clock_metrics(run, world) -> dict:
         "naive.clock.salvaged_povs": int(truth.salvaged),
         "naive.clock.reactions": int(len(truth.event_states) - 1),
         "naive.clock.queries_per_pov": run.agent.queries_total / max(n_povs, 1),
+        "naive.clock.pending_povs": int(truth.pending_povs),
+        "naive.clock.crossed_reactions": int(truth.crossed),
+        "naive.clock.walks_restarted": int(getattr(run.agent, "crossings", 0)),
+        **{f"naive.clock.lost_rows_by_stage.{stage}": int(rows)
+           for stage, rows in sorted(truth.lost_by_stage.items())},
+        **{f"naive.clock.cuts_by_stage.{stage}": int(n)
+           for stage, n in sorted(truth.cuts_by_stage.items())},
         **detection,
     }
 

@@ -70,3 +70,87 @@ def test_wall_clock_is_refused_offline():
     cfg = config.load_config(SMOKE, {"world.clock": "wall"})
     with pytest.raises(config.ConfigError, match=r"world\.clock"):
         run_on_clock(run_world(cfg), NaiveParams(**cfg["naive"]), "wall", interval=1000.0)
+
+
+def _agent_in_two_worlds(world, params, change_after: int):
+    """A started ``ClockedAgent`` whose world (the smoke world, then the same
+    lights shifted) changes ``change_after`` rows after its start."""
+    from sensorispace_ros.core.body import SensingOnly
+    from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
+    from sensorispace_ros.core.world_clock import ClockedBody
+
+    lights = np.asarray(world.initial_lights, dtype=float)
+    shifted = lights + np.array([0.4, -0.3])
+    body = ClockedBody(world.body(lights=lights), [lights, shifted], np.array([10 ** 9]))
+    agent = ClockedAgent(SensingOnly(body), params)
+    agent.start(world.m0, seed=world.seed)
+    body.change_row = np.array([body.row + change_after])
+    return agent, body
+
+
+def test_a_walk_goes_on_through_a_change_to_the_same_pov():
+    # The states of one eye pose sense alike in any world: a walk a change
+    # cuts is walked again in the new world and gives the POV it would have
+    # given in the old one; every row of the walk kept saw one world.
+    cfg = config.load_config(SMOKE)
+    world = run_world(cfg)
+    params = NaiveParams(**{**cfg["naive"], "clock_walk_attempts": 4})
+    calm, _ = _agent_in_two_worlds(world, params, change_after=10 ** 8)
+    cut, body = _agent_in_two_worlds(world, params, change_after=120)
+    state = calm.points_of_view[0, len(calm.points_of_view[0]) // 3][None]
+    results = []
+    for agent in (calm, cut):
+        rest = agent.rest_motor_state
+        agent._tripwire.arm(rest, agent.sense_again(rest)[0], agent.noise_sd)
+        agent._body.stage = "pov"
+        walked = agent._sample_povs(agent._phase.to_phase(state))
+        agent._tripwire.disarm()
+        results.append(agent._store.samples[walked[0][0]])
+    assert calm.crossings == 0 and cut.crossings == 1
+    assert body.state == 1 and cut.crossing["passed"] < cut.crossing["fired"]
+    gap = (results[0][:, None, :] - results[1][None, :, :] + np.pi) % (2 * np.pi) - np.pi
+    distance = np.linalg.norm(gap, axis=2)
+    assert max(distance.min(axis=0).max(), distance.min(axis=1).max()) < 0.05
+    # The walk kept began after the sentinel flagged: every row of it saw the new world.
+    offset = body.row - cut.rows_sent
+    assert body.state_at(offset + cut.crossing["passed"] - 1) == 0
+    assert body.state_at(offset + cut.crossing["latest"]) == 1
+
+
+@pytest.fixture(scope="module")
+def walking_through():
+    overrides = {"world.clock": "rows", "world.change_interval": 1000.0,
+                 "naive.clock_walk_attempts": 4}
+    cfg = config.load_config(SMOKE, overrides)
+    world = run_world(cfg)
+    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=1000.0)
+    return {**evaluate_naive_run(run, world).metrics, **clock_metrics(run, world)}
+
+
+def test_walks_through_changes_keep_their_reactions(clocked_smoke, walking_through):
+    metrics = walking_through
+    assert metrics["naive.clock.crossed_reactions"] > 0
+    assert metrics["naive.clock.walks_restarted"] >= metrics["naive.clock.crossed_reactions"]
+    assert metrics["naive.accepted_across_change"] == 0
+    assert metrics["naive.wrong_poses"] == 0 and metrics["naive.state_changes_accepted"] == 0
+    assert metrics["naive.clock.recall"] >= 0.99
+    assert metrics["naive.clock.false_detection_rate"] <= 0.01
+    # Walks no longer thrown away: fewer rows lost than when a cut undoes the reaction.
+    assert clocked_smoke[2]["naive.clock.crossed_reactions"] == 0
+    assert metrics["naive.clock.lost_rows_by_stage.pov"] < \
+        clocked_smoke[2]["naive.clock.lost_rows_by_stage.pov"]
+
+
+def test_clock_walk_attempts_is_checked_at_start_up():
+    with pytest.raises(config.ConfigError, match=r"clock_walk_attempts"):
+        config.load_config(SMOKE, {"naive.clock_walk_attempts": 0})
+
+
+def test_lost_rows_are_counted_by_stage(clocked_smoke):
+    _, _, metrics = clocked_smoke
+    by_stage = {k: v for k, v in metrics.items() if k.startswith("naive.clock.lost_rows_by_")}
+    cuts = {k: v for k, v in metrics.items() if k.startswith("naive.clock.cuts_by_stage.")}
+    assert sum(by_stage.values()) > 0 and sum(cuts.values()) >= metrics[
+        "naive.clock.undone_reactions"]
+    # Undone reactions and dropped pending walks lose rows; the start's retries too.
+    assert sum(by_stage.values()) <= metrics["naive.clock.lost_rows"]

@@ -64,6 +64,8 @@ class Tripwire:
         self.noise_sd = 0.0
         self.rows = 0                  # sentinel rows sensed
         self.passed = 0                # sentinels that passed
+        self.sent = 0                  # rows sent to the body, sentinels included
+        self.passed_at = 0             # ``sent`` after the last sentinel that passed
 
     @property
     def armed(self) -> bool:
@@ -77,6 +79,10 @@ class Tripwire:
     def disarm(self) -> None:
         self._sentinel = self._reference = None
 
+    def rearm(self, reference) -> None:
+        """The same sentinel, held to ``reference`` (its sensation in a new world)."""
+        self._reference = np.asarray(reference, dtype=float).reshape(-1)
+
     def check(self) -> None:
         """Sense the sentinel alone (raises ``WorldChanged``)."""
         self.sense(np.zeros((0, self.n_motors)))
@@ -84,12 +90,15 @@ class Tripwire:
     def sense(self, motor_states) -> np.ndarray:
         motor_states = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
         if self._sentinel is None:
+            self.sent += len(motor_states)
             return self._body.sense(motor_states)
         sensed = self._body.sense(np.vstack([motor_states, self._sentinel]))
         self.rows += 1
+        self.sent += len(motor_states) + 1
         if change_detection.differs(self.noise_sd, self._reference, sensed[-1]):
             raise WorldChanged(sensed[-1])
         self.passed += 1
+        self.passed_at = self.sent
         return sensed[:-1]
 
     def move(self, motor_states) -> None:
@@ -158,6 +167,10 @@ class ClockedAgent(NaiveAgent):
         self._cut_walk = None       # the start states of a walk a change cut
         self._search_current = None
         self._witnesses = None      # (states, sensations) of this reaction's sweep
+        self.cut_stage = None       # the stage a sentinel stopped last
+        self.crossing = None        # a walk's change in this reaction (``_cross``)
+        self.crossings = 0          # walks started again in a new world
+        self._search_end = 0        # the tripwire's rows sent when the walks began
 
     # ------------------------------------------------------------ the clock
 
@@ -202,10 +215,14 @@ class ClockedAgent(NaiveAgent):
         self._verified = self._store.count
         self._cut_walk = None
         self._witnesses = None
+        self.crossing = None
         try:
             if reaction == self.react:
                 return reaction(sensed_at_rest)
             return reaction()
+        except WorldChanged:
+            self.cut_stage = self._body.stage
+            raise
         finally:
             self._tripwire.disarm()
             self._body.pause()
@@ -218,8 +235,11 @@ class ClockedAgent(NaiveAgent):
             return 0
         state, self.pending = self.pending[0], self.pending[1:]
         self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
+        self.crossing = None
+        if self.params.clock_walk_attempts > 1:
+            self._body.forget()
         try:
-            new, _ = SearchAndSample._sample_povs(self, state[None])
+            new, _ = self._walk_through(state[None])
             self._tripwire.check()
         finally:
             self._tripwire.disarm()
@@ -376,12 +396,71 @@ class ClockedAgent(NaiveAgent):
         self._body.stage = "compensation"
 
     def _sample_povs(self, motor_states, keep_invalid=False, others=None):
+        if self._tripwire.armed and self.params.clock_walk_attempts > 1 and \
+                self.witnesses_moved():
+            # A change the sentinel does not see cut the search: a walk must
+            # not carry it into a reaction kept across a change (``_cross``).
+            self.cut_stage = "compensation"
+            raise WorldChanged(None)
+        self._search_end = self._tripwire.sent
         try:
-            walked = super()._sample_povs(motor_states, keep_invalid=keep_invalid, others=others)
+            walked = self._walk_through(motor_states, keep_invalid=keep_invalid, others=others)
         except WorldChanged:
             if self._tripwire.armed:
                 self._cut_walk = np.array(motor_states, dtype=float)
             raise
-        # Every call of the walk (and of the search before it) passed its sentinel.
+        # Every call of the walk passed its sentinel, and so did the search's before it.
         self._verified = self._store.count
         return walked
+
+    def _walk_through(self, motor_states, keep_invalid=False, others=None):
+        """``SearchAndSample._sample_povs``, started again in the new world
+        when a change cuts it (``params.clock_walk_attempts`` worlds at most): the states
+        of one eye pose sense alike in any world, so the level set through a
+        solution is its POV whichever world it is walked in. A walk is kept
+        when every one of its rows saw one world."""
+        attempts = self.params.clock_walk_attempts
+        for attempt in range(attempts):
+            try:
+                return SearchAndSample._sample_povs(self, motor_states, keep_invalid=keep_invalid,
+                                                    others=others)
+            except WorldChanged as stop:
+                if not self._tripwire.armed or attempt == attempts - 1:
+                    raise
+                self._cross(np.asarray(stop.args[0], dtype=float))
+        raise AssertionError("unreachable")
+
+    def _cross(self, sensed: np.ndarray) -> None:
+        """The sentinel's sensation left its band in a walk: the world changed.
+        The rows before the last sentinel that passed (the search's) saw the
+        world of before; the walk starts again in the new one, the sentinel
+        held to ``sensed``, what was sensed before forgotten. ``crossing``
+        notes the first such change of the reaction (``passed``: the
+        tripwire's rows sent when the walks began, after the witnesses of the
+        search passed, ``fired``:
+        up to the one that flagged), the latest reference and the rows sent
+        up to it (``latest``)."""
+        tripwire = self._tripwire
+        if self.crossing is None:
+            self.crossing = {"passed": self._search_end, "fired": tripwire.sent}
+        self.crossing.update(reference=sensed.copy(), latest=tripwire.sent)
+        self.crossings += 1
+        tripwire.rearm(sensed)
+        self._body.forget()
+
+    @property
+    def rows_sent(self) -> int:
+        """Rows this agent sent to its body, sentinels included."""
+        return self._tripwire.sent
+
+    def _rest_after(self, rest_choice, rank_now):
+        """``NaiveAgent._rest_after``; after a walk crossed a change the arm
+        stays where it rests and takes no snapshot (its sweep saw the world
+        of before, its rest would sense the new one)."""
+        if self.crossing is not None:
+            return None, RANK_UNKNOWN
+        return super()._rest_after(rest_choice, rank_now)
+
+    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:
+        if self.crossing is None:
+            super()._renew_pool(matches, known_comp, found_rest, snapshot)

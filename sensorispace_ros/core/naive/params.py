@@ -84,6 +84,7 @@ class NaiveParams:
     remember_split_povs: bool = _default("remember_split_povs")
     clock_sweep_budget: int = _default("clock_sweep_budget")
     clock_equality_changes: int = _default("clock_equality_changes")
+    clock_walk_attempts: int = _default("clock_walk_attempts")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.
