@@ -99,11 +99,35 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
     body = ClockedBody(world.body(lights=world.initial_lights),
                        [world.initial_lights] + [e.lights for e in events],
                        change_rows(len(events), interval, world.seed))
-    agent, first_row, lost = _start(body, world, params, sweep_budget)
-    run = _Run(agent, body)
+    run = begin_run(body, world.m0, world.seed, params, sweep_budget)
+    tick = None if progress is None or not callable(progress) else \
+        (lambda: progress(body.state, len(events)))
+    drive(run, equality_changes=equality_changes,
+          second_round=lambda: body.state > len(world.events), after_reaction=tick)
+    exploration_s = time.perf_counter() - started
+    return run.exploration(world, events, exploration_s), run.truth()
+
+
+def begin_run(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_budget: int
+              ) -> "ClockedRun":
+    """A run whose agent has started in one world (``start_clocked``), its
+    start noted as event 0."""
+    agent, first_row, lost = start_clocked(body, m0, seed, params, sweep_budget)
+    run = ClockedRun(agent, body)
     run.lost_rows = lost
     run.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
-    reference, reference_row = agent.anchor_sensation, body.row - 1
+    return run
+
+
+def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_reaction=None
+          ) -> None:
+    """The agent's life on the clock: it holds still at rest, walks the
+    solutions a change cut, reacts to each change it detects; once
+    ``second_round()`` says the world replays its schedule, it spends
+    ``equality_changes`` reactions on simulation 2 (``begin_equality_pass``).
+    Ends when the body has no change left (a hold answers None)."""
+    agent = run.agent
+    reference, reference_row = agent.anchor_sensation, run.body.row - 1
     equality_left = int(equality_changes)
     while True:
         sensed = run.walk_pending(reference, reference_row) if agent.phase == EXPLORING \
@@ -114,7 +138,7 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
                 break
             if sensed is False:
                 continue
-        if agent.phase == EXPLORING and body.state > len(world.events) and equality_left:
+        if agent.phase == EXPLORING and second_round() and equality_left:
             reference, reference_row = run.react(sensed, agent.begin_equality_pass)
             continue
         reference, reference_row = run.react(sensed)
@@ -122,13 +146,11 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
             equality_left -= 1
             if equality_left <= 0:
                 break
-        if progress is not None and callable(progress):
-            progress(body.state, len(events))
-    exploration_s = time.perf_counter() - started
-    return run.exploration(world, events, exploration_s), run.truth()
+        if after_reaction is not None:
+            after_reaction()
 
 
-def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):
+def start_clocked(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_budget: int):
     """A started agent whose start saw one world: the start state is sensed
     before and after ``start`` and compared by the noise the start measured;
     a start the world changed under is made again by a new agent (its rows
@@ -137,9 +159,9 @@ def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):
     while True:
         first_row = body.row
         agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
-        before = agent.sense_again(world.m0)[0]
-        agent.start(world.m0, seed=world.seed)
-        after = agent.sense_again(world.m0)[0]
+        before = agent.sense_again(m0)[0]
+        agent.start(m0, seed=seed)
+        after = agent.sense_again(m0)[0]
         rest_now = agent.sense_again(agent.rest_motor_state)[0]
         if not (change_detection.differs(agent.noise_sd, before, after) or
                 change_detection.differs(agent.noise_sd, agent.anchor_sensation, rest_now)):
@@ -147,7 +169,7 @@ def _start(body: ClockedBody, world, params: NaiveParams, sweep_budget: int):
         lost += agent.queries_total
 
 
-class _Run:
+class ClockedRun:
     """The reactions of one clocked run and what ground truth notes of them."""
 
     def __init__(self, agent: ClockedAgent, body: ClockedBody):

@@ -64,5 +64,7 @@ def graph_clocked_run(run, world, events: list, *, clocked_body=None, rows_after
                        event_states=np.asarray(run.event_states, dtype=int).reshape(-1, 2),
                        log=run.log, lost_rows=int(run.lost_rows), undone=int(run.undone),
                        salvaged=int(run.salvaged), rows=rows, held_rows=held,
+                       lost_by_stage=dict(run.lost_by_stage), cuts_by_stage=dict(run.cut_in),
+                       pending_povs=int(run.pending_povs), crossed=int(run.crossed),
                        state_of=truth_state_of, lights=lights)
     return summarize_naive(run.exploration(world, events, 0.0), truth)

@@ -1,7 +1,7 @@
 """The clocked agent over the body's topics (``world.clock: rows`` or ``wall``).
 
 The agent node runs the offline driver's reactions (``core.clocked_run``:
-``_start``, ``_Run``) on a ``BodyOverTopics``, in the order
+``begin_run``, ``drive``) on a ``BodyOverTopics``, in the order
 ``clocked_run.explore_clocked`` runs them, so that a graph run on the row
 clock makes every call the offline run makes. Nothing tells the agent when
 the world changes: it holds still at rest (one ``/body/hold`` message) until
@@ -18,12 +18,9 @@ them): a driver's row ``2n + 1`` stands for the first row of command
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
-from sensorispace_ros.core.clocked_run import _Run, _start
-from sensorispace_ros.core.naive.agent import EXPLORING
+from sensorispace_ros.core.clocked_run import begin_run, drive
 from sensorispace_ros.core.naive.params import NaiveParams
 
 
@@ -69,30 +66,8 @@ class ClockOverTopics:
 
 def explore_over_topics(clock: ClockOverTopics, m0: np.ndarray, seed: int,
                         params: NaiveParams, *, sweep_budget: int, equality_changes: int):
-    """``clocked_run.explore_clocked``'s loop on ``clock``; returns the driver
-    (``_Run``: its agent, its tests and the positions of its reactions)."""
-    agent, first_row, lost = _start(clock, SimpleNamespace(m0=m0, seed=seed), params,
-                                    sweep_budget)
-    run = _Run(agent, clock)
-    run.lost_rows = lost
-    run.event_states.append((clock.state_at(first_row), clock.state_at(clock.row - 1)))
-    reference, reference_row = agent.anchor_sensation, clock.row - 1
-    equality_left = int(equality_changes)
-    while True:
-        sensed = run.walk_pending(reference, reference_row) if agent.phase == EXPLORING \
-            else None
-        if sensed is None:
-            sensed = run.hold(reference, reference_row)
-            if sensed is None:
-                break
-            if sensed is False:
-                continue
-        if agent.phase == EXPLORING and clock.state > 0 and equality_left:
-            reference, reference_row = run.react(sensed, agent.begin_equality_pass)
-            continue
-        reference, reference_row = run.react(sensed)
-        if agent.phase != EXPLORING:
-            equality_left -= 1
-            if equality_left <= 0:
-                break
+    """``clocked_run.explore_clocked``'s run on ``clock``; returns the driver
+    (``ClockedRun``: its agent, its tests and the positions of its reactions)."""
+    run = begin_run(clock, m0, seed, params, sweep_budget)
+    drive(run, equality_changes=equality_changes, second_round=lambda: clock.state > 0)
     return run
