@@ -135,7 +135,7 @@ def test_walks_through_changes_keep_their_reactions(clocked_smoke, walking_throu
     assert metrics["naive.wrong_poses"] == 0 and metrics["naive.state_changes_accepted"] == 0
     assert metrics["naive.clock.recall"] >= 0.99
     assert metrics["naive.clock.false_detection_rate"] <= 0.01
-    # Walks no longer thrown away: fewer rows lost than when a cut undoes the reaction.
+    # Walks kept through a cut lose fewer rows than a cut that undoes the reaction.
     assert clocked_smoke[2]["naive.clock.crossed_reactions"] == 0
     assert metrics["naive.clock.lost_rows_by_stage.pov"] < \
         clocked_smoke[2]["naive.clock.lost_rows_by_stage.pov"]
