@@ -75,8 +75,9 @@ class NaiveAgentRecords:
     ``compensated`` events); ``queries_by_stage`` / ``calls_by_stage``
     stage -> count (stages of ``STAGES``); ``pose_rank``, ``pov_dim``,
     ``rank_gap``, ``sensory_gain``, ``fd_noise_floor``, ``rank_votes``,
-    ``rank_probes``, ``noise_estimate`` and ``fd_step`` the agent's measure of its body (``STRUCTURE_FIELDS``;
-    ``pose_rank`` -1 before ``start``).
+    ``rank_probes``, ``noise_estimate``, ``fd_step`` and ``noise_quantum``
+    the agent's measure of its body (``STRUCTURE_FIELDS``; ``pose_rank`` -1
+    before ``start``).
     """
 
     povs: np.ndarray
@@ -104,6 +105,7 @@ class NaiveAgentRecords:
     rank_probes: int = 0
     noise_estimate: float = 0.0
     fd_step: float = 0.0
+    noise_quantum: float = 0.0
 
     @classmethod
     def from_agent(cls, agent) -> "NaiveAgentRecords":
@@ -165,7 +167,7 @@ class NaiveAgentRecords:
 
 # The agent's measure of its body, as its records and metrics (naive.<field>) name it.
 STRUCTURE_FIELDS = ("pose_rank", "pov_dim", "rank_gap", "sensory_gain", "fd_noise_floor",
-                    "rank_votes", "rank_probes", "noise_estimate", "fd_step")
+                    "rank_votes", "rank_probes", "noise_estimate", "fd_step", "noise_quantum")
 
 
 def structure_fields(agent) -> dict:
