@@ -13,18 +13,8 @@ from sensorispace_ros.core.naive.sense_memory import CountingBody
 from sensorispace_ros.core.naive.structure import measure_structure
 from sensorispace_ros.core.paper.exploration import build_world
 
-from imperfect_bodies import ImperfectSensing
+from imperfect_bodies import ImperfectSensing, SmoothBody
 
-
-class SmoothBody:
-    """Six smooth outputs of two joints (outputs ~0.5, slopes ~1 per rad)."""
-
-    n_motors, n_sensors = 2, 6
-
-    def sense(self, motor_states):
-        m = np.asarray(motor_states, dtype=float)
-        k = np.arange(1, 7)
-        return 0.5 + 0.3 * np.sin(k * m[:, :1] + m[:, 1:] * np.cos(k) + k)
 
 
 def _noisy(seed=3, **imperfections):

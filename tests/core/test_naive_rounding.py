@@ -14,23 +14,8 @@ from sensorispace_ros.core.naive.noise import measure_body, measure_noise, outpu
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.paper.exploration import build_world
 
-from imperfect_bodies import ImperfectSensing
+from imperfect_bodies import ImperfectSensing, SmoothBody
 
-
-class SmoothBody:
-    """Six smooth outputs of two joints (outputs ~0.5, slopes ~1 per rad)."""
-
-    n_motors, n_sensors = 2, 6
-
-    def sense(self, motor_states):
-        m = np.asarray(motor_states, dtype=float)
-        k = np.arange(1, 7)
-        return 0.5 + 0.3 * np.sin(k * m[:, :1] + m[:, 1:] * np.cos(k) + k)
-
-    def jacobian(self, m):
-        k = np.arange(1, 7)
-        c = 0.3 * np.cos(k * m[0] + m[1] * np.cos(k) + k)
-        return np.stack([c * k, c * np.cos(k)], axis=1)
 
 
 CENTER = np.array([0.3, -0.7])
