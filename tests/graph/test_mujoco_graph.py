@@ -5,6 +5,7 @@ configuration, and the viewer shows the camera's image. Skipped, saying why,
 where MuJoCo cannot render."""
 import numpy as np
 import pytest
+import yaml
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
@@ -19,6 +20,16 @@ pytestmark = [pytest.mark.graph, pytest.mark.slow,
               pytest.mark.skipif(PROBLEM is not None, reason=f"MuJoCo cannot render: {PROBLEM}")]
 
 MUJOCO_SMOKE = REPO / "config" / "mujoco-smoke.yaml"
+
+
+def tiny_mujoco_config(tmp_path):
+    """config/mujoco-smoke.yaml on a 3 x 3 grid (10 changes): the graph's
+    equality with the offline run, not what the agent finds, is tested here."""
+    text = yaml.safe_load(MUJOCO_SMOKE.read_text())
+    text["/**"]["ros__parameters"]["world"]["grid_count"] = 3
+    path = tmp_path / "mujoco-tiny.yaml"
+    path.write_text(yaml.safe_dump(text))
+    return path
 
 
 class CameraWatcher(Node):
@@ -36,7 +47,8 @@ def test_mujoco_body_in_the_graph_equals_offline(tmp_path, domain_id):
     from sensorispace_ros.core.naive.run import run_naive
     from sensorispace_ros.graph.nodes.viewer import ViewerNode
 
-    cfg = config.load_config(MUJOCO_SMOKE)
+    tiny = tiny_mujoco_config(tmp_path)
+    cfg = config.load_config(tiny)
     world = run_world(cfg)
     offline = run_naive(world, NaiveParams(**cfg["naive"]))
     watchers = []
@@ -45,7 +57,7 @@ def test_mujoco_body_in_the_graph_equals_offline(tmp_path, domain_id):
         watchers.append(CameraWatcher(context))
         return watchers[-1]
 
-    result = in_process.run_graph_in_process(MUJOCO_SMOKE, domain_id, tmp_path, timeout_s=600,
+    result = in_process.run_graph_in_process(tiny, domain_id, tmp_path, timeout_s=600,
                                              extra_nodes=(watch,),
                                              node_factories={"viewer": ViewerNode})
     nodes = result["nodes"]
