@@ -23,10 +23,13 @@ MUJOCO_SMOKE = REPO / "config" / "mujoco-smoke.yaml"
 
 
 def tiny_mujoco_config(tmp_path):
-    """config/mujoco-smoke.yaml on a 3 x 3 grid (10 changes): the graph's
-    equality with the offline run, not what the agent finds, is tested here."""
+    """config/mujoco-smoke.yaml on a 3 x 3 grid (10 changes), the rank probes'
+    clouds of 64 pairs: the graph's equality with the offline run, not what
+    the agent finds, is tested here."""
     text = yaml.safe_load(MUJOCO_SMOKE.read_text())
-    text["/**"]["ros__parameters"]["world"]["grid_count"] = 3
+    params = text["/**"]["ros__parameters"]
+    params["world"]["grid_count"] = 3
+    params["naive"] = {"cloud_pairs": 64}
     path = tmp_path / "mujoco-tiny.yaml"
     path.write_text(yaml.safe_dump(text))
     return path
