@@ -243,6 +243,11 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
         found = agent_outputs.account(self.agent, self.n_povs, self.n_rows, number - 1)
         self.get_logger().info(f"run over: {found}; records written to "
                                f"{path / AGENT_RECORDS_FILE}")
+        self.finish_when_done()
+
+    def finish_when_done(self) -> None:
+        """With ``graph.exit_when_done``: end once every subscriber has the
+        agent's last messages (or 2 s passed)."""
         if self.graph["exit_when_done"]:
             for publisher in (*self.pubs.values(), self.settled_pub):
                 publisher.wait_for_all_acked(Duration(seconds=2.0))

@@ -21,7 +21,6 @@ import time
 from types import SimpleNamespace
 
 import numpy as np
-from rclpy.duration import Duration
 from std_msgs.msg import UInt64
 
 from sensorispace_ros import contracts, messages
@@ -121,10 +120,7 @@ class AgentClock:
         found = agent_outputs.account(agent, self.n_povs, self.n_rows, changes - 1)
         self.get_logger().info(f"run over: {found}; {self.clock_line()}; records written to "
                                f"{path / AGENT_RECORDS_FILE}")
-        if self.graph["exit_when_done"]:
-            for publisher in (*self.pubs.values(), self.settled_pub):
-                publisher.wait_for_all_acked(Duration(seconds=2.0))
-            self.finished = True
+        self.finish_when_done()
 
     def clock_line(self) -> str:
         """What the clock cost the agent, in its own counts."""
