@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from sensorispace_ros import config as config_mod
-from sensorispace_ros.core.naive import run as naive_run
+from sensorispace_ros.core import clocked_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "core"))
 from imperfect_bodies import ImperfectSensing  # noqa: E402  (a test helper, shared)
@@ -36,13 +36,15 @@ def run(config: str, seed: int, out: str, **imperfections) -> dict:
 
     cfg = config_mod.load_config(config)
     wrapper = functools.partial(ImperfectSensing, seed=seed + 7919, **imperfections)
-    original = naive_run.run_naive
-    naive_run.run_naive = functools.partial(original, body_wrapper=wrapper)
+    # The offline strategy reaches run_naive through clocked_run's own binding:
+    # patch that one, and put it back, so that runs in one process keep apart.
+    original = clocked_run.run_naive
+    clocked_run.run_naive = functools.partial(original, body_wrapper=wrapper)
     started = time.perf_counter()
     try:
         metrics = reproduce(cfg, "naive", seed, out, figures=False)
     finally:
-        naive_run.run_naive = original
+        clocked_run.run_naive = original
     flat = config_mod.flatten(metrics)
     keys = ("pov.count", "naive.coverage", "naive.coverage_of_paper_positions",
             "naive.wrong_poses", "naive.state_changes_accepted",
