@@ -41,7 +41,8 @@ from scipy.stats import chi2
 from sensorispace_ros.core.naive.jacobians import CloudStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.structure import (BodyStructure, measure_cloud_structure,
-                                                   measure_structure)
+                                                   measure_structure, probe_rows,
+                                                   probe_structure, repeat_variance)
 
 # MAD -> standard deviation of a normal distribution.
 _MAD_TO_SD = 1.482602218505602
@@ -247,25 +248,46 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
         structure = replace(structure, noise=noise.sd, fd_step=max(step, params.fd_step),
                             repeat_noise=noise.repeat_sd, quantum=noise.quantum)
         return structure, sized_params(params, structure, n_sensors)
-    noisy = step > params.fd_step
-    repeats, revealed = 1, -1
-    while True:
-        # Repeats are sensed anew, not recalled from what was sensed before.
+    if step <= params.fd_step:
         with getattr(body, "fresh", contextlib.nullcontext)():
             structure = measure_structure(body, center, fd_step=step,
-                probes=params.structure_probes, radius=params.structure_radius,
-                min_gap=params.rank_min_gap, repeats=repeats,
-                noise_sd=averaged_sd(noise, repeats) if noisy else None,
-                noise_gap=params.rank_noise_gap)
-        # Averaging removes only the part of the noise that repeats do not
-        # repeat; noise hides the weakest directions, so averaging goes on
-        # while it reveals more of them (or the probes disagree).
-        if not noisy or noise.repeat_sd == 0 or 4 * repeats > params.structure_max_repeats \
-                or (structure.votes == structure.probes and structure.pose_rank <= revealed):
-            break
-        revealed, repeats = structure.pose_rank, 4 * repeats
+                                          probes=params.structure_probes,
+                                          radius=params.structure_radius,
+                                          min_gap=params.rank_min_gap)
+    else:
+        structure = averaged_structure(body, center, params, noise, step)
     structure = replace(structure, noise=noise.sd, fd_step=step, repeat_noise=noise.repeat_sd)
     return structure, sized_params(params, structure, n_sensors)
+
+
+def averaged_structure(body, center: np.ndarray, params: NaiveParams, noise: SensoryNoise,
+                       step: float) -> BodyStructure:
+    """The structure where measured noise sized the step: the rank probes'
+    rows are sensed twice, then anew as often as before each round (their
+    repeats pooled), while what the rank voted for leaves uncounted holds
+    a direction that averaging up to ``structure_max_repeats`` sensings of
+    each row (a budget of motor states) would count
+    (``structure.residual_could_count``): a faint pose direction is
+    averaged out of the noise, one too faint for the budget is not chased.
+    The noise is the probes' own, the spread of their repeats (rounding
+    under noise that spreads is dithered by it and averages out too); where
+    the repeats do not spread, averaging is not tried and the floor is the
+    measured noise's (``averaged_sd``)."""
+    sensed, repeats = None, 2
+    while True:
+        with getattr(body, "fresh", contextlib.nullcontext)():
+            new = probe_rows(body, center, fd_step=step, probes=params.structure_probes,
+                             radius=params.structure_radius, repeats=repeats)
+        sensed = new if sensed is None else np.concatenate([sensed, new], axis=2)
+        count = sensed.shape[2]
+        row_sd = float(np.sqrt(repeat_variance(sensed) / count))
+        structure, settled = probe_structure(sensed, step, params.rank_min_gap,
+                                             row_sd or averaged_sd(noise, count),
+                                             params.rank_noise_gap,
+                                             count / params.structure_max_repeats)
+        if settled or noise.repeat_sd == 0 or 2 * count > params.structure_max_repeats:
+            return structure
+        repeats = count
 
 
 # Cloud half widths tried, as shares of ``naive.cloud_step``.
