@@ -302,8 +302,9 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
     polynomial follows the sensation less well (its misfit grows with the
     width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
     lowest floor (relative to the gain) is kept; its clouds are then made
-    four times larger while that reveals more of the rank or the probes
-    disagree, up to ``cloud_max_pairs``."""
+    four times larger while what the rank leaves uncounted holds a
+    direction clouds of ``cloud_max_pairs`` (a budget) would count
+    (``structure.residual_could_count``)."""
     pairs = int(params.cloud_pairs)
 
     def measured(width, pairs):
@@ -311,16 +312,15 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
             return measure_cloud_structure(
                 body, center, step=CloudStep(width, pairs, len(center)),
                 probes=params.structure_probes, radius=params.structure_radius,
-                rank_gap=params.cloud_rank_gap)
+                rank_gap=params.cloud_rank_gap, floor_share=pairs / params.cloud_max_pairs)
 
     tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
              for share in _CLOUD_LADDER]
-    width, structure = min(tried, key=lambda t: t[1].floor / max(t[1].gain, 1e-300))
-    revealed = -1
-    while 4 * pairs <= params.cloud_max_pairs and not (
-            structure.votes == structure.probes and structure.pose_rank <= revealed):
-        revealed, pairs = structure.pose_rank, 4 * pairs
-        structure = measured(width, pairs)
+    width, (structure, settled) = min(
+        tried, key=lambda t: t[1][0].floor / max(t[1][0].gain, 1e-300))
+    while 4 * pairs <= params.cloud_max_pairs and not settled:
+        pairs = 4 * pairs
+        structure, settled = measured(width, pairs)
     return structure
 
 

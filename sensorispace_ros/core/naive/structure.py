@@ -322,44 +322,53 @@ def repeat_variance(sensed: np.ndarray) -> float:
 _RESIDUAL_SDS = 2.0
 
 
-def residual_could_count(jac: np.ndarray, noise: np.ndarray, floor: np.ndarray, rank: int,
-                         gap: float, floor_share: float) -> bool:
+def residual_could_count(jac: np.ndarray, noise: np.ndarray | None, floor: np.ndarray,
+                         rank: int, gap: float, floor_share: float) -> bool:
     """Whether the Jacobians ``jac`` ``(B, S, M)`` hold, beyond their
     ``rank`` strongest directions and pooled over the probes, a direction
     that a floor ``floor_share`` times ``floor`` (the floor at the averaging
     budget) would count at ``gap`` floors.
 
-    ``noise`` ``(B, S, M)`` is a draw of the Jacobians' own noise (half the
-    difference of two independent halves' Jacobians). Where a Jacobian has
-    rank ``r``, the squares of its trailing singular values sum, to first
-    order, to the squared norm of its noise's block outside its ``r``
-    leading left and right singular vectors; ``noise`` there sums to as
-    much, give or take its own spread (a chi-square's, from its size and
-    degrees of freedom). Whatever the trailing values add beyond that is an
-    uncounted direction (a pose direction fainter than the floor, or the
-    differences' truncation); its strength per probe, bounded above with
-    ``_RESIDUAL_SDS`` of that spread, is compared with what the budget's
-    floor would count. The noise's shape is measured, not assumed: a joint
-    landing off its command errs along the Jacobian's range, receptor noise
-    in every direction. Probes with a lost row (floor 1,
+    Where a Jacobian has rank ``r``, the squares of its trailing singular
+    values sum, to first order, to the squared norm of its noise's block
+    outside its ``r`` leading left and right singular vectors. ``noise``
+    ``(B, S, M)`` is a draw of the Jacobians' own noise (half the
+    difference of two independent halves' Jacobians): that block of it sums
+    to as much, give or take a chi-square's spread. The noise's shape is so
+    measured, not assumed (a joint landing off its command errs along the
+    Jacobian's range, receptor noise in every direction); with ``noise``
+    None every entry errs alike and independently, with the sd ``floor``
+    stands for (``floor / (sqrt(S) + sqrt(M))``). Whatever the trailing
+    values add beyond the noise is an uncounted direction (a pose direction
+    fainter than the floor, or the differences' truncation); its strength,
+    bounded above with ``_RESIDUAL_SDS`` of that spread, is compared with
+    what the budget's floor would count. Probes with a lost row (floor 1,
     ``jacobians_and_floor``) are left out."""
     n_sensors, n_motors = jac.shape[1:]
     rank = int(rank)
-    kept = (np.asarray(floor) != 1.0) & np.all(np.isfinite(noise), axis=(1, 2))
+    kept = np.asarray(floor) != 1.0
+    if noise is not None:
+        kept &= np.all(np.isfinite(noise), axis=(1, 2))
     if rank >= n_motors or not kept.any():
         return False
     left, singular, right = np.linalg.svd(jac[kept])
     signal = float(np.sum(singular[:, rank:] ** 2))
-    block = np.einsum("bsi,bsm,bjm->bij", left[:, :, rank:], noise[kept], right[:, rank:, :])
-    expected = float(np.sum(block ** 2))
     dof = int(kept.sum()) * (n_sensors - rank) * (n_motors - rank)
+    if noise is None:
+        entry = np.asarray(floor, dtype=float)[kept] / (np.sqrt(n_sensors) + np.sqrt(n_motors))
+        expected = float(np.sum(entry ** 2)) * (n_sensors - rank) * (n_motors - rank)
+    else:
+        block = np.einsum("bsi,bsm,bjm->bij", left[:, :, rank:], noise[kept],
+                          right[:, rank:, :])
+        expected = float(np.sum(block ** 2))
     bound = signal - expected + _RESIDUAL_SDS * 2.0 * expected / np.sqrt(dof)
     counted = gap * np.asarray(floor, dtype=float)[kept] * np.sqrt(floor_share)
     return bound >= float(np.sum(counted ** 2))
 
 
 def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
-                            radius: float = 0.1, rank_gap: float = 2.0) -> BodyStructure:
+                            radius: float = 0.1, rank_gap: float = 2.0,
+                            floor_share: float | None = None):
     """Pose rank, POV dimension and gain of ``body`` around ``center`` from
     Jacobians fitted over clouds of states (``step``, a
     ``jacobians.CloudStep``) at ``probes`` states, in ONE ``sense`` call of
@@ -374,7 +383,12 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     the spectral norm its error would have if every entry erred
     independently, ``s (sqrt(S) + sqrt(M))``, ``s`` the sd of a fitted slope
     for the misfit the cloud itself shows. A singular value counts when it
-    is at least ``rank_gap`` floors."""
+    is at least ``rank_gap`` floors.
+
+    With ``floor_share``, returns ``(BodyStructure, settled)``: settled
+    unless what the rank leaves uncounted would be counted at a floor
+    ``floor_share`` times this one (``residual_could_count``, the fit's
+    errors taken independent, of the sd its floor stands for)."""
     center = np.asarray(center, dtype=float).reshape(-1)
     n_motors = len(center)
     states = probe_states(center, int(probes), radius)
@@ -389,5 +403,10 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     # A probe with a lost row does not vote (J = 0 against a floor of 1).
     jac[~finite], floor = 0.0, np.where(finite, floor, 1.0)
     singular = np.linalg.svd(jac, compute_uv=False)
-    return structure_from_probes(singular, np.maximum(floor, 1e-300), n_motors,
-                                 rank_gap, rank_gap)
+    floor = np.maximum(floor, 1e-300)
+    structure = structure_from_probes(singular, floor, n_motors, rank_gap, rank_gap)
+    if floor_share is None:
+        return structure
+    return structure, not residual_could_count(jac, None, floor, structure.pose_rank,
+                                               rank_gap, floor_share)
+
