@@ -26,9 +26,10 @@ body measures 1e-16 to 1e-14 and nothing the agent sizes from it changes.
 ``measure_body`` then measures the structure at a finite-difference step
 sized from the noise, and every tolerance that would expect exact repeats
 becomes the larger of its parameter and what the noise explains
-(``sized_params``). While the noise hides pose directions at one sensing
-per row, the rank probes are sensed anew and averaged (``structure_max_repeats``
-at most).
+(``sized_params``). The rank probes are sensed anew and averaged, twice
+as many times each round, while what the rank leaves uncounted holds a
+direction the averaging budget (``structure_max_repeats``) would count
+(``averaged_structure``).
 """
 from __future__ import annotations
 
@@ -273,7 +274,8 @@ def averaged_structure(body, center: np.ndarray, params: NaiveParams, noise: Sen
     under noise that spreads is dithered by it and averages out too); where
     the repeats do not spread, averaging is not tried and the floor is the
     measured noise's (``averaged_sd``)."""
-    sensed, repeats = None, 2
+    # Two repeats show the spread; none shows where the repeats do not spread.
+    sensed, repeats = None, 2 if noise.repeat_sd > 0 else 1
     while True:
         with getattr(body, "fresh", contextlib.nullcontext)():
             new = probe_rows(body, center, fd_step=step, probes=params.structure_probes,
