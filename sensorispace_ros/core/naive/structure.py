@@ -285,10 +285,11 @@ def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
                     floor_share: float = 0.0):
     """``(BodyStructure, settled)`` of probe rows ``(B, 1 + 4M, R, S)``
     (``probe_rows``, repeats averaged over the finite ones); ``settled``
-    unless what the rank voted for leaves uncounted would be counted at a
-    floor ``floor_share`` times this one (``residual_could_count``, with the
-    Jacobians' noise shown by the difference of the even and odd repeats'
-    Jacobians; always settled without ``noise_sd`` or with one repeat)."""
+    always without ``noise_sd`` or with one repeat, else unless a floor
+    ``floor_share`` times this one would count more (``residual_could_count``,
+    with the Jacobians' noise shown by half the difference of the even and
+    odd repeats' Jacobians): beyond the rank voted for at every probe, or
+    the voted rank's last direction at the probes that count one less."""
     n_states, n_motors = sensed.shape[0], (sensed.shape[1] - 1) // 4
     repeats = sensed.shape[2]
     jac, floor = jacobians_and_floor(sensed, n_states, n_motors, fd_step, repeats, noise_sd)
@@ -299,8 +300,13 @@ def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
         return structure, True
     halves = [jacobians_and_floor(sensed[:, :, part::2], n_states, n_motors, fd_step,
                                   len(range(part, repeats, 2)), noise_sd)[0] for part in (0, 1)]
-    return structure, not residual_could_count(jac, 0.5 * (halves[0] - halves[1]), floor,
-                                               structure.pose_rank, noise_gap, floor_share)
+    noise = 0.5 * (halves[0] - halves[1])
+    rank = structure.pose_rank
+    lagging = noise_rank(singular, floor, noise_gap)[0] == rank - 1
+    more = residual_could_count(jac, noise, floor, rank, noise_gap, floor_share) or (
+        rank > 0 and lagging.any() and residual_could_count(
+            jac[lagging], noise[lagging], floor[lagging], rank - 1, noise_gap, floor_share))
+    return structure, not more
 
 
 def repeat_variance(sensed: np.ndarray) -> float:
