@@ -304,9 +304,13 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
     polynomial follows the sensation less well (its misfit grows with the
     width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
     lowest floor (relative to the gain) is kept; its clouds are then made
-    four times larger while what the rank leaves uncounted holds a
-    direction clouds of ``cloud_max_pairs`` (a budget) would count
-    (``structure.residual_could_count``)."""
+    four times larger, up to ``cloud_max_pairs`` (a budget), while that
+    reveals more of the rank, the probes disagree, or the clouds of the
+    budget would count more than the rank (``structure.more_could_count``,
+    the fit's errors taken independent, of the sd its floor stands for;
+    where the floor overstates them, as on the MuJoCo body's images, whose
+    trailing singular values sum to less than it predicts, the first
+    reasons are left)."""
     pairs = int(params.cloud_pairs)
 
     def measured(width, pairs):
@@ -320,8 +324,10 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
              for share in _CLOUD_LADDER]
     width, (structure, settled) = min(
         tried, key=lambda t: t[1][0].floor / max(t[1][0].gain, 1e-300))
-    while 4 * pairs <= params.cloud_max_pairs and not settled:
-        pairs = 4 * pairs
+    revealed = -1
+    while 4 * pairs <= params.cloud_max_pairs and not (
+            settled and structure.votes == structure.probes and structure.pose_rank <= revealed):
+        revealed, pairs = structure.pose_rank, 4 * pairs
         structure, settled = measured(width, pairs)
     return structure
 

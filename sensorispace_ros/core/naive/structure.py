@@ -301,12 +301,24 @@ def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
     halves = [jacobians_and_floor(sensed[:, :, part::2], n_states, n_motors, fd_step,
                                   len(range(part, repeats, 2)), noise_sd)[0] for part in (0, 1)]
     noise = 0.5 * (halves[0] - halves[1])
-    rank = structure.pose_rank
-    lagging = noise_rank(singular, floor, noise_gap)[0] == rank - 1
-    more = residual_could_count(jac, noise, floor, rank, noise_gap, floor_share) or (
-        rank > 0 and lagging.any() and residual_could_count(
-            jac[lagging], noise[lagging], floor[lagging], rank - 1, noise_gap, floor_share))
-    return structure, not more
+    ranks = noise_rank(singular, floor, noise_gap)[0]
+    return structure, not more_could_count(jac, noise, floor, ranks, structure.pose_rank,
+                                           noise_gap, floor_share)
+
+
+def more_could_count(jac, noise, floor, ranks: np.ndarray, rank: int, gap: float,
+                     floor_share: float) -> bool:
+    """Whether a floor ``floor_share`` times ``floor`` would count more of
+    the Jacobians ``jac`` than the vote for ``rank`` did
+    (``residual_could_count``, ``noise`` as there): beyond ``rank`` at
+    every probe, or the ``rank``-th direction at the probes that counted
+    one less (``ranks``, each probe's count)."""
+    lagging = np.asarray(ranks) == rank - 1
+    if residual_could_count(jac, noise, floor, rank, gap, floor_share):
+        return True
+    return bool(rank > 0 and lagging.any() and residual_could_count(
+        jac[lagging], None if noise is None else noise[lagging], np.asarray(floor)[lagging],
+        rank - 1, gap, floor_share))
 
 
 def repeat_variance(sensed: np.ndarray) -> float:
@@ -392,9 +404,9 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     is at least ``rank_gap`` floors.
 
     With ``floor_share``, returns ``(BodyStructure, settled)``: settled
-    unless what the rank leaves uncounted would be counted at a floor
-    ``floor_share`` times this one (``residual_could_count``, the fit's
-    errors taken independent, of the sd its floor stands for)."""
+    unless a floor ``floor_share`` times this one would count more
+    (``more_could_count``, the fit's errors taken independent, of the sd
+    its floor stands for)."""
     center = np.asarray(center, dtype=float).reshape(-1)
     n_motors = len(center)
     states = probe_states(center, int(probes), radius)
@@ -413,6 +425,7 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     structure = structure_from_probes(singular, floor, n_motors, rank_gap, rank_gap)
     if floor_share is None:
         return structure
-    return structure, not residual_could_count(jac, None, floor, structure.pose_rank,
-                                               rank_gap, floor_share)
+    ranks = noise_rank(singular, floor, rank_gap)[0]
+    return structure, not more_could_count(jac, None, floor, ranks, structure.pose_rank,
+                                           rank_gap, floor_share)
 
