@@ -267,8 +267,9 @@ def averaged_structure(body, center: np.ndarray, params: NaiveParams, noise: Sen
     rows are sensed twice, then anew as often as before each round (their
     repeats pooled), while what the rank voted for leaves uncounted holds
     a direction that averaging up to ``structure_max_repeats`` sensings of
-    each row (a budget of motor states) would count
-    (``structure.residual_could_count``): a faint pose direction is
+    each row (a budget of motor states) would count, beyond the rank or
+    at the probes that count one less (``structure.more_could_count``): a
+    faint pose direction is
     averaged out of the noise, one too faint for the budget is not chased.
     The noise is the probes' own, the spread of their repeats (rounding
     under noise that spreads is dithered by it and averages out too); where
@@ -318,7 +319,7 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
             return measure_cloud_structure(
                 body, center, step=CloudStep(width, pairs, len(center)),
                 probes=params.structure_probes, radius=params.structure_radius,
-                rank_gap=params.cloud_rank_gap, floor_share=pairs / params.cloud_max_pairs)
+                rank_gap=params.cloud_rank_gap, spent=pairs / params.cloud_max_pairs)
 
     tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
              for share in _CLOUD_LADDER]

@@ -282,14 +282,13 @@ def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int =
 
 def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
                     noise_sd: float | None = None, noise_gap: float = 4.0,
-                    floor_share: float = 0.0):
+                    spent: float = 0.0):
     """``(BodyStructure, settled)`` of probe rows ``(B, 1 + 4M, R, S)``
-    (``probe_rows``, repeats averaged over the finite ones); ``settled``
-    always without ``noise_sd`` or with one repeat, else unless a floor
-    ``floor_share`` times this one would count more (``residual_could_count``,
-    with the Jacobians' noise shown by half the difference of the even and
-    odd repeats' Jacobians): beyond the rank voted for at every probe, or
-    the voted rank's last direction at the probes that count one less."""
+    (``probe_rows``, repeats averaged over the finite ones). ``settled``
+    always without ``noise_sd`` or with one repeat; else unless the floor
+    of the budget, of which ``spent`` is spent, would count more
+    (``more_could_count``, the Jacobians' noise shown by half the
+    difference of the even and the odd repeats' Jacobians)."""
     n_states, n_motors = sensed.shape[0], (sensed.shape[1] - 1) // 4
     repeats = sensed.shape[2]
     jac, floor = jacobians_and_floor(sensed, n_states, n_motors, fd_step, repeats, noise_sd)
@@ -303,22 +302,21 @@ def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
     noise = 0.5 * (halves[0] - halves[1])
     ranks = noise_rank(singular, floor, noise_gap)[0]
     return structure, not more_could_count(jac, noise, floor, ranks, structure.pose_rank,
-                                           noise_gap, floor_share)
+                                           noise_gap, spent)
 
 
 def more_could_count(jac, noise, floor, ranks: np.ndarray, rank: int, gap: float,
-                     floor_share: float) -> bool:
-    """Whether a floor ``floor_share`` times ``floor`` would count more of
-    the Jacobians ``jac`` than the vote for ``rank`` did
-    (``residual_could_count``, ``noise`` as there): beyond ``rank`` at
-    every probe, or the ``rank``-th direction at the probes that counted
-    one less (``ranks``, each probe's count)."""
+                     spent: float) -> bool:
+    """Whether the budget's floor would count more of the Jacobians ``jac``
+    than the vote for ``rank`` did (``residual_could_count``, arguments as
+    there): beyond ``rank`` at every probe, or the ``rank``-th direction at
+    the probes that counted one less (``ranks``, each probe's count)."""
     lagging = np.asarray(ranks) == rank - 1
-    if residual_could_count(jac, noise, floor, rank, gap, floor_share):
+    if residual_could_count(jac, noise, floor, rank, gap, spent):
         return True
     return bool(rank > 0 and lagging.any() and residual_could_count(
         jac[lagging], None if noise is None else noise[lagging], np.asarray(floor)[lagging],
-        rank - 1, gap, floor_share))
+        rank - 1, gap, spent))
 
 
 def repeat_variance(sensed: np.ndarray) -> float:
@@ -341,11 +339,13 @@ _RESIDUAL_SDS = 2.0
 
 
 def residual_could_count(jac: np.ndarray, noise: np.ndarray | None, floor: np.ndarray,
-                         rank: int, gap: float, floor_share: float) -> bool:
+                         rank: int, gap: float, spent: float) -> bool:
     """Whether the Jacobians ``jac`` ``(B, S, M)`` hold, beyond their
     ``rank`` strongest directions and pooled over the probes, a direction
-    that a floor ``floor_share`` times ``floor`` (the floor at the averaging
-    budget) would count at ``gap`` floors.
+    that the floor of the averaging budget would count at ``gap`` floors:
+    ``spent`` is the share of the budget spent (repeats or cloud pairs),
+    and the noise's floor falls as its square root, to ``floor *
+    sqrt(spent)``.
 
     Where a Jacobian has rank ``r``, the squares of its trailing singular
     values sum, to first order, to the squared norm of its noise's block
@@ -380,13 +380,13 @@ def residual_could_count(jac: np.ndarray, noise: np.ndarray | None, floor: np.nd
                           right[:, rank:, :])
         expected = float(np.sum(block ** 2))
     bound = signal - expected + _RESIDUAL_SDS * 2.0 * expected / np.sqrt(dof)
-    counted = gap * np.asarray(floor, dtype=float)[kept] * np.sqrt(floor_share)
+    counted = gap * np.asarray(floor, dtype=float)[kept] * np.sqrt(spent)
     return bound >= float(np.sum(counted ** 2))
 
 
 def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
                             radius: float = 0.1, rank_gap: float = 2.0,
-                            floor_share: float | None = None):
+                            spent: float | None = None):
     """Pose rank, POV dimension and gain of ``body`` around ``center`` from
     Jacobians fitted over clouds of states (``step``, a
     ``jacobians.CloudStep``) at ``probes`` states, in ONE ``sense`` call of
@@ -403,8 +403,9 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     for the misfit the cloud itself shows. A singular value counts when it
     is at least ``rank_gap`` floors.
 
-    With ``floor_share``, returns ``(BodyStructure, settled)``: settled
-    unless a floor ``floor_share`` times this one would count more
+    With ``spent`` (the share of the budget of pairs these clouds are),
+    returns ``(BodyStructure, settled)``: settled unless the budget's
+    clouds would count more
     (``more_could_count``, the fit's errors taken independent, of the sd
     its floor stands for)."""
     center = np.asarray(center, dtype=float).reshape(-1)
@@ -423,9 +424,9 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     singular = np.linalg.svd(jac, compute_uv=False)
     floor = np.maximum(floor, 1e-300)
     structure = structure_from_probes(singular, floor, n_motors, rank_gap, rank_gap)
-    if floor_share is None:
+    if spent is None:
         return structure
     ranks = noise_rank(singular, floor, rank_gap)[0]
     return structure, not more_could_count(jac, None, floor, ranks, structure.pose_rank,
-                                           rank_gap, floor_share)
+                                           rank_gap, spent)
 
