@@ -26,9 +26,10 @@ body measures 1e-16 to 1e-14 and nothing the agent sizes from it changes.
 ``measure_body`` then measures the structure at a finite-difference step
 sized from the noise, and every tolerance that would expect exact repeats
 becomes the larger of its parameter and what the noise explains
-(``sized_params``). While the noise hides pose directions at one sensing
-per row, the rank probes are sensed anew and averaged (``structure_max_repeats``
-at most).
+(``sized_params``). The rank probes are sensed anew and averaged, twice
+as many times each round, while what the rank leaves uncounted holds a
+direction the averaging budget (``structure_max_repeats``) would count
+(``averaged_structure``).
 """
 from __future__ import annotations
 
@@ -41,7 +42,8 @@ from scipy.stats import chi2
 from sensorispace_ros.core.naive.jacobians import CloudStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.structure import (BodyStructure, measure_cloud_structure,
-                                                   measure_structure)
+                                                   measure_structure, probe_rows,
+                                                   probe_structure, repeat_variance)
 
 # MAD -> standard deviation of a normal distribution.
 _MAD_TO_SD = 1.482602218505602
@@ -247,25 +249,48 @@ def measure_body(body, center: np.ndarray, params: NaiveParams):
         structure = replace(structure, noise=noise.sd, fd_step=max(step, params.fd_step),
                             repeat_noise=noise.repeat_sd, quantum=noise.quantum)
         return structure, sized_params(params, structure, n_sensors)
-    noisy = step > params.fd_step
-    repeats, revealed = 1, -1
-    while True:
-        # Repeats are sensed anew, not recalled from what was sensed before.
+    if step <= params.fd_step:
         with getattr(body, "fresh", contextlib.nullcontext)():
             structure = measure_structure(body, center, fd_step=step,
-                probes=params.structure_probes, radius=params.structure_radius,
-                min_gap=params.rank_min_gap, repeats=repeats,
-                noise_sd=averaged_sd(noise, repeats) if noisy else None,
-                noise_gap=params.rank_noise_gap)
-        # Averaging removes only the part of the noise that repeats do not
-        # repeat; noise hides the weakest directions, so averaging goes on
-        # while it reveals more of them (or the probes disagree).
-        if not noisy or noise.repeat_sd == 0 or 4 * repeats > params.structure_max_repeats \
-                or (structure.votes == structure.probes and structure.pose_rank <= revealed):
-            break
-        revealed, repeats = structure.pose_rank, 4 * repeats
+                                          probes=params.structure_probes,
+                                          radius=params.structure_radius,
+                                          min_gap=params.rank_min_gap)
+    else:
+        structure = averaged_structure(body, center, params, noise, step)
     structure = replace(structure, noise=noise.sd, fd_step=step, repeat_noise=noise.repeat_sd)
     return structure, sized_params(params, structure, n_sensors)
+
+
+def averaged_structure(body, center: np.ndarray, params: NaiveParams, noise: SensoryNoise,
+                       step: float) -> BodyStructure:
+    """The structure where measured noise sized the step: the rank probes'
+    rows are sensed twice, then anew as often as before each round (their
+    repeats pooled), while what the rank voted for leaves uncounted holds
+    a direction that averaging up to ``structure_max_repeats`` sensings of
+    each row (a budget of motor states) would count, beyond the rank or
+    at the probes that count one less (``structure.more_could_count``): a
+    faint pose direction is
+    averaged out of the noise, one too faint for the budget is not chased.
+    The noise is the probes' own, the spread of their repeats (rounding
+    under noise that spreads is dithered by it and averages out too); where
+    the repeats do not spread, averaging is not tried and the floor is the
+    measured noise's (``averaged_sd``)."""
+    # Two repeats show the spread; none shows where the repeats do not spread.
+    sensed, repeats = None, 2 if noise.repeat_sd > 0 else 1
+    while True:
+        with getattr(body, "fresh", contextlib.nullcontext)():
+            new = probe_rows(body, center, fd_step=step, probes=params.structure_probes,
+                             radius=params.structure_radius, repeats=repeats)
+        sensed = new if sensed is None else np.concatenate([sensed, new], axis=2)
+        count = sensed.shape[2]
+        row_sd = float(np.sqrt(repeat_variance(sensed) / count))
+        structure, settled = probe_structure(sensed, step, params.rank_min_gap,
+                                             row_sd or averaged_sd(noise, count),
+                                             params.rank_noise_gap,
+                                             count / params.structure_max_repeats)
+        if settled or noise.repeat_sd == 0 or 2 * count > params.structure_max_repeats:
+            return structure
+        repeats = count
 
 
 # Cloud half widths tried, as shares of ``naive.cloud_step``.
@@ -280,8 +305,13 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
     polynomial follows the sensation less well (its misfit grows with the
     width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
     lowest floor (relative to the gain) is kept; its clouds are then made
-    four times larger while that reveals more of the rank or the probes
-    disagree, up to ``cloud_max_pairs``."""
+    four times larger, up to ``cloud_max_pairs`` (a budget), while that
+    reveals more of the rank, the probes disagree, or the clouds of the
+    budget would count more than the rank (``structure.more_could_count``,
+    the fit's errors taken independent, of the sd its floor stands for;
+    where the floor overstates them, as on the MuJoCo body's images, whose
+    trailing singular values sum to less than it predicts, the first
+    reasons are left)."""
     pairs = int(params.cloud_pairs)
 
     def measured(width, pairs):
@@ -289,16 +319,17 @@ def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStru
             return measure_cloud_structure(
                 body, center, step=CloudStep(width, pairs, len(center)),
                 probes=params.structure_probes, radius=params.structure_radius,
-                rank_gap=params.cloud_rank_gap)
+                rank_gap=params.cloud_rank_gap, spent=pairs / params.cloud_max_pairs)
 
     tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
              for share in _CLOUD_LADDER]
-    width, structure = min(tried, key=lambda t: t[1].floor / max(t[1].gain, 1e-300))
+    width, (structure, settled) = min(
+        tried, key=lambda t: t[1][0].floor / max(t[1][0].gain, 1e-300))
     revealed = -1
     while 4 * pairs <= params.cloud_max_pairs and not (
-            structure.votes == structure.probes and structure.pose_rank <= revealed):
+            settled and structure.votes == structure.probes and structure.pose_rank <= revealed):
         revealed, pairs = structure.pose_rank, 4 * pairs
-        structure = measured(width, pairs)
+        structure, settled = measured(width, pairs)
     return structure
 
 

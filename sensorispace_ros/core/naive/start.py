@@ -69,10 +69,16 @@ def point_ranks(body, states: np.ndarray, params,
 def choose_start(body, start: np.ndarray, structure: BodyStructure, params, seed: int,
                  noise_sd: float | None = None) -> tuple[np.ndarray, StartChoice | None]:
     """``(start, choice)``: the given start when the structure's probes all
-    agree on a rank above 0 (choice None, nothing sensed), else the start this
+    agree on a rank above 0 (with ``noise_sd``: any rank above 0; choice
+    None, nothing sensed), else the start this
     module's docstring describes; the caller measures a moved start anew.
     ``noise_sd``: as ``point_ranks``'."""
-    if structure.votes == structure.probes and structure.pose_rank > 0:
+    # Under noise the probes were averaged until what they leave uncounted is
+    # noise (``noise.averaged_structure``): a probe that disagrees sees its
+    # weakest direction fainter than the floor, and ``point_ranks``' single
+    # sensings elsewhere could only see less.
+    if (structure.votes == structure.probes or noise_sd is not None) \
+            and structure.pose_rank > 0:
         return start, None
     count = SEARCH_FACTOR * int(params.structure_probes)
     rng = rng_for(seed, "naive_start")

@@ -160,28 +160,41 @@ def gap_rank(singular: np.ndarray, floor: np.ndarray):
 
 def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: float,
                         repeats: int = 1, noise_sd: float | None = None):
-    """Central-difference Jacobians ``(B, S, M)`` at step ``h`` and their noise
-    floors ``(B,)`` from the rows of ``central_stencil`` (each sensed
-    ``repeats`` times in a row, averaged over the finite ones).
+    """Jacobians ``(B, S, M)`` and their noise floors ``(B,)`` from the rows
+    of ``central_stencil`` (each sensed ``repeats`` times in a row, averaged
+    over the finite ones).
 
-    Without ``noise_sd`` the floor is the larger of the truncation error
-    (the difference of the estimates at ``h`` and ``2h``) and float64
-    round-off. With it (the sd left in a row averaged over its repeats, at a
-    step sized from measured noise) the floor is the noise's: the expected
-    spectral norm of the differences' noise, ``sd (sqrt(S) + sqrt(M)) /
-    (sqrt(2) h)``. Truncation
-    error is then left out: it is smooth in the motor state and lies in the
-    range of the Jacobian, so it does not lift the singular values of the
-    level set's tangents the rank test looks at."""
+    Without ``noise_sd`` the Jacobian is the central difference at step
+    ``h`` and the floor the larger of the truncation error (the difference
+    of the estimates at ``h`` and ``2h``) and float64 round-off. With it
+    (the sd left in a row averaged over its repeats, at a step sized from
+    measured noise) the Jacobian is the least-squares slope through the
+    rows at ``-2h .. 2h`` along each joint (a fifth of the central
+    difference's noise variance) and the floor the noise's: the expected
+    spectral norm of that slope's noise, ``sd (sqrt(S) + sqrt(M)) /
+    (sqrt(10) h)``. Truncation error is then left out: it is smooth in the
+    motor state and lies in the range of the Jacobian, so it does not lift
+    the singular values of the level set's tangents the rank test looks
+    at."""
     rows = np.asarray(sensed, dtype=float).reshape(n_states, 1 + 4 * n_motors, repeats, -1)
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)        # all repeats of a row lost
         rows = np.nanmean(np.where(np.isfinite(rows), rows, np.nan), axis=2)
+    return stencil_spectrum_inputs(rows, n_motors, step, noise_sd)
+
+
+def stencil_spectrum_inputs(rows: np.ndarray, n_motors: int, step: float,
+                            noise_sd: float | None = None):
+    """``jacobians_and_floor`` of the stencil's rows already averaged,
+    ``(B, 1 + 4M, S)``."""
     plus, minus = rows[:, 1:1 + n_motors], rows[:, 1 + n_motors:1 + 2 * n_motors]
     plus2, minus2 = rows[:, 1 + 2 * n_motors:1 + 3 * n_motors], rows[:, 1 + 3 * n_motors:]
     jac = np.swapaxes(plus - minus, 1, 2) / (2.0 * step)
     jac2 = np.swapaxes(plus2 - minus2, 1, 2) / (4.0 * step)
     finite = np.all(np.isfinite(jac), axis=(1, 2)) & np.all(np.isfinite(jac2), axis=(1, 2))
+    if noise_sd is not None:
+        # Least squares through (-2h, -h, h, 2h): (2 J_h + 8 J_2h) / 10.
+        jac = 0.2 * jac + 0.8 * jac2
     jac[~finite], jac2[~finite] = 0.0, 0.0
     with np.errstate(invalid="ignore"):
         scale = np.nanmax(np.abs(np.where(np.isfinite(rows), rows, 0.0)), axis=(1, 2))
@@ -190,7 +203,7 @@ def jacobians_and_floor(sensed: np.ndarray, n_states: int, n_motors: int, step: 
         floor = np.maximum(np.linalg.norm(jac - jac2, ord=2, axis=(1, 2)), rounding)
     else:
         n_sensors = rows.shape[2]
-        noise = noise_sd * (np.sqrt(n_sensors) + np.sqrt(n_motors)) / (np.sqrt(2.0) * step)
+        noise = noise_sd * (np.sqrt(n_sensors) + np.sqrt(n_motors)) / (np.sqrt(10.0) * step)
         floor = np.maximum(rounding, noise)
     # A probe with a lost row has no Jacobian: J = 0 against a floor of 1 has gap 1 (no vote).
     return jac, np.where(finite, floor, 1.0)
@@ -234,6 +247,23 @@ def structure_from_probes(singular: np.ndarray, floor: np.ndarray, n_motors: int
                          int(agree.sum()), len(rank), weakest=weakest)
 
 
+def probe_rows(body, center: np.ndarray, *, fd_step: float, probes: int, radius: float,
+               repeats: int = 1) -> np.ndarray:
+    """``central_stencil`` of the ``probes`` probe states around ``center``,
+    each row sensed ``repeats`` times in a row, in ONE ``sense`` call:
+    ``(probes, 1 + 4M, repeats, S)``."""
+    center = np.asarray(center, dtype=float).reshape(-1)
+    if int(probes) != probes or probes < 1:
+        raise ValueError(f"probes must be an integer >= 1, got {probes}")
+    for name, value in (("fd_step", fd_step), ("radius", radius)):
+        if not np.isfinite(value) or value <= 0:
+            raise ValueError(f"{name} must be a finite number > 0, got {value}")
+    states = probe_states(center, int(probes), radius)
+    stencil = np.repeat(central_stencil(states, fd_step), int(repeats), axis=0)
+    sensed = np.asarray(body.sense(stencil), dtype=float)
+    return sensed.reshape(len(states), 1 + 4 * len(center), int(repeats), -1)
+
+
 def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int = 8,
                       radius: float = 0.1, min_gap: float = 100.0, repeats: int = 1,
                       noise_sd: float | None = None, noise_gap: float = 4.0) -> BodyStructure:
@@ -243,25 +273,120 @@ def measure_structure(body, center: np.ndarray, *, fd_step: float, probes: int =
     row averaged over its ``repeats`` when ``fd_step`` was sized from the
     measured noise (``jacobians_and_floor``); the rank is then
     ``noise_rank``'s at ``noise_gap``."""
-    center = np.asarray(center, dtype=float).reshape(-1)
-    n_motors = len(center)
-    if int(probes) != probes or probes < 1:
-        raise ValueError(f"probes must be an integer >= 1, got {probes}")
-    for name, value in (("fd_step", fd_step), ("radius", radius), ("min_gap", min_gap)):
-        if not np.isfinite(value) or value <= 0:
-            raise ValueError(f"{name} must be a finite number > 0, got {value}")
-    states = probe_states(center, int(probes), radius)
-    stencil = np.repeat(central_stencil(states, fd_step), int(repeats), axis=0)
-    sensed = body.sense(stencil)
-    jac, floor = jacobians_and_floor(sensed, len(states), n_motors, fd_step, int(repeats),
-                                     noise_sd)
+    if not np.isfinite(min_gap) or min_gap <= 0:
+        raise ValueError(f"min_gap must be a finite number > 0, got {min_gap}")
+    sensed = probe_rows(body, center, fd_step=fd_step, probes=probes, radius=radius,
+                        repeats=repeats)
+    return probe_structure(sensed, fd_step, min_gap, noise_sd, noise_gap)[0]
+
+
+def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
+                    noise_sd: float | None = None, noise_gap: float = 4.0,
+                    spent: float = 0.0):
+    """``(BodyStructure, settled)`` of probe rows ``(B, 1 + 4M, R, S)``
+    (``probe_rows``, repeats averaged over the finite ones). ``settled``
+    always without ``noise_sd`` or with one repeat; else unless the floor
+    of the budget, of which ``spent`` is spent, would count more
+    (``more_could_count``, the Jacobians' noise shown by half the
+    difference of the even and the odd repeats' Jacobians)."""
+    n_states, n_motors = sensed.shape[0], (sensed.shape[1] - 1) // 4
+    repeats = sensed.shape[2]
+    jac, floor = jacobians_and_floor(sensed, n_states, n_motors, fd_step, repeats, noise_sd)
     singular = np.linalg.svd(jac, compute_uv=False)
-    return structure_from_probes(singular, floor, n_motors, min_gap,
-                                 None if noise_sd is None else noise_gap)
+    structure = structure_from_probes(singular, floor, n_motors, min_gap,
+                                      None if noise_sd is None else noise_gap)
+    if noise_sd is None or repeats < 2:
+        return structure, True
+    halves = [jacobians_and_floor(sensed[:, :, part::2], n_states, n_motors, fd_step,
+                                  len(range(part, repeats, 2)), noise_sd)[0] for part in (0, 1)]
+    noise = 0.5 * (halves[0] - halves[1])
+    ranks = noise_rank(singular, floor, noise_gap)[0]
+    return structure, not more_could_count(jac, noise, floor, ranks, structure.pose_rank,
+                                           noise_gap, spent)
+
+
+def more_could_count(jac, noise, floor, ranks: np.ndarray, rank: int, gap: float,
+                     spent: float) -> bool:
+    """Whether the budget's floor would count more of the Jacobians ``jac``
+    than the vote for ``rank`` did (``residual_could_count``, arguments as
+    there): beyond ``rank`` at every probe, or the ``rank``-th direction at
+    the probes that counted one less (``ranks``, each probe's count)."""
+    lagging = np.asarray(ranks) == rank - 1
+    if residual_could_count(jac, noise, floor, rank, gap, spent):
+        return True
+    return bool(rank > 0 and lagging.any() and residual_could_count(
+        jac[lagging], None if noise is None else noise[lagging], np.asarray(floor)[lagging],
+        rank - 1, gap, spent))
+
+
+def repeat_variance(sensed: np.ndarray) -> float:
+    """Variance of one sensing about the mean of its row's repeats, pooled
+    over the rows, receptors and repeats of ``sensed`` ``(..., R, S)``
+    (finite rows only; 0 where no row has two): the random part of the
+    noise as the probes themselves show it."""
+    values = np.where(np.isfinite(sensed), sensed, np.nan)
+    count = np.sum(np.isfinite(values), axis=-2, keepdims=True)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(values, axis=-2, keepdims=True)
+    dof = float(np.sum(np.maximum(count - 1, 0)))
+    return float(np.nansum((values - mean) ** 2) / dof) if dof > 0 else 0.0
+
+
+# Standard deviations of the residual's excess over its noise added to it,
+# for an upper bound of the uncounted directions' strength.
+_RESIDUAL_SDS = 2.0
+
+
+def residual_could_count(jac: np.ndarray, noise: np.ndarray | None, floor: np.ndarray,
+                         rank: int, gap: float, spent: float) -> bool:
+    """Whether the Jacobians ``jac`` ``(B, S, M)`` hold, beyond their
+    ``rank`` strongest directions and pooled over the probes, a direction
+    that the floor of the averaging budget would count at ``gap`` floors:
+    ``spent`` is the share of the budget spent (repeats or cloud pairs),
+    and the noise's floor falls as its square root, to ``floor *
+    sqrt(spent)``.
+
+    Where a Jacobian has rank ``r``, the squares of its trailing singular
+    values sum, to first order, to the squared norm of its noise's block
+    outside its ``r`` leading left and right singular vectors. ``noise``
+    ``(B, S, M)`` is a draw of the Jacobians' own noise (half the
+    difference of two independent halves' Jacobians): that block of it sums
+    to as much, give or take a chi-square's spread. The noise's shape is so
+    measured, not assumed (a joint landing off its command errs along the
+    Jacobian's range, receptor noise in every direction); with ``noise``
+    None every entry errs alike and independently, with the sd ``floor``
+    stands for (``floor / (sqrt(S) + sqrt(M))``). Whatever the trailing
+    values add beyond the noise is an uncounted direction (a pose direction
+    fainter than the floor, or the differences' truncation); its strength,
+    bounded above with ``_RESIDUAL_SDS`` of that spread, is compared with
+    what the budget's floor would count. Probes with a lost row (floor 1,
+    ``jacobians_and_floor``) are left out."""
+    n_sensors, n_motors = jac.shape[1:]
+    rank = int(rank)
+    kept = np.asarray(floor) != 1.0
+    if noise is not None:
+        kept &= np.all(np.isfinite(noise), axis=(1, 2))
+    if rank >= n_motors or not kept.any():
+        return False
+    left, singular, right = np.linalg.svd(jac[kept])
+    signal = float(np.sum(singular[:, rank:] ** 2))
+    dof = int(kept.sum()) * (n_sensors - rank) * (n_motors - rank)
+    if noise is None:
+        entry = np.asarray(floor, dtype=float)[kept] / (np.sqrt(n_sensors) + np.sqrt(n_motors))
+        expected = float(np.sum(entry ** 2)) * (n_sensors - rank) * (n_motors - rank)
+    else:
+        block = np.einsum("bsi,bsm,bjm->bij", left[:, :, rank:], noise[kept],
+                          right[:, rank:, :])
+        expected = float(np.sum(block ** 2))
+    bound = signal - expected + _RESIDUAL_SDS * 2.0 * expected / np.sqrt(dof)
+    counted = gap * np.asarray(floor, dtype=float)[kept] * np.sqrt(spent)
+    return bound >= float(np.sum(counted ** 2))
 
 
 def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
-                            radius: float = 0.1, rank_gap: float = 2.0) -> BodyStructure:
+                            radius: float = 0.1, rank_gap: float = 2.0,
+                            spent: float | None = None):
     """Pose rank, POV dimension and gain of ``body`` around ``center`` from
     Jacobians fitted over clouds of states (``step``, a
     ``jacobians.CloudStep``) at ``probes`` states, in ONE ``sense`` call of
@@ -276,7 +401,13 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     the spectral norm its error would have if every entry erred
     independently, ``s (sqrt(S) + sqrt(M))``, ``s`` the sd of a fitted slope
     for the misfit the cloud itself shows. A singular value counts when it
-    is at least ``rank_gap`` floors."""
+    is at least ``rank_gap`` floors.
+
+    With ``spent`` (the share of the budget of pairs these clouds are),
+    returns ``(BodyStructure, settled)``: settled unless the budget's
+    clouds would count more
+    (``more_could_count``, the fit's errors taken independent, of the sd
+    its floor stands for)."""
     center = np.asarray(center, dtype=float).reshape(-1)
     n_motors = len(center)
     states = probe_states(center, int(probes), radius)
@@ -291,5 +422,11 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     # A probe with a lost row does not vote (J = 0 against a floor of 1).
     jac[~finite], floor = 0.0, np.where(finite, floor, 1.0)
     singular = np.linalg.svd(jac, compute_uv=False)
-    return structure_from_probes(singular, np.maximum(floor, 1e-300), n_motors,
-                                 rank_gap, rank_gap)
+    floor = np.maximum(floor, 1e-300)
+    structure = structure_from_probes(singular, floor, n_motors, rank_gap, rank_gap)
+    if spent is None:
+        return structure
+    ranks = noise_rank(singular, floor, rank_gap)[0]
+    return structure, not more_could_count(jac, None, floor, ranks, structure.pose_rank,
+                                           rank_gap, spent)
+
