@@ -45,6 +45,7 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
     angle, turning = None, cfg["world"]["rotation_count"] >= 2 and "true_poses" in produced.arrays
     if turning:
         from sensorispace_ros.evaluation.rotations import rotation_numbers
+        from sensorispace_ros.evaluation.pose_reaching import pose_reaching_numbers
 
         turning_numbers, angle = rotation_numbers(
             representation.distance,
@@ -53,6 +54,8 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
             produced.arrays["true_poses"], produced.pairs, produced.set_ids,
             flat["representation.space_dim"], strategy, cfg, cfg["seed"])
         flat.update(turning_numbers)
+        flat.update(pose_reaching_numbers(representation, produced.arrays["true_poses"], cfg,
+                                          cfg["seed"]))
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),

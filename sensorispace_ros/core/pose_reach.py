@@ -1,0 +1,128 @@
+"""Reaching in (position, orientation) space: a sensor pose is a point of the
+plane times the circle.
+
+When the object turns as well as translates, a point of view is a pose
+``(x, y, theta)`` of the sensor, and a path through a representation's graph
+(``core.reach``: pruned graph, Dijkstra) is judged by the straightness of the
+sensor's external path in pose space. A length and an angle are put on one
+scale by ``length_scale`` rho: a turn by ``dtheta`` counts as the arc
+``rho * |dtheta|``, so a step ``(dx, dy, dtheta)`` has length
+``sqrt(dx^2 + dy^2 + (rho * wrap(dtheta))^2)`` with ``dtheta`` wrapped into
+(-pi, pi] (the short way round the circle). The straight distance between
+two poses is the same formula on their difference: the geodesic of the flat
+metric on plane x circle. A path scores 1 when it follows that geodesic, more
+when it detours, in position or by turning the long way round.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from sensorispace_ros.core.cca import check_distance_matrix
+from sensorispace_ros.core.reach import pruned_graph
+
+SAME_POSE_TOL = 1e-9      # relative to the length scale: start and target at one pose
+
+
+def wrap(angle) -> np.ndarray:
+    """Angles wrapped into [-pi, pi)."""
+    return np.mod(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def _check_poses(poses) -> np.ndarray:
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim != 2 or poses.shape[1] != 3:
+        raise ValueError(f"poses must have shape (P, 3) of (x, y, theta), got {poses.shape}")
+    return poses
+
+
+def _check_scale(length_scale: float) -> float:
+    if not np.isfinite(length_scale) or length_scale <= 0:
+        raise ValueError(f"length_scale must be a finite length > 0, got {length_scale!r}")
+    return float(length_scale)
+
+
+def pose_distance(a, b, length_scale: float) -> np.ndarray:
+    """Distance on plane x circle between poses ``a`` and ``b`` (``(..., 3)``):
+    ``sqrt(|dxy|^2 + (length_scale * wrap(dtheta))^2)``."""
+    rho = _check_scale(length_scale)
+    diff = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
+    return np.sqrt(np.sum(diff[..., :2] ** 2, axis=-1) + (rho * wrap(diff[..., 2])) ** 2)
+
+
+def net_turn(path, poses) -> float:
+    """The orientation change accumulated along the path (each step the short
+    way round), in rad: equal to ``wrap(theta_target - theta_start)`` when the
+    path turns the short way, off by a multiple of 2 pi when it goes round."""
+    theta = _check_poses(poses)[np.asarray(path, dtype=int), 2]
+    return float(np.sum(wrap(np.diff(theta))))
+
+
+def goes_long_way(path, poses) -> bool:
+    """Whether the path turns the sensor round the circle the long way: its
+    accumulated turn exceeds half a turn, which the short way never does (a
+    target half a turn away is the short way round either way)."""
+    return bool(abs(net_turn(path, poses)) > np.pi * (1.0 + 1e-9))
+
+
+def pose_path_straightness(path, poses, length_scale: float) -> float:
+    """External length of the path in pose space / pose distance start-target
+    (>= 1). Raises when start and target are one pose."""
+    poses = _check_poses(poses)
+    points = poses[np.asarray(path, dtype=int)]
+    straight = float(pose_distance(points[0], points[-1], length_scale))
+    if straight <= SAME_POSE_TOL * length_scale:
+        raise ValueError("path starts and ends at the same pose: straightness undefined")
+    return float(np.sum(pose_distance(points[:-1], points[1:], length_scale)) / straight)
+
+
+def pose_reaching_evaluation(distance, poses, length_scale: float, *, n_pairs: int = 100,
+                             random_state=None, max_degree: int = 50, radius=None) -> dict:
+    """Straightness in pose space of Dijkstra paths between random start/target
+    POVs of the graph of ``distance`` (pruned as ``core.reach.pruned_graph``).
+
+    Pairs are drawn as ``core.reach.reaching_evaluation`` draws them. A pair
+    is *reached* when the pruned graph joins its nodes; pairs at one pose
+    (two POVs of one pose) are reached trivially and left out of the
+    straightness (None). Returns plain Python types: ``straightness`` per pair
+    (None: unreached or one pose), ``reached`` (count), ``same_pose``,
+    ``long_way`` (reached paths turning the long way round), ``radius``,
+    ``n_components``, ``pairs``, ``paths``.
+    """
+    D = check_distance_matrix(distance, "distance")
+    P = D.shape[0]
+    poses = _check_poses(poses)
+    if poses.shape[0] != P:
+        raise ValueError(f"poses must have one row per node ({P}), got {poses.shape[0]}")
+    rho = _check_scale(length_scale)
+    if not isinstance(n_pairs, (int, np.integer)) or n_pairs < 1:
+        raise ValueError(f"n_pairs must be a positive integer, got {n_pairs!r}")
+    rng = random_state if isinstance(random_state, np.random.Generator) \
+        else np.random.default_rng(random_state)
+    graph = pruned_graph(D, radius=radius, max_degree=max_degree)
+    starts = rng.integers(P, size=n_pairs)
+    targets = (starts + rng.integers(1, P, size=n_pairs)) % P
+    sources, row_of = np.unique(starts, return_inverse=True)
+    dist, pred = dijkstra(graph, directed=False, indices=sources, return_predecessors=True)
+    straightness, paths = [], []
+    reached = same_pose = long_way = 0
+    for row, start, target in zip(row_of.ravel(), starts, targets):
+        if not np.isfinite(dist[row, target]):
+            straightness.append(None)
+            paths.append(None)
+            continue
+        path = [int(target)]
+        while path[-1] != start:
+            path.append(int(pred[row, path[-1]]))
+        path = path[::-1]
+        paths.append(path)
+        reached += 1
+        if pose_distance(poses[start], poses[target], rho) <= SAME_POSE_TOL * rho:
+            same_pose += 1
+            straightness.append(None)
+            continue
+        long_way += goes_long_way(path, poses)
+        straightness.append(pose_path_straightness(path, poses, rho))
+    return {"straightness": straightness, "reached": reached, "same_pose": same_pose,
+            "long_way": long_way, "radius": graph.radius, "n_components": graph.n_components,
+            "pairs": [[int(s), int(t)] for s, t in zip(starts, targets)], "paths": paths}
