@@ -22,6 +22,7 @@ from sensorispace_ros.core.cca import check_distance_matrix
 from sensorispace_ros.core.reach import pruned_graph
 
 SAME_POSE_TOL = 1e-9      # relative to the length scale: start and target at one pose
+LONG_WAY_TOL = 0.05       # rad past half a turn before a path counts as the long way round
 
 
 def wrap(angle) -> np.ndarray:
@@ -58,11 +59,13 @@ def net_turn(path, poses) -> float:
     return float(np.sum(wrap(np.diff(theta))))
 
 
-def goes_long_way(path, poses) -> bool:
+def goes_long_way(path, poses, turn_tol: float = LONG_WAY_TOL) -> bool:
     """Whether the path turns the sensor round the circle the long way: its
-    accumulated turn exceeds half a turn, which the short way never does (a
-    target half a turn away is the short way round either way)."""
-    return bool(abs(net_turn(path, poses)) > np.pi * (1.0 + 1e-9))
+    accumulated turn exceeds half a turn, which the short way never does, by
+    more than ``turn_tol`` (rad). A target half a turn away is the short way
+    round either way; the tolerance keeps a pose a hair past half a turn (a
+    compensation's residual) from counting as a detour."""
+    return bool(abs(net_turn(path, poses)) > np.pi + turn_tol)
 
 
 def pose_path_straightness(path, poses, length_scale: float) -> float:

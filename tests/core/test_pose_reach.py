@@ -105,3 +105,11 @@ def test_two_povs_at_one_pose_are_reached_but_not_scored():
                                       radius=1.0)
     one_pose = sum({s, t} == {0, 1} for s, t in result["pairs"])
     assert one_pose > 0 and result["same_pose"] == one_pose and result["reached"] == 40
+
+
+def test_a_target_half_a_turn_away_is_the_short_way_either_way():
+    for end in (np.pi - 1e-4, np.pi + 1e-4, -np.pi - 1e-4):
+        poses = _line((0.0, 0.0, 0.0), (1.0, 0.0, end), n=4)
+        assert not goes_long_way([0, 1, 2, 3], poses)
+    poses = _line((0.0, 0.0, 0.0), (1.0, 0.0, np.pi + 0.2), n=4)
+    assert goes_long_way([0, 1, 2, 3], poses)
