@@ -129,3 +129,30 @@ def pose_reaching_evaluation(distance, poses, length_scale: float, *, n_pairs: i
     return {"straightness": straightness, "reached": reached, "same_pose": same_pose,
             "long_way": long_way, "radius": graph.radius, "n_components": graph.n_components,
             "pairs": [[int(s), int(t)] for s, t in zip(starts, targets)], "paths": paths}
+
+
+def angle_turns(angle, orientation, pairs, turn_tol: float = LONG_WAY_TOL) -> dict:
+    """Whether an angle coordinate of the looped dimension tells the short
+    way round: for each start/target pair, the turn it reads
+    (``wrap(angle_t - angle_s)``, after the coordinate's direction is matched
+    to the orientation's: a coordinate ``-theta + c`` is as good as ``theta + c``)
+    against the true short turn. ``short_way_share``: pairs whose read turn
+    has the true turn's sign, among those more than ``turn_tol`` from no turn
+    and from half a turn (where either way is short); ``turn_error_median``
+    (rad) over all pairs; ``scored`` pairs."""
+    angle = np.asarray(angle, dtype=float).reshape(-1)
+    orientation = np.asarray(orientation, dtype=float).reshape(-1)
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    if angle.shape != orientation.shape or not len(pairs):
+        raise ValueError(f"need one angle per orientation and some pairs, got {angle.shape}, "
+                         f"{orientation.shape} and {len(pairs)} pairs")
+    same = abs(np.mean(np.exp(1j * (angle - orientation))))
+    opposite = abs(np.mean(np.exp(1j * (angle + orientation))))
+    sign = 1.0 if same >= opposite else -1.0
+    read = wrap(sign * (angle[pairs[:, 1]] - angle[pairs[:, 0]]))
+    true = wrap(orientation[pairs[:, 1]] - orientation[pairs[:, 0]])
+    clear = (np.abs(true) > turn_tol) & (np.abs(true) < np.pi - turn_tol)
+    agree = np.sign(read[clear]) == np.sign(true[clear])
+    return {"short_way_share": float(np.mean(agree)) if clear.any() else float("nan"),
+            "turn_error_median": float(np.median(np.abs(wrap(read - true)))),
+            "scored": int(clear.sum())}

@@ -18,7 +18,7 @@ import numpy as np
 from scipy.spatial.distance import pdist, squareform
 
 from sensorispace_ros.core.arm import Arm
-from sensorispace_ros.core.pose_reach import pose_reaching_evaluation
+from sensorispace_ros.core.pose_reach import angle_turns, pose_reaching_evaluation
 from sensorispace_ros.offline.representation import STAGES, Representation, random_state
 
 
@@ -30,7 +30,7 @@ def pose_length_scale(arm: Arm) -> float:
 
 
 def pose_reaching_numbers(representation: Representation, true_poses: np.ndarray,
-                          cfg: dict, seed: int) -> dict:
+                          cfg: dict, seed: int, angle: np.ndarray | None = None) -> dict:
     """``pose_reaching.<graph>.*`` for the Hausdorff metric and every embedding:
     ``straightness_median`` and ``straightness_p90`` in pose space,
     ``reached_share`` (pairs the pruned graph joins), ``long_way_share`` (of
@@ -38,7 +38,10 @@ def pose_reaching_numbers(representation: Representation, true_poses: np.ndarray
     ``same_pose`` (pairs of two POVs at one pose, left out of the
     straightness); ``pose_reaching.length_scale``. Pairs and pruning are
     ``reaching.*``'s (``representation.reaching`` and the ``reaching``
-    stream)."""
+    stream). With the angle coordinate of the looped dimension (``angle``,
+    ``evaluation.rotations.angle_numbers``), ``pose_reaching.angle.*``: on
+    the same pairs, whether the turn it reads is the short way round
+    (``core.pose_reach.angle_turns``)."""
     reaching = cfg["representation"]["reaching"]
     options = {"n_pairs": reaching["pairs"], "max_degree": reaching["max_degree"],
                "radius": reaching["radius"]}
@@ -64,4 +67,8 @@ def pose_reaching_numbers(representation: Representation, true_poses: np.ndarray
             f"{prefix}.long_way_share": result["long_way"] / max(result["reached"], 1),
             f"{prefix}.same_pose": result["same_pose"],
         })
+        pairs = result["pairs"]
+    if angle is not None:
+        for key, value in angle_turns(angle, poses[:, 2], pairs).items():
+            metrics[f"pose_reaching.angle.{key}"] = value
     return metrics

@@ -55,7 +55,7 @@ def evaluate_output(produced: StrategyOutput, representation: Representation, cf
             flat["representation.space_dim"], strategy, cfg, cfg["seed"])
         flat.update(turning_numbers)
         flat.update(pose_reaching_numbers(representation, produced.arrays["true_poses"], cfg,
-                                          cfg["seed"]))
+                                          cfg["seed"], angle))
     evaluated = evaluate(representation, produced.true_positions, produced.povs, cfg,
                          cfg["seed"], progress)
     timings = {**timings, "reaching": evaluated.pop("timings_s.reaching"),

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.pose_reach import (goes_long_way, pose_distance,
+from sensorispace_ros.core.pose_reach import (angle_turns, goes_long_way, pose_distance,
                                               pose_path_straightness, pose_reaching_evaluation,
                                               wrap)
 
@@ -113,3 +113,17 @@ def test_a_target_half_a_turn_away_is_the_short_way_either_way():
         assert not goes_long_way([0, 1, 2, 3], poses)
     poses = _line((0.0, 0.0, 0.0), (1.0, 0.0, np.pi + 0.2), n=4)
     assert goes_long_way([0, 1, 2, 3], poses)
+
+
+def test_an_angle_coordinate_tells_the_short_way_round_in_either_direction():
+    rng = np.random.default_rng(3)
+    theta = rng.uniform(-np.pi, np.pi, 60)
+    pairs = np.column_stack([np.arange(60), rng.permutation(60)])
+    for coordinate in (theta + 1.0, -theta + 2.5):          # a direction is a convention
+        read = angle_turns(coordinate, theta, pairs)
+        assert read["short_way_share"] == 1.0 and read["turn_error_median"] < 1e-12
+    # a coordinate that goes round twice per turn reads many turns the wrong way
+    doubled = angle_turns(2 * theta, theta, pairs)
+    assert doubled["short_way_share"] < 0.8 and doubled["turn_error_median"] > 0.3
+    half_turn = angle_turns(np.array([0.0, np.pi]), np.array([0.0, np.pi]), [[0, 1]])
+    assert half_turn["scored"] == 0

@@ -37,7 +37,8 @@ def test_the_evaluation_scores_the_graphs_on_the_run_poses():
                                      embedding=lambda dim, stage: cut)
     cfg = {"representation": {"reaching": {"pairs": 200, "max_degree": 50, "radius": 1.0}},
            "arm": {"segments": [1.0, 1.0, 1.0], "eye": "joint", "motor_unit": "rad"}}
-    numbers = pose_reaching_numbers(representation, poses, cfg, seed=0)
+    flipped = 3.0 - poses[:, 2]                        # an angle coordinate, turning the other way
+    numbers = pose_reaching_numbers(representation, poses, cfg, seed=0, angle=flipped)
     assert numbers["pose_reaching.length_scale"] == pytest.approx(2.0)
     assert numbers["pose_reaching.hausdorff.reached_share"] == 1.0
     assert numbers["pose_reaching.hausdorff.long_way_share"] == 0.0
@@ -45,6 +46,10 @@ def test_the_evaluation_scores_the_graphs_on_the_run_poses():
     assert (numbers["pose_reaching.3d.after.straightness_median"]
             > numbers["pose_reaching.hausdorff.straightness_median"])
     assert numbers["pose_reaching.hausdorff.straightness_p90"] < 1.5
+    assert numbers["pose_reaching.angle.short_way_share"] == 1.0
+    assert numbers["pose_reaching.angle.scored"] > 150               # the 200 pairs, less ties
+    assert "pose_reaching.angle.short_way_share" not in pose_reaching_numbers(
+        representation, poses, cfg, seed=0)
 
 
 TURNING = {"world.grid_count": 12, "world.rotation_count": 4, "output.figures": False,
