@@ -2,17 +2,21 @@
 scale reach ``core.pose_reach`` right, and only a turning world gets the keys."""
 from __future__ import annotations
 
+import sys
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from shared import SMOKE
+from shared import REPO, SMOKE
 
 from sensorispace_ros import config
 from sensorispace_ros.core.arm import PAPER_ARM, Arm
 from sensorispace_ros.core.pose_reach import pose_distance
 from sensorispace_ros.evaluation import reproduce
 from sensorispace_ros.evaluation.pose_reaching import pose_length_scale, pose_reaching_numbers
+
+sys.path.insert(0, str(REPO))
+from bench import pose_reaching as pose_reaching_bench  # noqa: E402
 
 
 def test_an_angle_weighs_as_the_arc_at_the_middle_of_the_working_ring():
@@ -64,6 +68,10 @@ def test_a_turning_run_reports_pose_reaching_and_a_translation_run_does_not(tmp_
     assert hausdorff["reached_share"] == pytest.approx(1.0 - unreached / 30) and unreached < 15
     assert 1.0 <= hausdorff["straightness_median"] < 2.0
     assert {"2d", "3d"} <= set(turning["pose_reaching"])
+    again = pose_reaching_bench.measure(str(tmp_path / "turning"), 30)    # from the arrays
+    assert again["pose_reaching.hausdorff.straightness_median"] == hausdorff["straightness_median"]
+    assert again["pose_reaching.3d.after.long_way_share"] == \
+        turning["pose_reaching"]["3d"]["after"]["long_way_share"]
     flat = reproduce.reproduce(config.load_config(SMOKE, {"output.figures": False}), "paper",
                                out_dir=tmp_path / "flat", figures=False)
     assert "pose_reaching" not in flat and "reaching" in flat
