@@ -231,7 +231,7 @@ class SnapshotMatching:
             guess = rank_now.copy()
             guess[unknown] = RANK_FULL
             _, guessed = self._anchor_requests(full_rank_matches(matches, guess), rest_hits,
-                                               guess, current)
+                                               guess)
             starts = self._search_plan(guessed, current)[-1] if guessed else np.zeros(
                 (0, self.n_motors))
             self._body.stage = "rank"

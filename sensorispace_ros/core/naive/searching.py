@@ -80,11 +80,6 @@ class SearchAndSample:
                 if pov >= 0:
                     new_povs.append(pov)
                     new_sensations.append(sensation)
-        if self._noisy:
-            # Under noise a state whose POV does not walk whole (its samples
-            # slid off its sensation, or it lies on a split loop) is not
-            # known to sense one pose: no compensation.
-            solution = {g: m for g, m in solution.items() if pov_of_group.get(g, -1) >= 0}
         found = {i: (pov_of_group[group[i]], solution[group[i]])
                  for i in range(len(requests)) if group[i] in solution}
         return found, new_povs, new_sensations
