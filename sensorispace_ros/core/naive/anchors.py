@@ -12,7 +12,8 @@ tests it needs, the equality sets it gives and keeps the pool. Where noise
 sized the tolerances, every match (of a sweep row or of an anchor) passes
 the averaged test of a compensation, and matched rows pool the sensings of
 their chains of matches (``pooled_sweep``): a snapshot's row is then a
-target of known precision.
+target of known precision, searched only where it stands out from the
+sensations like it (``_distinct_targets``).
 """
 from __future__ import annotations
 
