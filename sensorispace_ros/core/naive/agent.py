@@ -374,7 +374,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         rest_hits = self._verify_rest_hits(rest_hits)
         matches = self._verify_matches(matches)
         pooled, counts = self._pool_sweep(matches, current)
-        known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now)
+        known_comp, requests = self._anchor_requests(matches, rest_hits, rank_now, current)
 
         # Search for the anchors; the new POVs' sensation now is the anchor's.
         pov_rows_before = self._body.rows.get("pov", 0)

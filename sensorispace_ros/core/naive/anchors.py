@@ -12,7 +12,8 @@ tests it needs, the equality sets it gives and keeps the pool. Where noise
 sized the tolerances, every match (of a sweep row or of an anchor) passes
 the averaged test of a compensation, and matched rows pool the sensings of
 their chains of matches (``pooled_sweep``): a snapshot's row is then a
-target of known precision.
+target of known precision, searched only where it stands out from the
+sensations like it (``_distinct_targets``).
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     check_pose_rank, match_sensations)
@@ -162,6 +164,17 @@ def full_rank_matches(matches, rank_now):
     return [(b[rank_now[a] == RANK_FULL], a[rank_now[a] == RANK_FULL]) for b, a in matches]
 
 
+def _within_noise(rows, counts, target, count, sd2, quantile) -> bool:
+    """Whether a finite row of ``rows`` (each the mean of ``counts``
+    sensings) lies from ``target`` (``count`` sensings) within the
+    chi-square ``quantile`` of two such means' difference."""
+    if not len(rows):
+        return False
+    distance2 = np.sum((rows - target) ** 2, axis=1)
+    limit = quantile * sd2 * (1.0 / np.asarray(counts, dtype=float) + 1.0 / count)
+    return bool(np.any(distance2 <= limit))
+
+
 # A known POV matching an anchor may lie this many predicted pose errors
 # (``searching._max_pose_error``) from it: its own error and the anchor's.
 _HIT_SHARE = 4.0
@@ -288,6 +301,35 @@ class SnapshotMatching:
             kept.append((before[good], after[good]))
         return kept
 
+    def _distinct_targets(self, requests, current):
+        """Where noise sized the tolerances: ``requests`` without the frontier
+        rows whose target does not stand out, beyond what two sensings of
+        one pose differ by (their averaged noise), from every other row of
+        its snapshot and from every known POV's sensation now (``current``;
+        no match singled one out): a search toward it would end on whichever
+        of the poses sensing it. The budget is not filled again from rows
+        farther from the matched ones: those are poorer targets still."""
+        if not self._noisy:
+            return requests
+        sd2 = self.structure.noise ** 2
+        quantile = chi2.ppf(self.params.noise_confidence, self._body.n_sensors)
+        current = np.asarray(current, dtype=float).reshape(-1, self._body.n_sensors)
+        kept = []
+        for r in requests:
+            if r.row < 0:
+                kept.append(r)
+                continue
+            snap = self._pool[r.snapshot]
+            counts = snap.counts if snap.counts is not None else np.ones(len(snap.sensations))
+            others = np.arange(len(snap.sensations)) != r.row
+            if _within_noise(snap.sensations[others], counts[others], r.target, r.count,
+                             sd2, quantile) or \
+                    _within_noise(current, np.ones(len(current)), r.target, r.count, sd2,
+                                  quantile):
+                continue
+            kept.append(r)
+        return kept
+
     def _track_frontier(self, requests, found, new_povs) -> None:
         """Moving average of the frontier searches that found a new POV."""
         frontier = [i for i, r in enumerate(requests) if r.row >= 0]
@@ -330,11 +372,16 @@ class SnapshotMatching:
             snapshot = None         # an anchor unrelated to the start is never searched
         self._pool = (([snapshot] if snapshot is not None else []) + kept)[:p.max_snapshots]
 
-    def _anchor_requests(self, matches, rest_hits, rank_now):
-        """``anchors.anchor_requests`` on the pool, with this event's frontier budget."""
-        return anchor_requests(self._pool, matches, rest_hits, rank_now, self.params,
-                               pov_samples=self._store.samples,
-                               frontier_budget=self._frontier_budget())
+    def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
+        """``anchors.anchor_requests`` on the pool, with this event's frontier
+        budget; given this sweep's sensations ``current``, only the targets
+        that stand out (``_distinct_targets``)."""
+        known_comp, requests = anchor_requests(self._pool, matches, rest_hits, rank_now,
+                                               self.params, pov_samples=self._store.samples,
+                                               frontier_budget=self._frontier_budget())
+        if current is not None:
+            requests = self._distinct_targets(requests, current)
+        return known_comp, requests
 
     def _frontier_budget(self) -> int:
         """Frontier searches this event: ``frontier_attempts`` while they
