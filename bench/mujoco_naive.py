@@ -34,16 +34,33 @@ def _run(cfg: dict, seed: int):
     body = world.body(lights=world.initial_lights)
     agent = NaiveAgent(SensingOnly(body), NaiveParams(**cfg["naive"]))
     started = time.perf_counter()
-    rests = [agent.start(world.m0, seed=world.seed).rest_motor_state]
+    reaction = agent.start(world.m0, seed=world.seed)
+    rests, trace = [reaction.rest_motor_state], [_traced(reaction, "initial", body)]
     centers, layout, kinds = [np.asarray(world.initial_center, float)], [0], ["initial"]
     for event in world.events:
         body.set_lights(event.lights)
         centers.append(np.asarray(event.center, float))
         layout.append(layout[-1] + (event.kind == REDISTRIBUTION))
         kinds.append(event.kind)
-        rests.append(agent.react(body.sense_at_rest()[0]).rest_motor_state)
+        reaction = agent.react(body.sense_at_rest()[0])
+        rests.append(reaction.rest_motor_state)
+        trace.append(_traced(reaction, event.kind, body))
     explored = NaiveExploration(agent, centers, layout, kinds, time.perf_counter() - started, 0.0)
-    return world, body, summarize_naive(explored), np.asarray(rests), started
+    return world, body, summarize_naive(explored), np.asarray(rests), started, trace
+
+
+def _traced(reaction, kind: str, body) -> dict:
+    """One event: its kind, compensations, new POVs and rows, and per
+    compensation what its image holds (pixels above 20 gray levels, the
+    brightest), sensed without counting as the agent's."""
+    lit = []
+    for record in reaction.compensations:
+        frames = body.renderer.frames
+        image = body._look(np.asarray(record.motor_state, float)[None])[0][0]
+        body.renderer.frames = frames
+        lit.append([int(np.sum(image > 20)), int(image.max())])
+    return {"kind": kind[:5], "comp": len(reaction.compensations),
+            "new": len(reaction.new_pov_ids), "rows": int(reaction.queries), "lit": lit}
 
 
 def _kinds(agent, rests: np.ndarray) -> list[str]:
@@ -65,14 +82,14 @@ def diagnose(cfg: dict, seed: int) -> dict:
     from sensorispace_ros.core import arm
     from sensorispace_ros.evaluation.naive import evaluate_naive_run
 
-    world, body, result, rests, started = _run(cfg, seed)
+    world, body, result, rests, started, trace = _run(cfg, seed)
     wall = time.perf_counter() - started
     agent = result.agent
     evaluated = evaluate_naive_run(result, world).metrics
     spacing = float(world.spacing)
     tolerance = 0.25 * spacing
     records = agent.compensations
-    errors = []
+    errors, splits = [], []
     for record in records:
         target = world.arm.forward(np.asarray(record.anchor_motor_state, float)[None])[0]
         center_then = result.exploration.centers[record.anchor_event]
@@ -80,14 +97,18 @@ def diagnose(cfg: dict, seed: int) -> dict:
         target[:2] += center_now - center_then
         reached = world.arm.forward(np.asarray(record.motor_state, float)[None])[0]
         errors.append(float(arm.pose_error(reached[None], target[None])[0]))
+        splits.append((float(np.hypot(*(reached[:2] - target[:2]))),
+                       float(abs(arm.wrap_angle(reached[2] - target[2])))))
     errors = np.asarray(errors)
     kinds = _kinds(agent, rests)
     layout = np.asarray(result.exploration.layout)
     crossing = [bool(layout[r.event] != layout[r.anchor_event]) for r in records]
-    wrong = [{"event": r.event, "anchor_event": r.anchor_event, "kind": k,
-              "error": round(float(e), 4), "error_in_grid_steps": round(float(e) / spacing, 2),
-              "across_state_change": c, "pov": r.pov}
-             for r, k, e, c in zip(records, kinds, errors, crossing) if e > tolerance]
+    lit = [pair for step in trace for pair in step["lit"]]
+    wrong = [{"event": r.event, "anchor_event": r.anchor_event, "kind": k, "lit": lt,
+              "error": round(float(e), 4), "position_error": round(sp[0], 4),
+              "heading_error": round(sp[1], 4), "across_state_change": c, "pov": r.pov}
+             for r, k, e, c, lt, sp in zip(records, kinds, errors, crossing, lit, splits)
+             if e > tolerance]
     by_kind = {kind: {"accepted": n, "wrong": sum(w["kind"] == kind for w in wrong)}
                for kind, n in Counter(kinds).items()}
     keys = ("naive.pose_rank", "naive.pov_dim", "naive.space_dim", "pov.count",
@@ -104,6 +125,8 @@ def diagnose(cfg: dict, seed: int) -> dict:
         "frames": int(body.renderer.frames),
         "render_ms_per_frame": round(1e3 * body.render_seconds / max(body.renderer.frames, 1), 3),
         "render_s": round(body.render_seconds, 1),
+        "events": [f"{t}:{step['kind']}:c{step['comp']}:n{step['new']}:r{step['rows']}"
+                   for t, step in enumerate(trace)],
     }
 
 
