@@ -186,3 +186,17 @@ def test_two_bodies_of_one_world_keep_their_own_object(arm_world):
     second = arm_world.body(lights=rearranged.lights)
     assert not np.array_equal(second.sense_at_rest()[0], seen)
     np.testing.assert_array_equal(first.sense_at_rest()[0], seen)
+
+
+def test_a_state_looks_the_same_wherever_it_lies_in_a_batch(arm_world):
+    """The agent finds that its images repeat exactly: a motor state's frame
+    does not depend on its tile, its batch or the frames drawn around it
+    (a batch over one read-back of 8 x 8 tiles, then alone)."""
+    body = arm_world.body(lights=arm_world.initial_lights)
+    states = arm_world.m0 + np.random.default_rng(2).uniform(-0.2, 0.2, (70, 4))
+    states[67] = states[3]
+    batch = body.sense(states)
+    np.testing.assert_array_equal(batch[67], batch[3])
+    np.testing.assert_array_equal(body.sense(states[3:4])[0], batch[3])
+    np.testing.assert_array_equal(body.sense(states[::-1])[::-1], batch)
+    assert len(np.unique(batch, axis=0)) == 69            # distinct states, distinct frames
