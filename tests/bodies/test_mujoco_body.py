@@ -205,3 +205,14 @@ def test_a_state_looks_the_same_wherever_it_lies_in_a_batch(arm_world):
     assert np.abs(moved).max() <= 1
     assert np.count_nonzero(moved) <= 1e-3 * moved.size
     assert len(np.unique(batch, axis=0)) == 70            # distinct states, distinct frames
+
+
+def test_the_other_model_has_a_configuration_of_its_own():
+    """config/mujoco-other.yaml runs tests/bodies/other_arm.xml by configuration
+    alone: its names, its links, its camera, its pixels."""
+    world = world_of(REPO / "config" / "mujoco-other.yaml")
+    np.testing.assert_allclose(world.arm.segments, (1.3, 0.9, 0.6))
+    body = world.body(lights=world.initial_lights)
+    assert body.description.joint_names == ("shoulder", "elbow", "wrist")
+    assert body.description.receptors == 12 * 10 * 3
+    assert body.sense_at_rest()[0].max() > 50                  # it sees its object
