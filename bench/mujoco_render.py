@@ -3,7 +3,9 @@
     .venv/bin/python -m bench.mujoco_render [--config config/mujoco-arm.yaml] [--frames 512]
 
 Times, per frame, at the same motor states of the configuration's model:
-the body's own path (``MujocoBody.sense``: tiles, effects off), and as
+the body's own path (``MujocoBody.sense``: tiles, effects off; wall time
+and the process's CPU time, every thread's, which does not depend on what
+else the machine runs), and as
 baselines ``mujoco.Renderer`` one frame at a time with MuJoCo's default
 visual settings, and with the body's settings (shadows, reflections, skybox
 and the other effects off, no multisampling), without and with a ``plane``
@@ -89,13 +91,16 @@ def main(argv=None) -> int:
     states = world.m0 + np.random.default_rng(0).uniform(-0.3, 0.3, (args.frames, len(world.m0)))
     body = world.body(lights=world.initial_lights)
     body.sense(states[:64])                                       # warm-up
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     body.sense(states)
     body_ms = 1e3 * (time.perf_counter() - started) / len(states)
+    # CPU time of the process (every thread, Mesa's too): what a frame costs
+    # whatever else the machine runs.
+    body_cpu_ms = 1e3 * (time.process_time() - cpu) / len(states)
     results = {"config": args.config, "frames": args.frames,
                "image": world.mujoco_cfg["image"], "channels": world.mujoco_cfg["channels"],
                "supersample": world.mujoco_cfg["supersample"], "blur": world.mujoco_cfg["blur"],
-               "body_ms_per_frame": body_ms,
+               "body_ms_per_frame": body_ms, "body_cpu_ms_per_frame": body_cpu_ms,
                "renderer_effects_off_ms_per_frame": _renderer_ms(world, states[:128], True),
                "renderer_defaults_ms_per_frame": _renderer_ms(world, states[:64], False),
                "renderer_effects_off_with_plane_ms_per_frame":

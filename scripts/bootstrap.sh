@@ -27,7 +27,7 @@ check_python() {
 egl_present() {
   { ldconfig -p 2>/dev/null || true; } | grep -q 'libEGL_mesa.so.0' \
     && { ldconfig -p 2>/dev/null || true; } | grep -q 'libEGL.so.1' \
-    && ls /usr/lib/*/dri/*_dri.so /usr/lib/*/dri/libdril_dri.so >/dev/null 2>&1
+    && ls /usr/lib/*/dri/*_dri.so >/dev/null 2>&1
 }
 EGL_PACKAGES="libegl1 libegl-mesa0 libgl1-mesa-dri"
 if ! egl_present; then

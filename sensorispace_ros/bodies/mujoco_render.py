@@ -24,8 +24,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
 INSTALL_HINT = (f"headless rendering needs EGL and Mesa's drivers: sudo apt-get install -y "
                 f"{EGL_PACKAGES} (scripts/bootstrap.sh installs them when run as root)")
-# Luminance of an RGB pixel (ITU-R BT.601 weights, in 1/1000), rounded to an integer.
-_LUMA = np.array([299, 587, 114], dtype=np.uint32)
+# Luminance of an RGB sample (ITU-R BT.601 weights).
+_LUMA = np.array([0.299, 0.587, 0.114])
 
 
 def rendering_problem() -> str | None:
@@ -121,21 +121,25 @@ class TiledRenderer:
             view = self.buffer[:rows * h]
             mujoco.mjr_readPixels(view, None, mujoco.MjrRect(0, 0, self.tiles * w, rows * h),
                                   self.context)
-            for i in range(start, stop):
-                tile = i - start
-                x, y = (tile % self.tiles) * w, (tile // self.tiles) * h
-                out[i] = view[y:y + h, x:x + w][::-1]       # OpenGL rows run bottom-up
+            # (rows, h, tiles, w, 3) -> frames; OpenGL rows run bottom-up.
+            tiles = view.reshape(rows, h, self.tiles, w, 3).swapaxes(1, 2)
+            out[start:stop] = tiles.reshape(-1, h, w, 3)[:stop - start, ::-1]
         self.frames += count
+        return self._pixels(out)
+
+    def _pixels(self, samples: np.ndarray) -> np.ndarray:
+        """The pixels ``(B, height, width, channels)`` uint8 of the rendered
+        samples ``(B, k height, k width, 3)``: with ``channels`` 1 the
+        luminance of each sample, then each pixel the filtered light of its
+        samples (``_pixel_filter``), rounded once."""
+        if self.channels == 1:
+            planes = (samples @ _LUMA)[:, None]                            # (n, 1, y, x)
+        else:
+            planes = np.moveaxis(samples, -1, 1).astype(np.float64)        # (n, 3, y, x)
         if self.supersample > 1 or self.blur > 0:
             rows, columns = self.filters
-            planes = np.moveaxis(out, -1, 1).astype(np.float64)        # (n, 3, y, x)
-            filtered = rows @ planes @ columns.T
-            out = np.clip(np.rint(np.moveaxis(filtered, 1, -1)), 0, 255).astype(np.uint8)
-        if self.channels == 3:
-            return out
-        luma = (out.astype(np.uint32) @ _LUMA + 500) // 1000
-        return luma.astype(np.uint8)[..., None]
-
+            planes = rows @ planes @ columns.T
+        return np.clip(np.rint(np.moveaxis(planes, 1, -1)), 0, 255).astype(np.uint8)
 
 def _pixel_filter(pixels: int, supersample: int, blur: float) -> np.ndarray:
     """``(pixels, supersample * pixels)``: the weights of the samples each pixel

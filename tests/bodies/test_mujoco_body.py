@@ -186,3 +186,33 @@ def test_two_bodies_of_one_world_keep_their_own_object(arm_world):
     second = arm_world.body(lights=rearranged.lights)
     assert not np.array_equal(second.sense_at_rest()[0], seen)
     np.testing.assert_array_equal(first.sense_at_rest()[0], seen)
+
+
+def test_a_state_looks_the_same_wherever_it_lies_in_a_batch(arm_world):
+    """A motor state's frame does not depend on the frames drawn around it or
+    on its batch: drawn in the same place of the framebuffer it is the same,
+    bit for bit; elsewhere the rasterizer's subpixel rounding (the tile's
+    offset) may move an edge sample, which changes a pixel by one gray level
+    at most, at a few pixels (a batch over one read-back of 8 x 8 tiles)."""
+    body = arm_world.body(lights=arm_world.initial_lights)
+    states = arm_world.m0 + np.random.default_rng(2).uniform(-0.2, 0.2, (70, 4))
+    batch = body.sense(states)
+    np.testing.assert_array_equal(body.sense(states[:3])[:3], batch[:3])
+    again = states.copy()
+    again[5:] = states[5:][::-1]                  # same tiles for rows 0-4, others shuffled
+    np.testing.assert_array_equal(body.sense(again)[:5], batch[:5])
+    moved = body.sense(states[::-1])[::-1].astype(int) - batch
+    assert np.abs(moved).max() <= 1
+    assert np.count_nonzero(moved) <= 1e-3 * moved.size
+    assert len(np.unique(batch, axis=0)) == 70            # distinct states, distinct frames
+
+
+def test_the_other_model_has_a_configuration_of_its_own():
+    """config/mujoco-other.yaml runs tests/bodies/other_arm.xml by configuration
+    alone: its names, its links, its camera, its pixels."""
+    world = world_of(REPO / "config" / "mujoco-other.yaml")
+    np.testing.assert_allclose(world.arm.segments, (1.3, 0.9, 0.6))
+    body = world.body(lights=world.initial_lights)
+    assert body.description.joint_names == ("shoulder", "elbow", "wrist")
+    assert body.description.receptors == 12 * 10 * 3
+    assert body.sense_at_rest()[0].max() > 50                  # it sees its object

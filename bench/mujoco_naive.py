@@ -1,0 +1,158 @@
+"""Where a naive run on a MuJoCo body goes wrong and where its time goes
+(docs/mujoco.md, docs/benchmarks.md "A MuJoCo body").
+
+    .venv/bin/python -m bench.mujoco_naive --config config/mujoco-smoke.yaml [--seed S]
+
+Runs the naive agent through the configuration's world (lockstep, as
+``sensorispace reproduce``), then joins each accepted compensation with
+ground truth: its kind (a known POV matching an anchor, a search for a
+resting anchor, a search for a frontier row of a sweep), its pose error
+against the pose its anchor asks for, and whether it spans a state change.
+Prints JSON: the evaluator's headline numbers, wrong compensations by kind
+with their errors, the rows and seconds of each stage, and the body's
+rendering time per frame.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections import Counter
+
+import numpy as np
+
+
+def _run(cfg: dict, seed: int):
+    from sensorispace_ros.bodies import run_world
+    from sensorispace_ros.core.body import SensingOnly
+    from sensorispace_ros.core.naive.agent import NaiveAgent
+    from sensorispace_ros.core.naive.params import NaiveParams
+    from sensorispace_ros.core.naive.run import NaiveExploration, summarize_naive
+    from sensorispace_ros.core.world import REDISTRIBUTION
+
+    world = run_world(cfg, seed)
+    body = world.body(lights=world.initial_lights)
+    agent = NaiveAgent(SensingOnly(body), NaiveParams(**cfg["naive"]))
+    started = time.perf_counter()
+    reaction = agent.start(world.m0, seed=world.seed)
+    rests, trace = [reaction.rest_motor_state], [_traced(reaction, "initial", body)]
+    centers, layout, kinds = [np.asarray(world.initial_center, float)], [0], ["initial"]
+    for event in world.events:
+        body.set_lights(event.lights)
+        centers.append(np.asarray(event.center, float))
+        layout.append(layout[-1] + (event.kind == REDISTRIBUTION))
+        kinds.append(event.kind)
+        reaction = agent.react(body.sense_at_rest()[0])
+        rests.append(reaction.rest_motor_state)
+        trace.append(_traced(reaction, event.kind, body))
+    explored = NaiveExploration(agent, centers, layout, kinds, time.perf_counter() - started, 0.0)
+    return world, body, summarize_naive(explored), np.asarray(rests), started, trace
+
+
+def _traced(reaction, kind: str, body) -> dict:
+    """One event: its kind, compensations, new POVs and rows, and per
+    compensation what its image holds (pixels above 20 gray levels, the
+    brightest), sensed without counting as the agent's."""
+    lit = []
+    for record in reaction.compensations:
+        frames = body.renderer.frames
+        image = body._look(np.asarray(record.motor_state, float)[None])[0][0]
+        body.renderer.frames = frames
+        lit.append([int(np.sum(image > 20)), int(image.max())])
+    return {"kind": kind[:5], "comp": len(reaction.compensations),
+            "new": len(reaction.new_pov_ids), "rows": int(reaction.queries), "lit": lit}
+
+
+def _kinds(agent, rests: np.ndarray) -> list[str]:
+    """Each record's kind: ``known`` (a known POV matched the anchor),
+    ``anchor`` (searched, the snapshot's resting anchor), ``frontier``
+    (searched, a row of the snapshot's sweep)."""
+    out = []
+    for record in agent.compensations:
+        if not record.searched:
+            out.append("known")
+        elif np.allclose(record.anchor_motor_state, rests[record.anchor_event]):
+            out.append("anchor")
+        else:
+            out.append("frontier")
+    return out
+
+
+def diagnose(cfg: dict, seed: int) -> dict:
+    from sensorispace_ros.core import arm
+    from sensorispace_ros.evaluation.naive import evaluate_naive_run
+
+    world, body, result, rests, started, trace = _run(cfg, seed)
+    wall = time.perf_counter() - started
+    agent = result.agent
+    evaluated = evaluate_naive_run(result, world).metrics
+    spacing = float(world.spacing)
+    tolerance = 0.25 * spacing
+    records = agent.compensations
+    errors, splits = [], []
+    for record in records:
+        target = world.arm.forward(np.asarray(record.anchor_motor_state, float)[None])[0]
+        center_then = result.exploration.centers[record.anchor_event]
+        center_now = result.exploration.centers[record.event]
+        target[:2] += center_now - center_then
+        reached = world.arm.forward(np.asarray(record.motor_state, float)[None])[0]
+        errors.append(float(arm.pose_error(reached[None], target[None])[0]))
+        splits.append((float(np.hypot(*(reached[:2] - target[:2]))),
+                       float(abs(arm.wrap_angle(reached[2] - target[2])))))
+    errors = np.asarray(errors)
+    kinds = _kinds(agent, rests)
+    layout = np.asarray(result.exploration.layout)
+    crossing = [bool(layout[r.event] != layout[r.anchor_event]) for r in records]
+    lit = [pair for step in trace for pair in step["lit"]]
+    wrong = [{"event": r.event, "anchor_event": r.anchor_event, "kind": k, "lit": lt,
+              "error": round(float(e), 4), "position_error": round(sp[0], 4),
+              "heading_error": round(sp[1], 4), "across_state_change": c, "pov": r.pov}
+             for r, k, e, c, lt, sp in zip(records, kinds, errors, crossing, lit, splits)
+             if e > tolerance]
+    by_kind = {kind: {"accepted": n, "wrong": sum(w["kind"] == kind for w in wrong)}
+               for kind, n in Counter(kinds).items()}
+    keys = ("naive.pose_rank", "naive.pov_dim", "naive.space_dim", "pov.count",
+            "naive.coverage_of_paper_positions", "naive.wrong_poses",
+            "naive.state_changes_accepted", "naive.pose_error_median", "naive.pose_error_p95",
+            "naive.queries_total", "naive.queries_total_per_pov", "naive.queries_per_pov")
+    return {
+        "seed": seed, "wall_s": round(wall, 1), "grid_step": spacing,
+        "metrics": {k: evaluated.get(k) for k in keys},
+        "compensations_by_kind": by_kind,
+        "wrong": wrong,
+        "rows_by_stage": agent.queries_by_stage,
+        "seconds_by_stage": {k: round(v, 1) for k, v in agent.seconds_by_stage.items()},
+        "frames": int(body.renderer.frames),
+        "render_ms_per_frame": round(1e3 * body.render_seconds / max(body.renderer.frames, 1), 3),
+        "render_s": round(body.render_seconds, 1),
+        "events": [f"{t}:{step['kind']}:c{step['comp']}:n{step['new']}:r{step['rows']}"
+                   for t, step in enumerate(trace)],
+    }
+
+
+def main(argv=None) -> None:
+    from sensorispace_ros.config import load_config
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default="config/mujoco-smoke.yaml")
+    parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one parameter (YAML value), e.g. world.grid_count=4")
+    args = parser.parse_args(argv)
+    import yaml
+
+    overrides: dict = {}
+    for item in args.set:
+        key, value = item.split("=", 1)
+        node = overrides
+        *path, last = key.split(".")
+        for part in path:
+            node = node.setdefault(part, {})
+        node[last] = yaml.safe_load(value)
+    cfg = load_config(args.config, overrides or None)
+    seed = int(cfg["seed"] if args.seed is None else args.seed)
+    print(json.dumps(diagnose(cfg, seed), indent=1))
+
+
+if __name__ == "__main__":
+    main()
