@@ -5,7 +5,7 @@ its geoms are its "lights": the world's points are the geoms' positions, in
 the frame of the chain MuJoCo's kinematics describe (``bodies.mujoco_model``).
 The object visits every position of the grid (``world.grid_count`` per axis
 over [-``world.grid_half_width``, ``world.grid_half_width``]², a displacement
-from where it starts) in the seeded order (``world.schedule``); after a move,
+from where it starts, which is one of them: ``_grid_about``) in the seeded order (``world.schedule``); after a move,
 with probability ``world.redistribution_probability``, its geoms are
 rearranged by the seed, uniformly over the annulus the model's arrangement
 fills about its centre: a state change no movement of the body undoes
@@ -45,6 +45,21 @@ class MujocoWorld(World):
         return MujocoBody(self.spec, self.chain, self.mujoco_cfg, lights, self.m0.copy())
 
 
+def _grid_about(center: np.ndarray, world: dict) -> tuple[np.ndarray, int | None]:
+    """The object's grid, a displacement from where the model puts it, and the index of that start.
+
+    ``world.initial_position: grid``: the grid is shifted so that its position nearest its centre is
+    the start (half a step, for an even ``grid_count``), as the simulated world starts on its grid:
+    every change is then a whole number of grid steps from the start, and anchors recorded before
+    and after a change give one lattice of sensor positions. ``center``: the grid centred on the
+    start, half a step off it for an even count."""
+    steps = world_mod.position_grid(world["grid_half_width"], world["grid_count"])
+    if world["initial_position"] != "grid":
+        return center + steps, None
+    nearest = int(np.argmin(np.einsum("ij,ij->i", steps, steps)))
+    return center + steps - steps[nearest], nearest
+
+
 def mujoco_world(cfg: dict, seed: int | None = None) -> MujocoWorld:
     """The world of a run of the validated configuration ``cfg`` with ``body.kind: mujoco``."""
     seed = int(cfg["seed"] if seed is None else seed)
@@ -63,12 +78,13 @@ def mujoco_world(cfg: dict, seed: int | None = None) -> MujocoWorld:
     radii = np.hypot(offsets[:, 0], offsets[:, 1])
     inner, outer = float(np.min(radii)), float(max(np.max(radii), 1e-6))
     world = cfg["world"]
-    grid = center + world_mod.position_grid(world["grid_half_width"], world["grid_count"])
+    grid, start_index = _grid_about(center, world)
     light_kwargs = {"count": len(offsets), "radius_min": min(inner, 0.999 * outer),
                     "radius_max": outer}
     events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
                                 redistribution_probability=world["redistribution_probability"],
-                                order=world["schedule"], light_kwargs=light_kwargs)
+                                order=world["schedule"], light_kwargs=light_kwargs,
+                                start_index=start_index)
     n_pixels = int(np.prod(cfg["mujoco"]["image"])) * (3 if cfg["mujoco"]["channels"] == "rgb"
                                                          else 1)
     params = {**PAPER_PARAMS, **world_params(cfg), "m0": tuple(m0),

@@ -216,3 +216,22 @@ def test_the_other_model_has_a_configuration_of_its_own():
     assert body.description.joint_names == ("shoulder", "elbow", "wrist")
     assert body.description.receptors == 12 * 10 * 3
     assert body.sense_at_rest()[0].max() > 50                  # it sees its object
+
+
+@pytest.mark.parametrize("where", ["grid", "center"])
+def test_the_object_starts_on_its_grid_unless_told_the_centre(arm_world, where):
+    """With an even grid count, ``grid`` starts the object on a grid position (every change a
+    whole number of steps from it) that it is not moved to again; ``center`` keeps it half a
+    step off every grid position."""
+    world = arm_world if where == "grid" else world_of(ARM, **{"world.initial_position": where})
+    assert len(world.grid) % 2 == 0 and int(np.sqrt(len(world.grid))) % 2 == 0
+    steps = (world.grid - world.initial_center) / world.spacing
+    visited = {e.grid_index for e in world.events}
+    if where == "grid":
+        assert np.allclose(steps, np.round(steps), atol=1e-9)
+        start = int(np.argmin(np.hypot(*(world.grid - world.initial_center).T)))
+        assert np.allclose(world.grid[start], world.initial_center)
+        assert start not in visited and len(visited) == len(world.grid) - 1
+    else:
+        assert np.allclose(np.abs(steps - np.floor(steps)), 0.5, atol=1e-9)
+        assert len(visited) == len(world.grid)
