@@ -186,22 +186,23 @@ def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.
     one orientation at a time. The POVs of one class of the angle
     coordinate (``orientation_classes``) are embedded in 2-D from their own
     Hausdorff distances and regularised with the equality pairs inside the
-    class (CCA and iterations as the representation's), then compared with
+    class (CCA and iterations as the representation's) and synchronised
+    with them read as vectors (``looped_space.synchronized_translations``:
+    within one orientation every set is a translation), then compared with
     their true positions: the largest 2-D after affine residual and the
     smallest trustworthiness (``tied_trustworthiness``: the positions are a
     lattice) over the classes of at least
     ``MIN_CLASS_POVS`` POVs (at most ``MAX_CLASS_POVS`` of them, evenly
-    chosen, embedded)."""
+    chosen, embedded); ``paired_affine_residual_max`` the same over the POVs
+    an equality pair inside their class places, ``unpaired_povs`` the others."""
     from sensorispace_ros.core import quality
-    from sensorispace_ros.core.regularize import iterate_regularization
     from sensorispace_ros.core.seeding import rng_for
-    from sensorispace_ros.offline.representation import cca_params
 
     classes = orientation_classes(angle)
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     set_ids = np.asarray(set_ids).reshape(-1)
     positions = np.asarray(true_poses, dtype=float)[:, :2]
-    residuals, trust, sizes = [], [], []
+    residuals, trust, sizes, paired_residuals, unpaired = [], [], [], [], 0
     rng = rng_for(seed, "rotation.translation")
     for label in np.unique(classes):
         members = np.flatnonzero(classes == label)
@@ -209,17 +210,12 @@ def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.
             continue
         if len(members) > MAX_CLASS_POVS:      # evenly by discovery order: a bounded cost
             members = members[np.linspace(0, len(members) - 1, MAX_CLASS_POVS).astype(int)]
-        place = np.full(len(classes), -1)
-        place[members] = np.arange(len(members))
-        inside = np.all(place[pairs] >= 0, axis=1) if len(pairs) else np.zeros(0, bool)
-        sub_pairs, sub_ids = place[pairs[inside]], set_ids[inside]
-        sub = np.asarray(distance)[np.ix_(members, members)]
-        result = iterate_regularization(
-            sub, sub_pairs, sub_ids, n_components=2,
-            n_iterations=cfg["representation"]["regularization"]["iterations"],
-            cca_params=cca_params(cfg), random_state=rng)
-        embedding = result.embeddings[-1]
+        embedding, paired = _class_embedding(distance, members, pairs, set_ids, cfg, rng)
         residuals.append(quality.affine_residual(embedding, positions[members]))
+        if paired.sum() > 3:
+            paired_residuals.append(quality.affine_residual(embedding[paired],
+                                                            positions[members][paired]))
+        unpaired += int(np.sum(~paired))
         trust.append(tied_trustworthiness(positions[members], embedding,
                                           n_neighbors=min(5, len(members) // 2 - 1)))
         sizes.append(len(members))
@@ -229,7 +225,33 @@ def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.
             "rotation.translation.class_povs_min": int(min(sizes)),
             "rotation.translation.affine_residual_max": float(max(residuals)),
             "rotation.translation.affine_residual_median": float(np.median(residuals)),
-            "rotation.translation.trustworthiness_min": float(min(trust))}
+            "rotation.translation.trustworthiness_min": float(min(trust)),
+            # The POVs an equality pair inside their class places (the others: the metric).
+            "rotation.translation.paired_affine_residual_max":
+                float(max(paired_residuals)) if paired_residuals else float("nan"),
+            "rotation.translation.unpaired_povs": unpaired}
+
+
+def _class_embedding(distance, members, pairs, set_ids, cfg: dict, rng):
+    """The 2-D embedding of the POVs ``members`` of one orientation class
+    (``translation_numbers``) and which of them an equality pair inside the
+    class joins."""
+    from sensorispace_ros.core.looped_space import synchronized_translations
+    from sensorispace_ros.core.regularize import iterate_regularization
+    from sensorispace_ros.offline.representation import cca_params
+
+    place = np.full(int(max(members.max() + 1, pairs.max() + 1 if len(pairs) else 0)), -1)
+    place[members] = np.arange(len(members))
+    inside = np.all(place[pairs] >= 0, axis=1) if len(pairs) else np.zeros(0, bool)
+    sub_pairs, sub_ids = place[pairs[inside]], set_ids[inside]
+    result = iterate_regularization(
+        np.asarray(distance)[np.ix_(members, members)], sub_pairs, sub_ids, n_components=2,
+        n_iterations=cfg["representation"]["regularization"]["iterations"],
+        cca_params=cca_params(cfg), random_state=rng)
+    paired = np.zeros(len(members), dtype=bool)
+    _, sets, size = np.unique(sub_ids, return_inverse=True, return_counts=True)
+    paired[sub_pairs[size[sets.reshape(-1)] >= 2].ravel()] = True     # a lone pair places nothing
+    return synchronized_translations(result.embeddings[-1], sub_pairs, sub_ids), paired
 
 
 def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,
