@@ -1,8 +1,9 @@
 """The naive agent's global search in the rotation world (``config/rotations.yaml``):
 the compensable turned visits it must reach, one shot each (every (position,
 orientation) pair is visited once). The configuration's search settings (a
-4,096-state probe grid with 64 starts, the rank test at 1e-4, searches that
-crawl for up to 300 iterations) reach them; the smoke profile's settings do not."""
+4,096-state probe grid with 64 starts and 16 known POVs, the rank test at
+1e-4, searches that crawl for up to 300 iterations) reach them; the smoke
+profile's settings do not."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,7 +21,8 @@ from sensorispace_ros.evaluation.rotations import compensable_poses
 ROTATIONS = REPO / "config" / "rotations.yaml"
 # The search settings of config/rotations-smoke.yaml before the full profile's.
 SMOKE_SEARCH = {"naive.probe_grid": 6, "naive.probe_starts": 8, "naive.rank_ratio": 1e-3,
-                "naive.lm_stall_iterations": 3, "naive.lm_max_iterations": 40}
+                "naive.lm_stall_iterations": 3, "naive.lm_max_iterations": 40,
+                "naive.lm_restarts": 2}
 
 
 def _reached(overrides: dict, visits: int = 24) -> tuple[int, int]:
