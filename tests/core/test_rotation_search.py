@@ -19,7 +19,7 @@ from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.evaluation.rotations import compensable_poses
 
 ROTATIONS = REPO / "config" / "rotations.yaml"
-# The search settings of config/rotations-smoke.yaml before the full profile's.
+# The search settings of config/rotations-smoke.yaml (the smoke profile).
 SMOKE_SEARCH = {"naive.probe_grid": 6, "naive.probe_starts": 8, "naive.rank_ratio": 1e-3,
                 "naive.lm_stall_iterations": 3, "naive.lm_max_iterations": 40,
                 "naive.lm_restarts": 2}
