@@ -34,7 +34,7 @@ from scipy.sparse.linalg import lsqr, spsolve
 from sensorispace_ros.core.topology import K_SCALE, _lifetimes, _nearest_neighbour_scale, \
     check_distance_matrix
 
-MAX_POINTS_H2 = 200        # greedy landmarks above this many points (H2 is costly)
+MAX_POINTS_H2 = 400        # greedy landmarks above this many points (H2 is costly)
 COEFF = 47                 # a prime larger than any winding met in practice
 MAX_LANDMARKS = 300
 MAX_RESULTANT = 0.5        # a loop's coordinate goes round the circle: its mean resultant is small
@@ -272,3 +272,74 @@ def synchronized_angle(theta0, pairs, set_ids, iterations: int = SYNC_ITERATIONS
         solved = spsolve(system, anchor_weight * z0)
         z = solved / np.maximum(np.abs(solved), 1e-300)
     return np.mod(np.angle(z), 2 * np.pi)
+
+
+def synchronized_translations(embedding, pairs, set_ids,
+                              anchor_weight: float = SYNC_ANCHOR_WEIGHT,
+                              neighbours: int = 6) -> np.ndarray:
+    """A flat embedding ``(P, d)`` of POVs of one orientation made consistent
+    with the equality sets read as vectors: a change that translates the
+    object translates every pose it is compensated from by one vector, so
+    every pair ``(i, j)`` of one set should satisfy ``y_j - y_i = v_set``.
+    ``y`` and the sets' vectors ``v`` minimise ``sum |y_j - y_i - v_set|^2 +
+    anchor_weight sum |y - embedding|^2`` (one sparse linear system per
+    coordinate). Stronger than the paper's regularisation, which equalises
+    the lengths of a set's changes only: their directions agree too, which
+    holds along translations and not along turns. Where the pairs pin the
+    POVs (the only solutions of the sets are affine images of the true
+    positions) the result is one, whatever the metric's distortion; a POV in
+    no pair (of a set of two pairs or more) is placed by the affine map that takes its ``neighbours`` nearest
+    placed POVs (in ``embedding``) to their places."""
+    Y0 = np.asarray(embedding, dtype=float)
+    if Y0.ndim != 2:
+        raise ValueError(f"embedding must be (P, d), got shape {Y0.shape}")
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    set_ids = np.asarray(set_ids).reshape(-1)
+    if len(set_ids) != len(pairs):
+        raise ValueError(f"set_ids: {len(set_ids)} ids for {len(pairs)} pairs")
+    n = len(Y0)
+    if len(pairs) and (pairs.min() < 0 or pairs.max() >= n):
+        raise ValueError(f"pairs: indices must lie in [0, {n})")
+    if not anchor_weight > 0:
+        raise ValueError(f"anchor_weight must be > 0, got {anchor_weight!r}")
+    keep = pairs[:, 0] != pairs[:, 1]
+    pairs, set_ids = pairs[keep], set_ids[keep]
+    _, sets = np.unique(set_ids, return_inverse=True)
+    # A set of one pair constrains nothing: its vector is free.
+    keep = np.bincount(sets.reshape(-1))[sets.reshape(-1)] >= 2 if len(pairs) else keep[:0]
+    pairs = pairs[keep]
+    if not len(pairs):
+        return Y0.copy()
+    _, sets = np.unique(set_ids[keep], return_inverse=True)
+    k, n_sets = len(pairs), int(sets.max()) + 1
+    rows = np.concatenate([np.arange(k)] * 3 + [k + np.arange(n)])
+    cols = np.concatenate([pairs[:, 1], pairs[:, 0], n + sets.reshape(-1), np.arange(n)])
+    values = np.concatenate([np.ones(k), -np.ones(k), -np.ones(k),
+                             np.full(n, np.sqrt(anchor_weight))])
+    system = coo_matrix((values, (rows, cols)), shape=(k + n, n + n_sets)).tocsr()
+    normal = (system.T @ system).tocsc()
+    out = np.empty_like(Y0)
+    for d in range(Y0.shape[1]):
+        rhs = np.concatenate([np.zeros(k), np.sqrt(anchor_weight) * Y0[:, d]])
+        out[:, d] = spsolve(normal, system.T @ rhs)[:n]
+    return _place_unpaired(Y0, out, np.bincount(pairs.ravel(), minlength=n) > 0, neighbours)
+
+
+def _place_unpaired(before: np.ndarray, after: np.ndarray, paired: np.ndarray,
+                    neighbours: int) -> np.ndarray:
+    """``after`` with each unpaired row moved by the affine map (least
+    squares) from ``before`` to ``after`` of its ``neighbours`` nearest
+    paired rows in ``before`` (left as is with fewer paired rows than an
+    affine map needs)."""
+    placed = np.flatnonzero(paired)
+    d = before.shape[1]
+    if len(placed) < d + 1 or paired.all():
+        return after
+    out = after.copy()
+    k = min(max(int(neighbours), d + 1), len(placed))
+    for i in np.flatnonzero(~paired):
+        near = placed[np.argsort(np.linalg.norm(before[placed] - before[i], axis=1))[:k]]
+        lifted = np.column_stack([before[near], np.ones(k)])
+        affine, *_ = np.linalg.lstsq(lifted, after[near], rcond=None)
+        out[i] = np.append(before[i], 1.0) @ affine
+    return out

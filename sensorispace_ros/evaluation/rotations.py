@@ -186,50 +186,166 @@ def translation_numbers(distance: np.ndarray, true_poses: np.ndarray, angle: np.
     one orientation at a time. The POVs of one class of the angle
     coordinate (``orientation_classes``) are embedded in 2-D from their own
     Hausdorff distances and regularised with the equality pairs inside the
-    class (CCA and iterations as the representation's), then compared with
+    class (CCA and iterations as the representation's) and synchronised
+    with them read as vectors (``looped_space.synchronized_translations``:
+    within one orientation every set is a translation), then compared with
     their true positions: the largest 2-D after affine residual and the
     smallest trustworthiness (``tied_trustworthiness``: the positions are a
     lattice) over the classes of at least
     ``MIN_CLASS_POVS`` POVs (at most ``MAX_CLASS_POVS`` of them, evenly
-    chosen, embedded)."""
+    chosen, embedded). A POV no pair inside its class places is placed
+    through the sets that join it to other classes (``place_by_turns``);
+    ``paired_affine_residual_max`` is the residual over the POVs the pairs
+    inside their class place, ``unpaired_povs`` the others, ``unplaced_povs``
+    those the turns did not place either (they keep the metric's place)."""
     from sensorispace_ros.core import quality
-    from sensorispace_ros.core.regularize import iterate_regularization
     from sensorispace_ros.core.seeding import rng_for
-    from sensorispace_ros.offline.representation import cca_params
 
     classes = orientation_classes(angle)
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     set_ids = np.asarray(set_ids).reshape(-1)
     positions = np.asarray(true_poses, dtype=float)[:, :2]
-    residuals, trust, sizes = [], [], []
-    rng = rng_for(seed, "rotation.translation")
-    for label in np.unique(classes):
-        members = np.flatnonzero(classes == label)
-        if len(members) < MIN_CLASS_POVS:
-            continue
-        if len(members) > MAX_CLASS_POVS:      # evenly by discovery order: a bounded cost
-            members = members[np.linspace(0, len(members) - 1, MAX_CLASS_POVS).astype(int)]
-        place = np.full(len(classes), -1)
-        place[members] = np.arange(len(members))
-        inside = np.all(place[pairs] >= 0, axis=1) if len(pairs) else np.zeros(0, bool)
-        sub_pairs, sub_ids = place[pairs[inside]], set_ids[inside]
-        sub = np.asarray(distance)[np.ix_(members, members)]
-        result = iterate_regularization(
-            sub, sub_pairs, sub_ids, n_components=2,
-            n_iterations=cfg["representation"]["regularization"]["iterations"],
-            cca_params=cca_params(cfg), random_state=rng)
-        embedding = result.embeddings[-1]
+    flat, paired, embedded = _class_embeddings(distance, classes, pairs, set_ids, cfg,
+                                               rng_for(seed, "rotation.translation"))
+    placed_flat, placed = place_by_turns(flat, paired, classes, pairs, set_ids)
+    residuals, trust, sizes, paired_residuals = [], [], [], []
+    for members in embedded:
+        embedding = placed_flat[members]
         residuals.append(quality.affine_residual(embedding, positions[members]))
+        inside = paired[members]
+        if inside.sum() > 3:
+            paired_residuals.append(quality.affine_residual(embedding[inside],
+                                                            positions[members][inside]))
         trust.append(tied_trustworthiness(positions[members], embedding,
                                           n_neighbors=min(5, len(members) // 2 - 1)))
         sizes.append(len(members))
+    unpaired = sum(int(np.sum(~paired[m])) for m in embedded)
+    unplaced = sum(int(np.sum(~placed[m])) for m in embedded)
     if not sizes:
         return {"rotation.translation.classes": 0}
     return {"rotation.translation.classes": len(sizes),
             "rotation.translation.class_povs_min": int(min(sizes)),
             "rotation.translation.affine_residual_max": float(max(residuals)),
             "rotation.translation.affine_residual_median": float(np.median(residuals)),
-            "rotation.translation.trustworthiness_min": float(min(trust))}
+            "rotation.translation.trustworthiness_min": float(min(trust)),
+            # The POVs an equality pair inside their class places (the others: the metric).
+            "rotation.translation.paired_affine_residual_max":
+                float(max(paired_residuals)) if paired_residuals else float("nan"),
+            "rotation.translation.unpaired_povs": unpaired,
+            "rotation.translation.unplaced_povs": unplaced}
+
+
+def place_by_turns(flat, placed, classes, pairs, set_ids):
+    """Flat coordinates ``(P, 2)`` (one frame per orientation class) of the
+    POVs not ``placed`` by the pairs inside their class, from the sets that
+    join them to placed POVs of other classes, repeated while it places more.
+
+    A set is one rigid motion: between two classes it maps one's poses to
+    the other's by one turn and its own shift, so in the classes' frames by
+    one linear map (the same for every set between those two classes: the
+    same turn seen in the same two frames) and the set's own offset. The
+    linear map is fitted on the placed pairs of every set with two or more
+    of them between the two classes (centred by set), the offset on the
+    set's own placed pairs; an unplaced POV takes the median of what its
+    pairs say. Returns the coordinates and which POVs are placed."""
+    out, done = np.array(flat, dtype=float, copy=True), np.array(placed, dtype=bool, copy=True)
+    while True:
+        fresh = {}
+        for u in np.flatnonzero(~done & np.all(np.isfinite(out), axis=1)):
+            guesses = [g for row in np.flatnonzero(np.any(pairs == u, axis=1))
+                       if (g := _turn_guess(u, row, out, done, classes, pairs, set_ids))
+                       is not None]
+            if guesses:
+                fresh[u] = np.median(np.array(guesses), axis=0)
+        if not fresh:
+            return out, done
+        for u, y in fresh.items():
+            out[u], done[u] = y, True
+
+
+def _turn_guess(u, row, flat, placed, classes, pairs, set_ids):
+    """Where pair ``row`` (``u`` at one end, a placed POV of another class at
+    the other) puts ``u`` (``place_by_turns``); None if it cannot tell."""
+    side = int(pairs[row, 1] == u)
+    j = pairs[row, 1 - side]
+    if not placed[j] or classes[j] == classes[u]:
+        return None
+    between = (classes[pairs[:, side]] == classes[u]) & \
+        (classes[pairs[:, 1 - side]] == classes[j]) & placed[pairs[:, 0]] & placed[pairs[:, 1]]
+    source, target = flat[pairs[between, 1 - side]], flat[pairs[between, side]]
+    ids, index, counts = np.unique(set_ids[between], return_inverse=True, return_counts=True)
+    index = index.reshape(-1)
+    if not np.any(ids == set_ids[row]):
+        return None
+    centre_s = np.column_stack([np.bincount(index, source[:, k]) / counts for k in range(2)])
+    centre_t = np.column_stack([np.bincount(index, target[:, k]) / counts for k in range(2)])
+    several = counts[index] >= 2
+    spread = source[several] - centre_s[index[several]]
+    if several.sum() < 3 or np.linalg.matrix_rank(spread, tol=1e-9) < 2:
+        return None
+    linear, *_ = np.linalg.lstsq(spread, target[several] - centre_t[index[several]], rcond=None)
+    own = int(np.flatnonzero(ids == set_ids[row])[0])
+    return centre_t[own] + (flat[j] - centre_s[own]) @ linear
+
+
+def _class_embeddings(distance, classes, pairs, set_ids, cfg: dict, rng):
+    """Every orientation class of at least ``MIN_CLASS_POVS`` POVs (at most
+    ``MAX_CLASS_POVS`` of them) embedded on its own (``_class_embedding``).
+    Returns the coordinates ``(P, 2)`` (NaN: not embedded), which POVs the
+    pairs inside their class place, and the embedded members of each class."""
+    flat = np.full((len(classes), 2), np.nan)
+    paired = np.zeros(len(classes), dtype=bool)
+    embedded = []
+    for label in np.unique(classes):
+        members = np.flatnonzero(classes == label)
+        if len(members) < MIN_CLASS_POVS:
+            continue
+        if len(members) > MAX_CLASS_POVS:      # evenly by discovery order: a bounded cost
+            members = members[np.linspace(0, len(members) - 1, MAX_CLASS_POVS).astype(int)]
+        flat[members], paired[members] = _class_embedding(distance, members, pairs, set_ids,
+                                                          cfg, rng)
+        embedded.append(members)
+    return flat, paired, embedded
+
+
+def _class_embedding(distance, members, pairs, set_ids, cfg: dict, rng):
+    """The 2-D embedding of the POVs ``members`` of one orientation class
+    (``translation_numbers``) and which of them the pairs inside the class
+    place (``_main_component``)."""
+    from sensorispace_ros.core.looped_space import synchronized_translations
+    from sensorispace_ros.core.regularize import iterate_regularization
+    from sensorispace_ros.offline.representation import cca_params
+
+    place = np.full(int(max(members.max() + 1, pairs.max() + 1 if len(pairs) else 0)), -1)
+    place[members] = np.arange(len(members))
+    inside = np.all(place[pairs] >= 0, axis=1) if len(pairs) else np.zeros(0, bool)
+    sub_pairs, sub_ids = place[pairs[inside]], set_ids[inside]
+    result = iterate_regularization(
+        np.asarray(distance)[np.ix_(members, members)], sub_pairs, sub_ids, n_components=2,
+        n_iterations=cfg["representation"]["regularization"]["iterations"],
+        cca_params=cca_params(cfg), random_state=rng)
+    return synchronized_translations(result.embeddings[-1], sub_pairs, sub_ids), \
+        _main_component(len(members), sub_pairs, sub_ids)
+
+
+def _main_component(n: int, pairs, set_ids) -> np.ndarray:
+    """Which of ``n`` POVs lie in the largest connected part of the graph of
+    ``pairs`` (of sets of two pairs or more: a lone pair places nothing).
+    The sets fix the shape of each part, never where one part lies against
+    another: only the largest part is placed by them."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    _, sets, size = np.unique(set_ids, return_inverse=True, return_counts=True)
+    used = pairs[size[sets.reshape(-1)] >= 2] if len(pairs) else pairs
+    if not len(used):
+        return np.zeros(n, dtype=bool)
+    graph = coo_matrix((np.ones(len(used)), (used[:, 0], used[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    touched = np.zeros(n, dtype=bool)
+    touched[used.ravel()] = True
+    main = np.bincount(label[touched]).argmax()
+    return touched & (label == main)
 
 
 def angle_numbers(distance: np.ndarray, true_poses: np.ndarray, pairs: np.ndarray,

@@ -5,7 +5,8 @@ import pytest
 
 from sensorispace_ros.core.looped_space import (betti_up_to_h2, circular_coordinates,
                                                 circular_correlation, gap_count,
-                                                looped_coordinate, synchronized_angle)
+                                                looped_coordinate, synchronized_angle,
+                                                synchronized_translations)
 from sensorispace_ros.core.topology import euclidean_distances
 
 
@@ -156,3 +157,58 @@ def test_the_gap_rule_reads_a_coarse_ring_times_circle_where_the_scale_rule_read
     assert (scale["betti1"], scale["betti2"]) == (0, 0)
     with pytest.raises(ValueError, match="rule"):
         betti_up_to_h2(D, rule="largest")
+
+
+def _lattice_sets(positions, steps):
+    """One equality set per step: every pair of lattice points that step apart."""
+    pairs, ids = [], []
+    for k, step in enumerate(steps):
+        for i, p in enumerate(positions):
+            hit = np.flatnonzero(np.all(np.isclose(positions, p + step), axis=1))
+            pairs.extend([(i, int(j)) for j in hit])
+            ids.extend([k] * len(hit))
+    return np.array(pairs), np.array(ids)
+
+
+def test_translation_synchronisation_undoes_a_distortion_the_sets_pin():
+    from sensorispace_ros.core.quality import affine_residual
+
+    g = np.arange(6.0)
+    truth = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    # A metric's embedding: bent, and stretched more on one side (the diagonal problem).
+    bent = np.column_stack([truth[:, 0] ** 1.3, truth[:, 1] + 0.4 * np.sin(truth[:, 0])])
+    pairs, ids = _lattice_sets(truth, [(2.0, 1.0), (-1.0, 3.0), (1.0, 1.0)])
+    assert affine_residual(bent, truth) > 0.02
+    assert affine_residual(synchronized_translations(bent, pairs, ids), truth) < 1e-6
+    # A point in no pair (14, inside the lattice) is placed by its neighbours'
+    # affine map; a set of one pair (0 -> 7: a wrong step) pins nothing.
+    keep = ~np.any(pairs == 14, axis=1)
+    loose = np.vstack([pairs[keep], [[0, 7]]])
+    loose_ids = np.concatenate([ids[keep], [9]])
+    out = synchronized_translations(bent, loose, loose_ids)
+    others = np.arange(len(truth)) != 14
+    assert affine_residual(out[others], truth[others]) < 1e-6
+    assert affine_residual(out, truth) < 0.1 * affine_residual(bent, truth)
+    with pytest.raises(ValueError, match="set_ids"):
+        synchronized_translations(bent, pairs, ids[:3])
+    with pytest.raises(ValueError, match="pairs"):
+        synchronized_translations(bent, pairs + 100, ids)
+
+
+def test_the_compensable_poses_of_the_rotation_world_read_ring_times_circle():
+    """All 319 compensable poses of config/rotations.yaml (seed 0) on plane x
+    circle: a ring times a circle, Betti numbers (1, 2, 1). On 200 greedy
+    landmarks of them the 2-cycle (and a loop) is lost."""
+    from shared import REPO
+
+    from sensorispace_ros import config
+    from sensorispace_ros.core.run_world import run_world
+    from sensorispace_ros.evaluation.rotations import compensable_poses, pose_key
+
+    world = run_world(config.load_config(REPO / "config" / "rotations.yaml"), 0)
+    distance = euclidean_distances(pose_key(compensable_poses(world)[1]))
+    assert len(distance) == 319
+    truth = betti_up_to_h2(distance, rule="gap")
+    assert (truth["betti0"], truth["betti1"], truth["betti2"]) == (1, 2, 1)
+    coarse = betti_up_to_h2(distance, max_points=200, rule="gap")
+    assert (coarse["betti1"], coarse["betti2"]) != (2, 1)
