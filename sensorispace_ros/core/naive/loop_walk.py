@@ -244,10 +244,12 @@ class LoopWalk:
             active[keep], point[keep], self.point_jac[keep], direction[keep], self.bend[keep])
         self.spacing, self.arc = spacing[keep], self.arc[keep]
 
-    def resample(self, n_samples: int) -> np.ndarray:
+    def resample(self, n_samples: int, polish_knots: bool = True) -> np.ndarray:
         """``(P, n_samples, M)`` samples: the starts repeated, and for every
         closed loop that is not split, its polished knots resampled along a
-        periodic spline."""
+        periodic spline. Without ``polish_knots`` the knots are taken as the
+        walk corrected them (no call: their small offset from the level set
+        only biases the samples' spacing along the loop, not their POV)."""
         start, paths, reason = self.start, self.paths, self.reason
         n_pov = len(start)
         samples = np.repeat(start[:, None, :], n_samples, axis=1)
@@ -258,7 +260,13 @@ class LoopWalk:
             if reason[p] == VALID and closure_gap_ratio(np.asarray(paths[p])) > self.closure_tol:
                 reason[p] = SPLIT
         whole = [p for p in range(n_pov) if reason[p] == VALID]
-        if whole:
+        if whole and not polish_knots:
+            for p in whole:
+                if not np.all(np.isfinite(np.asarray(paths[p]))):
+                    reason[p] = NOT_CLOSED
+                    continue
+                samples[p] = resample_loop_spline(np.asarray(paths[p]), n_samples)
+        elif whole:
             # One more Gauss-Newton step on every knot (with the Jacobian of its
             # probe, in one call): a knot corrected once from a prediction
             # ~predictor_tol off the level set is still slightly off,
