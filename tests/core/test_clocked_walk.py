@@ -13,17 +13,16 @@ from sensorispace_ros.core.run_world import run_world
 SMOKE = "config/smoke.yaml"
 
 
-@pytest.fixture(scope="module")
-def two_walks():
-    """One state of the smoke world's start POV walked by the lockstep agent
-    and by the clocked one (each started alone in the same static world):
-    ``(world, [(agent, samples, pov rows)] lockstep first)``."""
+def _walks(kinds, **overrides):
+    """One state of the smoke world's start POV walked by each agent kind
+    (each started alone in the same static world): ``(world, [(agent,
+    samples, pov rows)])``."""
     cfg = config.load_config(SMOKE)
     world = run_world(cfg)
-    params = NaiveParams(**cfg["naive"])
+    params = NaiveParams(**{**cfg["naive"], **overrides})
     walks = []
     state = None
-    for kind in (NaiveAgent, ClockedAgent):
+    for kind in kinds:
         agent = kind(SensingOnly(world.body(lights=world.initial_lights)), params)
         agent.start(world.m0, seed=world.seed)
         if state is None:
@@ -35,6 +34,12 @@ def two_walks():
         walks.append((agent, agent._store.samples[indices[0]],
                       agent._body.rows.get("pov", 0) - before))
     return world, walks
+
+
+@pytest.fixture(scope="module")
+def two_walks():
+    """The lockstep agent's walk, then the clocked agent's."""
+    return _walks((NaiveAgent, ClockedAgent))
 
 
 def test_the_brief_walk_costs_fewer_rows(two_walks):
@@ -69,8 +74,16 @@ def test_the_lockstep_agent_keeps_its_walk(two_walks):
     assert np.max(np.abs(sensed - sensed[0])) < 1e-8 * np.max(np.abs(sensed[0]))
 
 
+def test_without_the_brief_walk_the_clocked_agent_walks_as_the_lockstep_one():
+    _, ((_, full, full_rows), (_, clocked, clocked_rows)) = _walks(
+        (NaiveAgent, ClockedAgent), clock_brief_walk=False)
+    assert clocked_rows == full_rows
+    np.testing.assert_array_equal(clocked, full)
+
+
 @pytest.mark.parametrize("name, value", [("clock_pov_predictor_tol", 0.0),
-                                         ("clock_pov_polish_iterations", -1)])
+                                         ("clock_pov_polish_iterations", -1),
+                                         ("clock_brief_walk", 2)])
 def test_the_brief_walks_parameters_are_checked_at_start_up(name, value):
     with pytest.raises(config.ConfigError, match=rf"naive\.{name}"):
         config.load_config(SMOKE, {f"naive.{name}": value})

@@ -417,7 +417,7 @@ class ClockedAgent(NaiveAgent):
     def _walk_povs(self, motor_states):
         """1-D POVs walked briefly (``clocked_walk``: a walk a change may cut
         is cheaper); other dimensions as the lockstep agent."""
-        if self.structure.pov_dim != 1:
+        if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
             return super()._walk_povs(motor_states)
         p = self.params
         return brief_loop_walks(
