@@ -33,8 +33,8 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
-from sensorispace_ros.core.naive.clocked_walk import brief_loop_walks
 from sensorispace_ros.core.naive.anchors import anchor_requests
+from sensorispace_ros.core.naive.loop_walk import brief_loop_walks
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -415,8 +415,8 @@ class ClockedAgent(NaiveAgent):
         return walked
 
     def _walk_povs(self, motor_states):
-        """1-D POVs walked briefly (``clocked_walk``: a walk a change may cut
-        is cheaper); other dimensions as the lockstep agent."""
+        """1-D POVs walked briefly (``loop_walk.brief_loop_walks``: a walk a
+        change may cut is cheaper); other dimensions as the lockstep agent."""
         if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
             return super()._walk_povs(motor_states)
         p = self.params
