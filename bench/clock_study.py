@@ -103,7 +103,7 @@ def smallest(rows: list, target: float):
     """The smallest interval from which on every longer one reaches ``target``."""
     good = None
     for row in sorted(rows, key=lambda r: -r["interval"]):
-        if row["coverage"] < target:
+        if not row["coverage"] >= target:      # NaN: not reached
             break
         good = row["interval"]
     return good
@@ -166,7 +166,8 @@ def main() -> None:
             continue
         row = explore(args.config, args.seed, args.noise, "rows", interval, args.set)
         row["interval"] = int(interval)
-        row["coverage"] = row["naive.distinct_positions"] / lockstep
+        # A lockstep run that covers nothing leaves nothing to compare with.
+        row["coverage"] = row["naive.distinct_positions"] / lockstep if lockstep else float("nan")
         rows.append(row)
         rows.sort(key=lambda r: r["interval"])
         store.write_text(json.dumps({"config": args.config, "seed": args.seed,

@@ -30,3 +30,8 @@ def test_table_has_a_column_per_interval():
     assert "| reactions kept / undone | 5 / 1 | 5 / 1 |" in lines
     assert "| false detections | 0.4 % | 0.4 % |" in lines
     assert all(line.count("|") == 4 for line in lines)
+
+
+def test_a_coverage_without_a_lockstep_to_compare_reaches_nothing():
+    rows = [{"interval": i, "coverage": float("nan")} for i in (1000, 2000)]
+    assert clock_study.smallest(rows, 0.9) is None

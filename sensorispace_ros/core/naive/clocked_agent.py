@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.anchors import anchor_requests
+from sensorispace_ros.core.naive.loop_walk import brief_loop_walks
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -412,6 +413,20 @@ class ClockedAgent(NaiveAgent):
         # Every call of the walk passed its sentinel, and so did the search's before it.
         self._verified = self._store.count
         return walked
+
+    def _walk_povs(self, motor_states):
+        """1-D POVs walked briefly (``loop_walk.brief_loop_walks``: a walk a
+        change may cut is cheaper); other dimensions as the lockstep agent."""
+        if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
+            return super()._walk_povs(motor_states)
+        p = self.params
+        return brief_loop_walks(
+            self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
+            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
+            max_step=p.pov_max_step, predictor_tol=p.clock_pov_predictor_tol,
+            max_queries=p.pov_max_queries, closure_tol=p.pov_closure_tol,
+            checks=(p.rank_ratio, self._tol.min_singular, p.pattern_ratio),
+            polish_iterations=p.clock_pov_polish_iterations)
 
     def _walk_through(self, motor_states, keep_invalid=False, others=None):
         """``SearchAndSample._sample_povs``, started again in the new world

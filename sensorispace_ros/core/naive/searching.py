@@ -240,16 +240,7 @@ class SearchAndSample:
         further solutions of state ``i``'s sensation (0-D POVs)."""
         p = self.params
         self._body.stage = "pov"
-        walk = sample_sensory_points_of_view(
-            self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
-            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
-            max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
-            rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
-            polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
-            sample_tol=p.pov_sample_tol,
-            surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
-            min_singular=self._tol.min_singular,
-            pattern_ratio=p.pattern_ratio)
+        walk = self._walk_povs(motor_states)
         whole = self._whole_on_level_set(walk)
         indices, sensations = [], []
         for i in range(len(motor_states)):
@@ -271,6 +262,21 @@ class SearchAndSample:
                     indices.append(-1)
                     sensations.append(None)
         return indices, sensations
+
+    def _walk_povs(self, motor_states: np.ndarray):
+        """The walks of ``_sample_povs``: ``sample_sensory_points_of_view``
+        with the agent's parameters."""
+        p = self.params
+        return sample_sensory_points_of_view(
+            self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
+            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
+            max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
+            rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
+            polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
+            sample_tol=p.pov_sample_tol,
+            surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
+            min_singular=self._tol.min_singular,
+            pattern_ratio=p.pattern_ratio)
 
 
 # How many times what two sensings of one pose differ by a POV's sample may
