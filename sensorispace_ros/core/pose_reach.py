@@ -16,10 +16,9 @@ when it detours, in position or by turning the long way round.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse.csgraph import dijkstra
 
 from sensorispace_ros.core.cca import check_distance_matrix
-from sensorispace_ros.core.reach import pruned_graph
+from sensorispace_ros.core.reach import pair_paths
 
 SAME_POSE_TOL = 1e-9      # relative to the length scale: start and target at one pose
 LONG_WAY_TOL = 0.05       # rad past half a turn before a path counts as the long way round
@@ -98,27 +97,13 @@ def pose_reaching_evaluation(distance, poses, length_scale: float, *, n_pairs: i
     if poses.shape[0] != P:
         raise ValueError(f"poses must have one row per node ({P}), got {poses.shape[0]}")
     rho = _check_scale(length_scale)
-    if not isinstance(n_pairs, (int, np.integer)) or n_pairs < 1:
-        raise ValueError(f"n_pairs must be a positive integer, got {n_pairs!r}")
-    rng = random_state if isinstance(random_state, np.random.Generator) \
-        else np.random.default_rng(random_state)
-    graph = pruned_graph(D, radius=radius, max_degree=max_degree)
-    starts = rng.integers(P, size=n_pairs)
-    targets = (starts + rng.integers(1, P, size=n_pairs)) % P
-    sources, row_of = np.unique(starts, return_inverse=True)
-    dist, pred = dijkstra(graph, directed=False, indices=sources, return_predecessors=True)
-    straightness, paths = [], []
+    graph, starts, targets, paths = pair_paths(D, n_pairs, random_state, max_degree, radius)
+    straightness = []
     reached = same_pose = long_way = 0
-    for row, start, target in zip(row_of.ravel(), starts, targets):
-        if not np.isfinite(dist[row, target]):
+    for path, start, target in zip(paths, starts, targets):
+        if path is None:
             straightness.append(None)
-            paths.append(None)
             continue
-        path = [int(target)]
-        while path[-1] != start:
-            path.append(int(pred[row, path[-1]]))
-        path = path[::-1]
-        paths.append(path)
         reached += 1
         if pose_distance(poses[start], poses[target], rho) <= SAME_POSE_TOL * rho:
             same_pose += 1

@@ -114,6 +114,26 @@ def path_straightness(path, positions) -> float:
     return float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)) / straight)
 
 
+def pair_paths(D: np.ndarray, n_pairs: int, random_state, max_degree: int, radius):
+    """The pruned graph of ``D``, ``n_pairs`` seeded draws of two distinct
+    nodes (start, target) and the Dijkstra path of each (a list of nodes,
+    None where the graph does not join them)."""
+    if not isinstance(n_pairs, (int, np.integer)) or n_pairs < 1:
+        raise ValueError(f"n_pairs must be a positive integer, got {n_pairs!r}")
+    rng = random_state if isinstance(random_state, np.random.Generator) \
+        else np.random.default_rng(random_state)
+    graph = pruned_graph(D, radius=radius, max_degree=max_degree)
+    P = D.shape[0]
+    starts = rng.integers(P, size=n_pairs)
+    targets = (starts + rng.integers(1, P, size=n_pairs)) % P
+    sources, row_of = np.unique(starts, return_inverse=True)
+    dist, pred = dijkstra(graph, directed=False, indices=sources, return_predecessors=True)
+    paths = [_predecessor_path(pred[row], int(start), int(target))
+             if np.isfinite(dist[row, target]) else None
+             for row, start, target in zip(row_of.ravel(), starts, targets)]
+    return graph, starts, targets, paths
+
+
 def reaching_evaluation(distance, positions, *, n_pairs: int = 100, random_state=None,
                         max_degree: int = 50, radius=None) -> dict:
     """Straightness of Dijkstra paths between random start/target POVs.
@@ -128,24 +148,14 @@ def reaching_evaluation(distance, positions, *, n_pairs: int = 100, random_state
     positions = np.asarray(positions, dtype=float)
     if positions.ndim != 2 or positions.shape[0] != P:
         raise ValueError(f"positions must have shape ({P}, dim), got {positions.shape}")
-    if not isinstance(n_pairs, (int, np.integer)) or n_pairs < 1:
-        raise ValueError(f"n_pairs must be a positive integer, got {n_pairs!r}")
-    rng = random_state if isinstance(random_state, np.random.Generator) \
-        else np.random.default_rng(random_state)
-    graph = pruned_graph(D, radius=radius, max_degree=max_degree)
-    starts = rng.integers(P, size=n_pairs)
-    targets = (starts + rng.integers(1, P, size=n_pairs)) % P
-    sources, row_of = np.unique(starts, return_inverse=True)
-    dist, pred = dijkstra(graph, directed=False, indices=sources, return_predecessors=True)
+    graph, starts, targets, found = pair_paths(D, n_pairs, random_state, max_degree, radius)
     straightness, paths, unreachable = [], [], 0
-    for row, start, target in zip(row_of.ravel(), starts, targets):
-        if not np.isfinite(dist[row, target]):
+    for path in found:
+        paths.append(path)
+        if path is None:
             unreachable += 1
             straightness.append(None)
-            paths.append(None)
             continue
-        path = _predecessor_path(pred[row], int(start), int(target))
-        paths.append(path)
         straightness.append(path_straightness(path, positions))
     reached = [s for s in straightness if s is not None]
     return {
