@@ -131,7 +131,7 @@ def diagnose(cfg: dict, seed: int) -> dict:
 
 
 def main(argv=None) -> None:
-    from sensorispace_ros.config import load_config
+    from sensorispace_ros.config import load_config, parse_overrides
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="config/mujoco-smoke.yaml")
@@ -139,17 +139,7 @@ def main(argv=None) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one parameter (YAML value), e.g. world.grid_count=4")
     args = parser.parse_args(argv)
-    import yaml
-
-    overrides: dict = {}
-    for item in args.set:
-        key, value = item.split("=", 1)
-        node = overrides
-        *path, last = key.split(".")
-        for part in path:
-            node = node.setdefault(part, {})
-        node[last] = yaml.safe_load(value)
-    cfg = load_config(args.config, overrides or None)
+    cfg = load_config(args.config, parse_overrides(args.set) or None)
     seed = int(cfg["seed"] if args.seed is None else args.seed)
     print(json.dumps(diagnose(cfg, seed), indent=1))
 

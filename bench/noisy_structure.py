@@ -21,13 +21,6 @@ import numpy as np
 from sensorispace_ros import config as config_mod
 
 
-def _value(text: str):
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
 
 
 def measure(config: str, seed: int, overrides: dict) -> dict:
@@ -65,7 +58,7 @@ def main() -> None:
     parser.add_argument("--seeds", default="0")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
-    overrides = {k: _value(v) for k, v in (item.split("=", 1) for item in args.set)}
+    overrides = config_mod.parse_overrides(args.set)
     for config in args.config:
         for seed in _seeds(args.seeds):
             print(json.dumps(measure(config, seed, overrides)), flush=True)

@@ -62,16 +62,6 @@ def reached_visits(cfg: dict, seed: int, changes: int) -> dict:
     }
 
 
-def _value(text: str):
-    """An override's value: an integer, a number or a YAML scalar (true, a word)."""
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    import yaml
-
-    return yaml.safe_load(text)
 
 
 def main(argv=None) -> None:
@@ -82,7 +72,7 @@ def main(argv=None) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a parameter override, e.g. naive.probe_grid=6 (YAML value)")
     args = parser.parse_args(argv)
-    overrides = {key: _value(value) for key, value in (item.split("=", 1) for item in args.set)}
+    overrides = config.parse_overrides(args.set)
     cfg = config.load_config(args.config, overrides)
     print(json.dumps({"config": args.config, "seed": args.seed, "set": overrides,
                       **reached_visits(cfg, args.seed, args.changes)}))

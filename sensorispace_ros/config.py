@@ -367,6 +367,26 @@ def load_config(path: str | Path | None = None, overrides: dict | None = None,
     return validate_config(cfg, simulated_body)
 
 
+def parse_overrides(items) -> dict:
+    """Dotted overrides from ``KEY=VALUE`` texts (a command line's ``--set``): a
+    value reads as an integer, a number (``1e-3`` too, which YAML 1.1 leaves a
+    string) or a YAML scalar or list."""
+    overrides = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"override {item!r}: expected KEY=VALUE")
+        for kind in (int, float):
+            try:
+                overrides[key] = kind(text)
+                break
+            except ValueError:
+                pass
+        else:
+            overrides[key] = yaml.safe_load(text)
+    return overrides
+
+
 def read_parameter_file(path: str | Path) -> dict:
     """The parameters of a ROS 2 parameter file (or a plain mapping), nested."""
     path = Path(path)
