@@ -368,22 +368,18 @@ def load_config(path: str | Path | None = None, overrides: dict | None = None,
 
 
 def parse_overrides(items) -> dict:
-    """Dotted overrides from ``KEY=VALUE`` texts (a command line's ``--set``): a
-    value reads as an integer, a number (``1e-3`` too, which YAML 1.1 leaves a
-    string) or a YAML scalar or list."""
+    """Dotted overrides from ``KEY=VALUE`` texts (``--set``): a value reads as a
+    number (``1e-3`` too, a string to YAML 1.1), else as YAML."""
     overrides = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ConfigError(f"override {item!r}: expected KEY=VALUE")
-        for kind in (int, float):
+    for key, sep, text in (item.partition("=") for item in items):
+        if not (key and sep):
+            raise ConfigError(f"override {key + sep + text!r}: expected KEY=VALUE")
+        for kind in (int, float, yaml.safe_load):
             try:
                 overrides[key] = kind(text)
                 break
             except ValueError:
-                pass
-        else:
-            overrides[key] = yaml.safe_load(text)
+                continue
     return overrides
 
 
