@@ -1,4 +1,4 @@
-"""The brief POV walk of the agent on a clock (loop_walk.brief_loop_walks):
+"""The brief POV walk of the agent on a clock (points_of_view.brief_loop_walks):
 the same POVs as the lockstep walk, on the level set, for fewer rows."""
 import numpy as np
 import pytest

@@ -34,10 +34,10 @@ from scipy.spatial import cKDTree
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.anchors import anchor_requests
-from sensorispace_ros.core.naive.loop_walk import brief_loop_walks
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
 NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
@@ -420,7 +420,7 @@ class ClockedAgent(NaiveAgent):
         return walked
 
     def _walk_povs(self, motor_states):
-        """1-D POVs walked briefly (``loop_walk.brief_loop_walks``: a walk a
+        """1-D POVs walked briefly (``points_of_view.brief_loop_walks``: a walk a
         change may cut is cheaper); other dimensions as the lockstep agent."""
         if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
             return super()._walk_povs(motor_states)

@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline
 
 from sensorispace_ros.core.motor_loops import closure_gap_ratio, loop_winding
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID,
-    SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, jacobian_svd, minimum_norm_correction, repair_rows,
+    has_full_pose_rank, jacobian_stencil, jacobian_svd, minimum_norm_correction, repair_rows,
     sensory_jacobian, stencil_jacobian, stencil_rows)
 
 TWO_PI = 2.0 * np.pi
@@ -344,35 +344,6 @@ class LoopWalk:
             np.add.at(self.queries, owner[rows], self.rows_per_state)
         for p in np.unique(owner[failed]):
             self.reason[p] = NOT_CLOSED
-
-
-def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial_step: float,
-                     min_step: float, max_step: float, predictor_tol: float, max_queries: int,
-                     closure_tol: float, checks: tuple, polish_iterations: int = 1,
-                     knots_per_step: int = 4, min_loop_length: float = 0.3):
-    """1-D POVs of ``start`` ``(P, M)`` walked with fewer rows, for an agent
-    whose world may change under a walk (``ClockedAgent``; docs/clock.md):
-    the knots as the walk corrected them (``resample(polish_knots=False)``:
-    that pass only evens the samples' spacing along the loop), and the
-    samples given ``polish_iterations`` steps with their nearest knot's
-    Jacobian and no repair (``project`` with no ``sample_tol``). The caller
-    may set ``predictor_tol`` larger than the full walk's: fewer knots.
-    ``checks``: the start's rank test ``(rank_ratio, min_singular,
-    pattern_ratio)``. Returns a ``SensoryPointsOfView``."""
-    start = np.array(start, dtype=float, copy=True)
-    walk = LoopWalk(body, start, rank=rank, fd_step=fd_step, min_step=min_step,
-                    max_step=max_step, predictor_tol=predictor_tol, max_queries=max_queries,
-                    min_loop_length=min_loop_length, knots_per_step=knots_per_step,
-                    closure_tol=closure_tol)
-    walk.begin(*checks, initial_step)
-    while len(walk.active):
-        walk.advance()
-    samples = walk.resample(n_samples, polish_knots=False)
-    max_residual = walk.project(samples, polish_iterations)
-    return SensoryPointsOfView(samples=samples, valid=np.array([r == VALID for r in walk.reason]),
-                               reason=walk.reason, queries=walk.queries, steps=walk.steps,
-                               calls=walk.calls, max_residual=max_residual,
-                               target_sensations=walk.target)
 
 
 def _finite_or_zero(step: np.ndarray) -> np.ndarray:

@@ -137,16 +137,38 @@ def sample_sensory_points_of_view(
                        polish=(polish_iterations, sample_tol))
 
 
+def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial_step: float,
+                     min_step: float, max_step: float, predictor_tol: float, max_queries: int,
+                     closure_tol: float, checks: tuple, polish_iterations: int = 1,
+                     knots_per_step: int = 4, min_loop_length: float = 0.3):
+    """1-D POVs of ``start`` ``(P, M)`` walked with fewer rows, for an agent
+    whose world may change under a walk (``ClockedAgent``; docs/clock.md):
+    the knots as the walk corrected them (``resample(polish_knots=False)``:
+    that pass only evens the samples' spacing along the loop), and the
+    samples given ``polish_iterations`` steps with their nearest knot's
+    Jacobian and no repair (``project`` with no ``sample_tol``). The caller
+    may set ``predictor_tol`` larger than the full walk's: fewer knots.
+    ``checks``: the start's rank test ``(rank_ratio, min_singular,
+    pattern_ratio)``. Returns a ``SensoryPointsOfView``."""
+    return _walk_loops(body, np.array(start, dtype=float, copy=True), rank=rank,
+                       n_samples=n_samples, initial_step=initial_step, checks=checks,
+                       polish=(polish_iterations, np.inf), polish_knots=False, fd_step=fd_step,
+                       min_step=min_step, max_step=max_step, predictor_tol=predictor_tol,
+                       max_queries=max_queries, min_loop_length=min_loop_length,
+                       knots_per_step=knots_per_step, closure_tol=closure_tol)
+
+
 def _walk_loops(body, start, *, rank, n_samples, initial_step, checks, polish,
-                **walk_parameters) -> SensoryPointsOfView:
+                polish_knots=True, **walk_parameters) -> SensoryPointsOfView:
     """1-D POVs: ``LoopWalk`` from every start, resampled and polished.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
-    pattern_ratio)``; ``polish``: ``(iterations, sample_tol)``."""
+    pattern_ratio)``; ``polish``: ``(iterations, sample_tol)``;
+    ``polish_knots``: see ``LoopWalk.resample``."""
     walk = LoopWalk(body, start, rank=rank, **walk_parameters)
     walk.begin(*checks, initial_step)
     while len(walk.active):
         walk.advance()
-    samples = walk.resample(n_samples)
+    samples = walk.resample(n_samples, polish_knots=polish_knots)
     max_residual = walk.project(samples, *polish)
     reason = walk.reason
     return SensoryPointsOfView(samples=samples, valid=np.array([r == VALID for r in reason]),
