@@ -377,11 +377,16 @@ class SnapshotMatching:
         budget; given this sweep's sensations ``current``, only the targets
         that stand out (``_distinct_targets``)."""
         known_comp, requests = anchor_requests(self._pool, matches, rest_hits, rank_now,
-                                               self.params, pov_samples=self._store.samples,
+                                               self._anchor_params(),
+                                               pov_samples=self._store.samples,
                                                frontier_budget=self._frontier_budget())
         if current is not None:
             requests = self._distinct_targets(requests, current)
         return known_comp, requests
+
+    def _anchor_params(self):
+        """The parameters ``anchor_requests`` works with: the agent's own."""
+        return self.params
 
     def _frontier_budget(self) -> int:
         """Frontier searches this event: ``frontier_attempts`` while they

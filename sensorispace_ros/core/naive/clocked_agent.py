@@ -33,7 +33,6 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
-from sensorispace_ros.core.naive.anchors import anchor_requests
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -352,23 +351,16 @@ class ClockedAgent(NaiveAgent):
         chosen = chosen[lit[chosen] > 0]
         return states[chosen].copy(), sensed[chosen].copy()
 
-    def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
-        """``anchors.anchor_requests``; once the agent knows more POVs than
+    def _anchor_params(self):
+        """The agent's parameters, except that once it knows more POVs than
         ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
         per change: with a bounded sweep most snapshots go unconfirmed (their
-        matches were not sensed), not only those a redistribution made stale.
-        Given this sweep's sensations ``current``, only the targets that stand
-        out (``_distinct_targets``), as the lockstep agent."""
+        matches were not sensed), not only those a redistribution made stale."""
         params = self.params
         if self._store.count >= params.unconfirmed_max_povs:
             params = replace(params, unconfirmed_max_povs=self._store.count + 1,
                              unconfirmed_attempts=min(params.unconfirmed_attempts, 1))
-        known_comp, requests = anchor_requests(self._pool, matches, rest_hits, rank_now, params,
-                                               pov_samples=self._store.samples,
-                                               frontier_budget=self._frontier_budget())
-        if current is not None:
-            requests = self._distinct_targets(requests, current)
-        return known_comp, requests
+        return params
 
     def _search(self, requests, current, tree, split_now):
         self._search_current = current
