@@ -63,7 +63,8 @@ from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecor
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
-from sensorispace_ros.core.naive.noise import (averaging_repeats, finite_difference_step,
+from sensorispace_ros.core.naive.noise import (averaged_search_params, averaging_repeats,
+    finite_difference_step,
     jacobian_noise, measure_body, noise_residual, noise_step)
 from sensorispace_ros.core.naive.start import choose_start
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
@@ -244,12 +245,14 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
             self.structure, self.params = measure_body(self._body, m0, given)
         self._fd_step = finite_difference_step(self.params, self.structure,
                                                self._body.n_sensors)
+        self.params = averaged_search_params(self.params, self.structure,
+                                             self._body.n_sensors, self._fd_step)
         self._repeats = averaging_repeats(self.params, self.structure) if noisy else 1
         self._noisy = bool(noisy)
         self._tol = Tolerances.of(self.params, self.structure,
                                   jacobian_noise(self.structure, self._body.n_sensors,
                                                  self._fd_step),
-                                  noise_step(self.params, self.structure),
+                                  noise_step(self.params, self.structure, self._fd_step),
                                   noise_residual(self.params, self.structure,
                                                  self._body.n_sensors) if noisy else 0.0)
         return m0

@@ -63,6 +63,36 @@ class SymmetricStep(float):
         return (SymmetricStep, (float(self),))
 
 
+class AveragedStep(SymmetricStep):
+    """A ``SymmetricStep`` whose every stencil row is sensed ``repeats``
+    times and averaged: ``repeats * (2M + 1)`` rows per state, the noise of
+    the Jacobian and of the state's sensation over ``sqrt(repeats)``. Where
+    the pose's weakest direction lies below one symmetric difference's noise
+    no rank test could pass it (``noise.finite_difference_step`` chooses
+    it). The repeats of a row lie ``_JITTER`` phase apart (``r * _JITTER``
+    along the first joint), so that every row is a motor state of its own
+    and no repeat is answered from what was sensed before instead of sensed.
+    Everywhere else it is the float it equals."""
+
+    def __new__(cls, step: float, repeats: int):
+        if int(repeats) != repeats or repeats < 1:
+            raise ValueError(f"repeats must be an integer >= 1, got {repeats}")
+        value = super().__new__(cls, step)
+        value.repeats = int(repeats)
+        return value
+
+    def __reduce__(self):
+        return (AveragedStep, (float(self), self.repeats))
+
+    def __repr__(self):
+        return f"AveragedStep({float(self)!r}, repeats={self.repeats})"
+
+
+# Distance (phase) between two repeats of one stencil row of an ``AveragedStep``:
+# far below any step, far above float64 round-off of a phase.
+_JITTER = 1e-12
+
+
 class CloudStep(float):
     """A finite-difference "step" (phase) whose Jacobians are fits: each
     state is sensed with ``2 * pairs`` states around it, in pairs ``+-x``
@@ -137,6 +167,8 @@ def stencil_rows(n_motors: int, fd_step: float) -> int:
     """Rows ``jacobian_stencil`` senses per state."""
     if isinstance(fd_step, CloudStep):
         return 1 + 2 * fd_step.pairs
+    if isinstance(fd_step, AveragedStep):
+        return (2 * int(n_motors) + 1) * fd_step.repeats
     return (2 if isinstance(fd_step, SymmetricStep) else 1) * int(n_motors) + 1
 
 
@@ -170,6 +202,9 @@ def stencil_jacobian(answer: np.ndarray, fd_step: float):
     if isinstance(fd_step, CloudStep):
         sensations, jacobians, _ = cloud_fit(answer, fd_step)
         return sensations, jacobians
+    if isinstance(fd_step, AveragedStep):
+        answer = answer.reshape(answer.shape[:-2] + (-1, fd_step.repeats, answer.shape[-1]))
+        answer = answer.mean(axis=-2)
     sensations = answer[..., 0, :].copy()
     if isinstance(fd_step, SymmetricStep):
         n_motors = (answer.shape[-2] - 1) // 2
@@ -187,10 +222,15 @@ def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndar
     if isinstance(fd_step, CloudStep):
         offsets, _, _ = cloud_design(n_motors, fd_step.pairs)
         return (motor_states[:, None, :] + float(fd_step) * offsets[None]).reshape(-1, n_motors)
-    stencil = np.repeat(motor_states[:, None, :], stencil_rows(n_motors, fd_step), axis=1)
+    repeats = fd_step.repeats if isinstance(fd_step, AveragedStep) else 1
+    stencil = np.repeat(motor_states[:, None, :], stencil_rows(n_motors, fd_step) // repeats,
+                        axis=1)
     stencil[:, 1:n_motors + 1, :] += fd_step * np.eye(n_motors)
     if isinstance(fd_step, SymmetricStep):
         stencil[:, n_motors + 1:, :] -= fd_step * np.eye(n_motors)
+    if repeats > 1:
+        stencil = np.repeat(stencil, repeats, axis=1)
+        stencil[:, :, 0] += _JITTER * np.tile(np.arange(repeats), stencil.shape[1] // repeats)
     return stencil.reshape(-1, n_motors)
 
 

@@ -43,13 +43,70 @@ _GL_NODES = 0.5 * (_GL_NODES + 1.0)
 _GL_WEIGHTS = 0.5 * _GL_WEIGHTS
 
 
-def _correction_and_null(jacobians: np.ndarray, residuals: np.ndarray, rank: int):
+# Standard deviations of its noise the component of a residual along one of
+# the Jacobian's directions must exceed before a walk corrects it in full
+# (``_shrink``): below, it is mostly the noise of one sensing.
+_SHRINK_SDS = 2.0
+
+
+def _correction_and_null(jacobians: np.ndarray, residuals: np.ndarray, rank: int,
+                         noise: np.ndarray | None = None):
     """``minimum_norm_correction`` and the unit null vector of each Jacobian
-    of rank ``rank = M - 1`` from one SVD (the walk's inner loop)."""
+    of rank ``rank = M - 1`` from one SVD (the walk's inner loop). ``noise``
+    ``(B,)``: the sd of each residual's component along any direction; the
+    components are then shrunk toward 0 where they are noise (``_shrink``)."""
     u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
+    along = np.einsum("bsk,bs->bk", u[:, :, :rank], residuals)
+    if noise is not None:
+        along = along * _shrink(along, noise)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        coeff = np.einsum("bsk,bs->bk", u[:, :, :rank], residuals) / singular[:, :rank]
+        coeff = along / singular[:, :rank]
     return -np.einsum("bk,bkm->bm", coeff, right[:, :rank, :]), right[:, rank, :].copy()
+
+
+def _shrink(along: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """Positive-part shrinkage ``max(0, 1 - (z sd / a)^2)`` of components
+    ``along`` ``(B, k)`` whose noise sd is ``noise`` ``(B,)`` (``z`` is
+    ``_SHRINK_SDS``): a component well above its noise is kept, one at the
+    noise mostly dropped, so a walk does not chase one sensing's noise along
+    a faint pose direction."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        factor = 1.0 - (_SHRINK_SDS * noise[:, None]) ** 2 / along ** 2
+    return np.clip(np.nan_to_num(factor, nan=0.0, neginf=0.0), 0.0, 1.0)
+
+
+def loop_smoothed_correction(jacobians: np.ndarray, residuals: np.ndarray, rank: int,
+                             noise: float, per_loop: int) -> np.ndarray:
+    """Gauss-Newton steps of the samples of loops (rows in blocks of
+    ``per_loop`` samples along each loop), each of whose components along
+    the Jacobian's ``rank`` directions is low-pass filtered along its loop:
+    every sample of a POV lies on one level set, so its offsets from it vary
+    smoothly along the loop, while one sensing's noise (sd ``noise`` per
+    residual component) does not. Each Fourier mode of a component keeps
+    the share of its power the noise does not explain (a Wiener gain): a
+    strong direction keeps every mode, a faint one only the modes that stand
+    out of the noise. Non-finite rows (lost sensings) count as 0."""
+    u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
+    u, right, singular = u[:, :, :rank], right[:, :rank, :], singular[:, :rank]
+    blocks = len(jacobians) // per_loop
+    u = u.reshape(blocks, per_loop, -1, rank)
+    # SVD vectors have arbitrary signs: flip each sample's pair (u, v) to
+    # follow the previous sample's along the loop.
+    flips = np.sign(np.einsum("lisk,lisk->lik", u[:, 1:], u[:, :-1]))
+    flips[flips == 0] = 1.0
+    sign = np.concatenate([np.ones((blocks, 1, rank)), np.cumprod(flips, axis=1)], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        coeff = (np.einsum("lisk,lis->lik", u, residuals.reshape(blocks, per_loop, -1))
+                 * sign / singular.reshape(blocks, per_loop, rank))
+        variance = (noise / singular.reshape(blocks, per_loop, rank)) ** 2
+    lost = ~np.isfinite(coeff) | ~np.isfinite(variance)
+    coeff, variance = np.where(lost, 0.0, coeff), np.where(lost, 0.0, variance)
+    modes = np.fft.rfft(coeff, axis=1)
+    power = np.abs(modes) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.clip(1.0 - np.sum(variance, axis=1, keepdims=True) / power, 0.0, 1.0)
+    smooth = np.fft.irfft(np.nan_to_num(gain) * modes, n=per_loop, axis=1) * sign
+    return -np.einsum("bk,bkm->bm", smooth.reshape(-1, rank), right)
 
 
 class LoopWalk:
@@ -66,8 +123,12 @@ class LoopWalk:
     """
 
     def __init__(self, body, start, *, rank, fd_step, min_step, max_step, predictor_tol,
-                 max_queries, min_loop_length, knots_per_step, closure_tol):
+                 max_queries, min_loop_length, knots_per_step, closure_tol, noise_sd=0.0):
         self.body, self.start, self.rank = body, start, int(rank)
+        # The measured sensory noise (0: none; corrections are then exact
+        # Gauss-Newton steps): how far one sensing's residual may be noise.
+        self.noise_sd = float(noise_sd)
+        self.repeats = getattr(fd_step, "repeats", 1)
         self.closure_tol = closure_tol
         self.fd_step, self.min_step, self.max_step = fd_step, min_step, max_step
         self.predictor_tol, self.max_queries = predictor_tol, max_queries
@@ -156,7 +217,8 @@ class LoopWalk:
         correction, null = _correction_and_null(
             jac.reshape((-1,) + jac.shape[3:]),
             (sensation - self.target[self.active][:, None, None, :]).reshape(
-                -1, sensation.shape[-1]), self.rank)
+                -1, sensation.shape[-1]), self.rank,
+            self._noise((len(self.active), 2, n_knots), averaged_last=True))
         correction = correction.reshape(predicted.shape)
         null = null.reshape(predicted.shape)
         # A probe that lands where the sensation is blank or pins no pose
@@ -167,6 +229,18 @@ class LoopWalk:
         heading = direction[:, :, None, :] + reach[..., None] * bend[:, :, None, :]
         null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
         return jac, null, size, predicted + correction
+
+    def _noise(self, shape, averaged_last: bool = False) -> np.ndarray | None:
+        """The noise sd of a residual's component against the start's
+        sensation (averaged over the stencil's ``repeats``) for rows of
+        ``shape`` sensed once, the last along the final axis with its stencil
+        (averaged too) with ``averaged_last``; None on a noiseless body."""
+        if self.noise_sd <= 0:
+            return None
+        noise = np.full(shape, self.noise_sd * np.sqrt(1.0 + 1.0 / self.repeats))
+        if averaged_last:
+            noise[..., -1] = self.noise_sd * np.sqrt(2.0 / self.repeats)
+        return noise.reshape(-1)
 
     def _accept(self, jac, null, size, knots) -> None:
         """Each front keeps its probes up to the first whose correction is
@@ -278,9 +352,9 @@ class LoopWalk:
             counts = [len(paths[p]) - 1 for p in whole]
             sensation = np.asarray(self.body.sense(knots), dtype=float)
             self.calls += 1
-            knots = knots + minimum_norm_correction(
+            knots = knots + _correction_and_null(
                 knot_jacobians, sensation - np.repeat(self.target[whole], counts, axis=0),
-                self.rank)
+                self.rank, self._noise(len(knots)))[0]
             for p, chunk in zip(whole, np.split(knots, np.cumsum(counts)[:-1])):
                 self.queries[p] += len(chunk)
                 paths[p] = [paths[p][0]] + list(chunk)
@@ -321,7 +395,9 @@ class LoopWalk:
                 self.queries[good] += n_samples - 1
                 residual = sensation - flat_target
                 max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
-                step = minimum_norm_correction(nearest_jac, residual, self.rank)
+                step = minimum_norm_correction(nearest_jac, residual, self.rank) \
+                    if self.noise_sd <= 0 else loop_smoothed_correction(
+                        nearest_jac, residual, self.rank, self._noise(1)[0], n_samples - 1)
                 flat = flat + _finite_or_zero(step)     # a lost row is not a step
             with np.errstate(invalid="ignore"):
                 stray = ~(np.linalg.norm(step, axis=1) <= sample_tol)

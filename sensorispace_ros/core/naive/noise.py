@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
-from sensorispace_ros.core.naive.jacobians import CloudStep, SymmetricStep
+from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.structure import (BodyStructure, measure_cloud_structure,
                                                    measure_structure, probe_rows,
@@ -389,15 +389,35 @@ def sized_params(params: NaiveParams, structure: BodyStructure, n_sensors: int) 
         match_tol=match_tol, match_separation=max(params.match_separation, 4.0 * match_tol))
 
 
-def noise_step(params: NaiveParams, structure: BodyStructure) -> float:
+def noise_step(params: NaiveParams, structure: BodyStructure, step: float = 0.0) -> float:
     """Twice the ``noise_confidence`` quantile of the part of a residual
     between two sensings that lies in the pose's ``rank`` directions
     (sensation units): over a state's ``rank``-th singular value, the
-    Gauss-Newton step a search may keep there."""
+    Gauss-Newton step a search may keep there. With an ``AveragedStep``
+    (a search's state sensed ``repeats`` times, its target at least once)
+    the quantile itself, of that average's difference from one sensing."""
     if structure.noise <= 0 or structure.pose_rank < 1:
         return 0.0
     chi = chi2.ppf(params.noise_confidence, structure.pose_rank)
+    if isinstance(step, AveragedStep):
+        return float(structure.noise * np.sqrt((1.0 + 1.0 / step.repeats) * chi))
     return float(2.0 * structure.noise * np.sqrt(2.0 * chi))
+
+
+def averaged_search_params(params: NaiveParams, structure: BodyStructure, n_sensors: int,
+                           step: float) -> NaiveParams:
+    """``params`` with the searches' accepted sensory error tightened to what
+    an ``AveragedStep`` leaves: the ``noise_confidence`` quantile of the
+    distance between a state's sensation averaged ``repeats`` times and one
+    sensing of its target, in motor-equivalent units (over the gain). A
+    search whose end lies farther goes on (or stalls) instead of ending
+    where only the averaged test of ``confirm`` would reject it; unchanged
+    with any other step."""
+    if not isinstance(step, AveragedStep) or structure.noise <= 0 or structure.gain <= 0:
+        return params
+    distance = structure.noise * np.sqrt((1.0 + 1.0 / step.repeats)
+                                         * chi2.ppf(params.noise_confidence, n_sensors))
+    return replace(params, lm_error_tol=float(distance / structure.gain))
 
 
 def averaging_repeats(params: NaiveParams, structure: BodyStructure) -> int:
@@ -427,6 +447,8 @@ def jacobian_noise(structure: BodyStructure, n_sensors: int, step: float | None 
     if step <= 0:
         return 0.0
     spread = np.sqrt(n_sensors) + np.sqrt(structure.n_motors)
+    if isinstance(step, AveragedStep):
+        return float(structure.noise * np.sqrt(2.0 / step.repeats) * spread / (2.0 * step))
     if isinstance(step, SymmetricStep):
         return float(structure.noise * np.sqrt(2.0) * spread / (2.0 * step))
     return float(structure.noise * np.sqrt(2.0) * spread / step)
@@ -452,4 +474,33 @@ def finite_difference_step(params: NaiveParams, structure: BodyStructure,
         return step
     motor_equivalent = structure.noise * np.sqrt(n_sensors) / structure.gain
     wanted = (3.0 * motor_equivalent * params.fd_curvature_scale ** 2 / np.sqrt(2.0)) ** (1 / 3)
-    return SymmetricStep(max(step, min(params.fd_max_step, wanted)))
+    symmetric = SymmetricStep(max(step, min(params.fd_max_step, wanted)))
+    if jacobian_noise(structure, n_sensors, symmetric) <= structure.weakest or \
+            params.jacobian_max_repeats <= 1:
+        return symmetric
+    return averaged_step(params, structure, n_sensors, symmetric)
+
+
+# Share of the pose's weakest singular value that an averaged Jacobian's
+# noise and its truncation error may each reach (``averaged_step``).
+import os
+_AVERAGED_SHARE = float(os.environ.get("NE_SHARE", "0.5"))
+
+
+def averaged_step(params: NaiveParams, structure: BodyStructure, n_sensors: int,
+                  symmetric: float) -> AveragedStep:
+    """The ``AveragedStep`` of a body whose weakest pose direction lies below
+    the noise of one symmetric difference (no rank test could pass it): the
+    step where the central difference's truncation (``step^2 / (6 L^2)``
+    of the gain, ``L`` the ``fd_curvature_scale``) reaches
+    ``_AVERAGED_SHARE`` of the weakest singular value (a larger step needs
+    fewer repeats for the same noise), never below ``symmetric``; sensed as
+    many times as brings the Jacobian's noise to that share too, at most
+    ``jacobian_max_repeats``."""
+    weakest = structure.weakest
+    truncated = params.fd_curvature_scale * np.sqrt(6.0 * _AVERAGED_SHARE * weakest
+                                                    / structure.gain)
+    step = max(float(symmetric), float(truncated))
+    single = jacobian_noise(structure, n_sensors, SymmetricStep(step))
+    repeats = int(np.ceil((single / (_AVERAGED_SHARE * weakest)) ** 2))
+    return AveragedStep(step, int(min(max(repeats, 1), params.jacobian_max_repeats)))

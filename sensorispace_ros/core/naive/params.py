@@ -38,6 +38,7 @@ class NaiveParams:
     cloud_pairs: int = _default("cloud_pairs")
     cloud_max_pairs: int = _default("cloud_max_pairs")
     cloud_rank_gap: float = _default("cloud_rank_gap")
+    jacobian_max_repeats: int = _default("jacobian_max_repeats")
     accept_repeats: int = _default("accept_repeats")
     confirm_rounds: int = _default("confirm_rounds")
     pose_precision: float = _default("pose_precision")

@@ -84,7 +84,7 @@ def sample_sensory_points_of_view(
         knots_per_step: int = 4, closure_tol: float = 0.1, sample_tol: float = 1e-6,
         surface_step: float = 0.15,
         surface_max_queries: int = 400_000, min_singular: float = 0.0,
-        pattern_ratio: float = 1e-6) -> SensoryPointsOfView:
+        pattern_ratio: float = 1e-6, noise_sd: float = 0.0) -> SensoryPointsOfView:
     """Sample the POV of every motor state in ``motor_states`` ``(P, M)``
     through ``body.sense`` in the current (static) environment; ``rank`` is
     the body's pose rank, so the POVs have dimension ``M - rank``.
@@ -110,6 +110,9 @@ def sample_sensory_points_of_view(
     the smallest such value (sensation units), ``pattern_ratio`` the ratio
     for the gain-free Jacobian: below them the sensation does not pin the
     sensor's configuration (``jacobians.has_full_pose_rank``).
+    ``noise_sd``: the measured sensory noise (1-D POVs: the walk's
+    corrections leave what is noise, ``loop_walk._shrink``, and its samples
+    are smoothed along the loop, ``loop_walk.loop_smoothed_correction``).
     """
     start = _checked_starts(body, motor_states, rank)
     n_motors = start.shape[1]
@@ -134,7 +137,7 @@ def sample_sensory_points_of_view(
                        predictor_tol=predictor_tol, max_queries=max_queries,
                        min_loop_length=min_loop_length, knots_per_step=knots_per_step,
                        closure_tol=closure_tol, checks=(rank_ratio, min_singular, pattern_ratio),
-                       polish=(polish_iterations, sample_tol))
+                       polish=(polish_iterations, sample_tol), noise_sd=noise_sd)
 
 
 def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial_step: float,

@@ -21,7 +21,7 @@ from scipy.stats import chi2
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
-from sensorispace_ros.core.naive.jacobians import SPLIT
+from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, stencil_rows
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 
@@ -55,11 +55,14 @@ class SearchAndSample:
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
         # is judged by the sensory gain at the solution: a motor-equivalent
-        # distance of match_tol.
+        # distance of match_tol; under noise (whose match tolerance allows for
+        # drift along chains) within what two sensings of one pose differ by.
         fresh = []
         split_tree = cKDTree(finite_rows(split_now, -1.0)) if len(split_now) else None
         for g in sorted(solution):
             same = self.params.match_tol * gain[g]
+            if self._tol.ratio > 0:
+                same = min(same, self._tol.separation)
             if tree is not None:
                 distance, index = tree.query(unique_targets[g], k=1)
                 if distance <= same:
@@ -263,6 +266,20 @@ class SearchAndSample:
                     sensations.append(None)
         return indices, sensations
 
+    def _walk_noise(self) -> float:
+        """The noise a POV walk allows for in its corrections: the measured
+        one with an ``AveragedStep`` (0 otherwise: exact Gauss-Newton steps)."""
+        return float(self.structure.noise) if isinstance(self._fd_step, AveragedStep) else 0.0
+
+    def _walk_budget(self) -> int:
+        """Rows a POV walk may sense: ``pov_max_queries``; with an
+        ``AveragedStep`` as many calls as that buys with a forward stencil
+        (each stencil row is sensed ``repeats`` times)."""
+        if not isinstance(self._fd_step, AveragedStep):
+            return self.params.pov_max_queries
+        return int(self.params.pov_max_queries * stencil_rows(self.n_motors, self._fd_step)
+                   / (self.n_motors + 1))
+
     def _walk_povs(self, motor_states: np.ndarray):
         """The walks of ``_sample_povs``: ``sample_sensory_points_of_view``
         with the agent's parameters."""
@@ -271,12 +288,12 @@ class SearchAndSample:
             self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
             fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
             max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
-            rank_ratio=p.rank_ratio, max_queries=p.pov_max_queries,
+            rank_ratio=p.rank_ratio, max_queries=self._walk_budget(),
             polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
             sample_tol=p.pov_sample_tol,
             surface_step=p.pov_surface_step, surface_max_queries=p.pov_surface_max_queries,
             min_singular=self._tol.min_singular,
-            pattern_ratio=p.pattern_ratio)
+            pattern_ratio=p.pattern_ratio, noise_sd=self._walk_noise())
 
 
 # How many times what two sensings of one pose differ by a POV's sample may
