@@ -79,13 +79,14 @@ def loop_smoothed_correction(jacobians: np.ndarray, residuals: np.ndarray, rank:
                              noise: float, per_loop: int) -> np.ndarray:
     """Gauss-Newton steps of the samples of loops (rows in blocks of
     ``per_loop`` samples along each loop), each of whose components along
-    the Jacobian's ``rank`` directions is low-pass filtered along its loop:
-    every sample of a POV lies on one level set, so its offsets from it vary
+    the Jacobian's ``rank`` directions is filtered along its loop: every
+    sample of a POV lies on one level set, so its offsets from it vary
     smoothly along the loop, while one sensing's noise (sd ``noise`` per
-    residual component) does not. Each Fourier mode of a component keeps
-    the share of its power the noise does not explain (a Wiener gain): a
-    strong direction keeps every mode, a faint one only the modes that stand
-    out of the noise. Non-finite rows (lost sensings) count as 0."""
+    residual component) does not. A Fourier mode of a component is kept
+    (whole: no bias) where its power stands out of what the noise gives
+    any of the modes, else dropped: a strong direction keeps the modes of
+    its offsets, a faint one its slow offsets only. Non-finite rows (lost
+    sensings) count as 0."""
     u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
     u, right, singular = u[:, :, :rank], right[:, :rank, :], singular[:, :rank]
     blocks = len(jacobians) // per_loop
@@ -103,9 +104,10 @@ def loop_smoothed_correction(jacobians: np.ndarray, residuals: np.ndarray, rank:
     coeff, variance = np.where(lost, 0.0, coeff), np.where(lost, 0.0, variance)
     modes = np.fft.rfft(coeff, axis=1)
     power = np.abs(modes) ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain = np.clip(1.0 - np.sum(variance, axis=1, keepdims=True) / power, 0.0, 1.0)
-    smooth = np.fft.irfft(np.nan_to_num(gain) * modes, n=per_loop, axis=1) * sign
+    # The universal threshold: the largest of n noise modes' powers stays below
+    # 2 ln(n) times their mean (the noise's summed variance).
+    kept = power > 2.0 * np.log(power.shape[1]) * np.sum(variance, axis=1, keepdims=True)
+    smooth = np.fft.irfft(np.where(kept, modes, 0.0), n=per_loop, axis=1) * sign
     return -np.einsum("bk,bkm->bm", smooth.reshape(-1, rank), right)
 
 

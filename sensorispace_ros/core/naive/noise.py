@@ -411,13 +411,21 @@ def averaged_search_params(params: NaiveParams, structure: BodyStructure, n_sens
     distance between a state's sensation averaged ``repeats`` times and one
     sensing of its target, in motor-equivalent units (over the gain). A
     search whose end lies farther goes on (or stalls) instead of ending
-    where only the averaged test of ``confirm`` would reject it; unchanged
-    with any other step."""
+    where only the averaged test of ``confirm`` would reject it. The POV
+    walk's predictor tolerance: the motor step the noise of its averaged
+    probe asks for through the weakest singular value (instead of one
+    sensing's). Unchanged with any other step."""
     if not isinstance(step, AveragedStep) or structure.noise <= 0 or structure.gain <= 0:
         return params
     distance = structure.noise * np.sqrt((1.0 + 1.0 / step.repeats)
                                          * chi2.ppf(params.noise_confidence, n_sensors))
-    return replace(params, lm_error_tol=float(distance / structure.gain))
+    # A walk's corrections leave what is noise (``loop_walk._shrink``); what
+    # is left of its farthest probe's is a drift once it reaches that probe's
+    # noise through the weakest direction, which the knot interval follows.
+    weakest = structure.weakest if structure.weakest > 0 else structure.gain
+    drift = structure.noise * np.sqrt(2.0 / step.repeats) / weakest
+    return replace(params, lm_error_tol=float(distance / structure.gain),
+                   pov_predictor_tol=float(min(params.pov_predictor_tol, drift)))
 
 
 def averaging_repeats(params: NaiveParams, structure: BodyStructure) -> int:
@@ -483,8 +491,7 @@ def finite_difference_step(params: NaiveParams, structure: BodyStructure,
 
 # Share of the pose's weakest singular value that an averaged Jacobian's
 # noise and its truncation error may each reach (``averaged_step``).
-import os
-_AVERAGED_SHARE = float(os.environ.get("NE_SHARE", "0.5"))
+_AVERAGED_SHARE = 0.5
 
 
 def averaged_step(params: NaiveParams, structure: BodyStructure, n_sensors: int,
