@@ -109,10 +109,8 @@ def sample_sensory_points_of_view(
     singular value of the sensory Jacobian at the start, ``min_singular``
     the smallest such value (sensation units), ``pattern_ratio`` the ratio
     for the gain-free Jacobian: below them the sensation does not pin the
-    sensor's configuration (``jacobians.has_full_pose_rank``).
-    ``noise_sd``: the measured sensory noise (1-D POVs: the walk's
-    corrections leave what is noise, ``loop_walk._shrink``, and its samples
-    are smoothed along the loop, ``loop_walk.loop_smoothed_correction``).
+    sensor's configuration (``jacobians.has_full_pose_rank``). ``noise_sd``:
+    the noise a 1-D walk leaves alone (``loop_walk.loop_smoothed_correction``).
     """
     start = _checked_starts(body, motor_states, rank)
     n_motors = start.shape[1]

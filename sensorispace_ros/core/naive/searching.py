@@ -55,13 +55,14 @@ class SearchAndSample:
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
         # is judged by the sensory gain at the solution: a motor-equivalent
-        # distance of match_tol; under noise (whose match tolerance allows for
-        # drift along chains) within what two sensings of one pose differ by.
+        # distance of match_tol; where the Jacobians are averaged (the match
+        # tolerance, which allows for drift along chains, then spans
+        # neighbouring poses) within what two sensings of one pose differ by.
         fresh = []
         split_tree = cKDTree(finite_rows(split_now, -1.0)) if len(split_now) else None
         for g in sorted(solution):
             same = self.params.match_tol * gain[g]
-            if self._tol.ratio > 0:
+            if isinstance(self._fd_step, AveragedStep) and self._tol.ratio > 0:
                 same = min(same, self._tol.separation)
             if tree is not None:
                 distance, index = tree.query(unique_targets[g], k=1)
