@@ -6,7 +6,8 @@ import numpy as np
 
 from sensorispace_ros.core.naive.jacobians import (AveragedStep, SymmetricStep,
     jacobian_stencil, minimum_norm_correction, sensory_jacobian, stencil_rows)
-from sensorispace_ros.core.naive.loop_walk import _correction_and_null, loop_smoothed_correction
+from sensorispace_ros.core.naive.jacobians import loop_smoothed_correction
+from sensorispace_ros.core.naive.loop_walk import _correction_and_null
 from sensorispace_ros.core.naive.noise import (averaged_search_params, finite_difference_step,
     jacobian_noise, noise_step)
 from sensorispace_ros.core.naive.params import NaiveParams

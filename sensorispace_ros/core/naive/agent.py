@@ -368,6 +368,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         t = self._event
         rows_at_start = self._body.total_rows
         sets_before = self._sets.n_sets
+        self._size_repeats()
         # This event's memory of (motor, sensation): the sweep of the known POVs.
         self._body.stage = "sweep"
         current, split_now = self._sweep_known()

@@ -99,7 +99,7 @@ def averaged_search_params(params: NaiveParams, structure: BodyStructure, n_sens
         return params
     distance = structure.noise * np.sqrt((1.0 + 1.0 / step.repeats)
                                          * chi2.ppf(params.noise_confidence, n_sensors))
-    # A walk's corrections leave what is noise (``loop_walk._shrink``); what
+    # A walk's corrections leave what is noise (``jacobians.shrink``); what
     # is left of its farthest probe's is a drift once it reaches that probe's
     # noise through the weakest direction, which the knot interval follows.
     weakest = structure.weakest if structure.weakest > 0 else structure.gain

@@ -69,7 +69,7 @@ class AveragedStep(SymmetricStep):
     the Jacobian and of the state's sensation over ``sqrt(repeats)``. Where
     the pose's weakest direction lies below one symmetric difference's noise
     no rank test could pass it (``noise.finite_difference_step`` chooses
-    it). The repeats of a row lie ``_JITTER`` phase apart (``r * _JITTER``
+    it). The repeats of a row lie ``REPEAT_JITTER`` phase apart (``r * REPEAT_JITTER``
     along the first joint), so that every row is a motor state of its own
     and no repeat is answered from what was sensed before instead of sensed.
     Everywhere else it is the float it equals."""
@@ -90,7 +90,7 @@ class AveragedStep(SymmetricStep):
 
 # Distance (phase) between two repeats of one stencil row of an ``AveragedStep``:
 # far below any step, far above float64 round-off of a phase.
-_JITTER = 1e-12
+REPEAT_JITTER = 1e-12
 
 
 class CloudStep(float):
@@ -230,7 +230,7 @@ def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndar
         stencil[:, n_motors + 1:, :] -= fd_step * np.eye(n_motors)
     if repeats > 1:
         stencil = np.repeat(stencil, repeats, axis=1)
-        stencil[:, :, 0] += _JITTER * np.tile(np.arange(repeats), stencil.shape[1] // repeats)
+        stencil[:, :, 0] += REPEAT_JITTER * np.tile(np.arange(repeats), stencil.shape[1] // repeats)
     return stencil.reshape(-1, n_motors)
 
 
@@ -324,3 +324,56 @@ def repair_rows(body, flat: np.ndarray, target: np.ndarray, rows: np.ndarray, *,
         flat[rows] += step
         rows = rows[~(np.linalg.norm(step, axis=1) <= tol)]
     return calls, sensed, np.concatenate([rows, *lost]).astype(int)
+
+
+# Standard deviations of its noise the component of a residual along one of
+# the Jacobian's directions must exceed before a walk corrects it in full
+# (``shrink``): below, it is mostly the noise of one sensing.
+_SHRINK_SDS = 2.0
+
+
+def shrink(along: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """Positive-part shrinkage ``max(0, 1 - (z sd / a)^2)`` of components
+    ``along`` ``(B, k)`` whose noise sd is ``noise`` ``(B,)`` (``z`` is
+    ``_SHRINK_SDS``): a component well above its noise is kept, one at the
+    noise mostly dropped, so a walk does not chase one sensing's noise along
+    a faint pose direction."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        factor = 1.0 - (_SHRINK_SDS * noise[:, None]) ** 2 / along ** 2
+    return np.clip(np.nan_to_num(factor, nan=0.0, neginf=0.0), 0.0, 1.0)
+
+
+def loop_smoothed_correction(jacobians: np.ndarray, residuals: np.ndarray, rank: int,
+                             noise: float, per_loop: int) -> np.ndarray:
+    """Gauss-Newton steps of the samples of loops (rows in blocks of
+    ``per_loop`` samples along each loop), each of whose components along
+    the Jacobian's ``rank`` directions is filtered along its loop: every
+    sample of a POV lies on one level set, so its offsets from it vary
+    smoothly along the loop, while one sensing's noise (sd ``noise`` per
+    residual component) does not. A Fourier mode of a component is kept
+    (whole: no bias) where its power stands out of what the noise gives
+    any of the modes, else dropped: a strong direction keeps the modes of
+    its offsets, a faint one its slow offsets only. Non-finite rows (lost
+    sensings) count as 0."""
+    u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
+    u, right, singular = u[:, :, :rank], right[:, :rank, :], singular[:, :rank]
+    blocks = len(jacobians) // per_loop
+    u = u.reshape(blocks, per_loop, -1, rank)
+    # SVD vectors have arbitrary signs: flip each sample's pair (u, v) to
+    # follow the previous sample's along the loop.
+    flips = np.sign(np.einsum("lisk,lisk->lik", u[:, 1:], u[:, :-1]))
+    flips[flips == 0] = 1.0
+    sign = np.concatenate([np.ones((blocks, 1, rank)), np.cumprod(flips, axis=1)], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        coeff = (np.einsum("lisk,lis->lik", u, residuals.reshape(blocks, per_loop, -1))
+                 * sign / singular.reshape(blocks, per_loop, rank))
+        variance = (noise / singular.reshape(blocks, per_loop, rank)) ** 2
+    lost = ~np.isfinite(coeff) | ~np.isfinite(variance)
+    coeff, variance = np.where(lost, 0.0, coeff), np.where(lost, 0.0, variance)
+    modes = np.fft.rfft(coeff, axis=1)
+    power = np.abs(modes) ** 2
+    # The universal threshold: the largest of n noise modes' powers stays below
+    # 2 ln(n) times their mean (the noise's summed variance).
+    kept = power > 2.0 * np.log(power.shape[1]) * np.sum(variance, axis=1, keepdims=True)
+    smooth = np.fft.irfft(np.where(kept, modes, 0.0), n=per_loop, axis=1) * sign
+    return -np.einsum("bk,bkm->bm", smooth.reshape(-1, rank), right)

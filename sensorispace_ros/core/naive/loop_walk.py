@@ -30,9 +30,10 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from sensorispace_ros.core.motor_loops import closure_gap_ratio, loop_winding
-from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, SPLIT, VALID,
-    has_full_pose_rank, jacobian_stencil, jacobian_svd, minimum_norm_correction, repair_rows,
-    sensory_jacobian, stencil_jacobian, stencil_rows)
+from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, REPEAT_JITTER,
+    SPLIT, VALID, has_full_pose_rank, jacobian_stencil, jacobian_svd, loop_smoothed_correction,
+    minimum_norm_correction, repair_rows, sensory_jacobian, shrink, stencil_jacobian,
+    stencil_rows)
 
 TWO_PI = 2.0 * np.pi
 
@@ -43,72 +44,19 @@ _GL_NODES = 0.5 * (_GL_NODES + 1.0)
 _GL_WEIGHTS = 0.5 * _GL_WEIGHTS
 
 
-# Standard deviations of its noise the component of a residual along one of
-# the Jacobian's directions must exceed before a walk corrects it in full
-# (``_shrink``): below, it is mostly the noise of one sensing.
-_SHRINK_SDS = 2.0
-
-
 def _correction_and_null(jacobians: np.ndarray, residuals: np.ndarray, rank: int,
                          noise: np.ndarray | None = None):
     """``minimum_norm_correction`` and the unit null vector of each Jacobian
     of rank ``rank = M - 1`` from one SVD (the walk's inner loop). ``noise``
     ``(B,)``: the sd of each residual's component along any direction; the
-    components are then shrunk toward 0 where they are noise (``_shrink``)."""
+    components are then shrunk toward 0 where they are noise (``jacobians.shrink``)."""
     u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
     along = np.einsum("bsk,bs->bk", u[:, :, :rank], residuals)
     if noise is not None:
-        along = along * _shrink(along, noise)
+        along = along * shrink(along, noise)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         coeff = along / singular[:, :rank]
     return -np.einsum("bk,bkm->bm", coeff, right[:, :rank, :]), right[:, rank, :].copy()
-
-
-def _shrink(along: np.ndarray, noise: np.ndarray) -> np.ndarray:
-    """Positive-part shrinkage ``max(0, 1 - (z sd / a)^2)`` of components
-    ``along`` ``(B, k)`` whose noise sd is ``noise`` ``(B,)`` (``z`` is
-    ``_SHRINK_SDS``): a component well above its noise is kept, one at the
-    noise mostly dropped, so a walk does not chase one sensing's noise along
-    a faint pose direction."""
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        factor = 1.0 - (_SHRINK_SDS * noise[:, None]) ** 2 / along ** 2
-    return np.clip(np.nan_to_num(factor, nan=0.0, neginf=0.0), 0.0, 1.0)
-
-
-def loop_smoothed_correction(jacobians: np.ndarray, residuals: np.ndarray, rank: int,
-                             noise: float, per_loop: int) -> np.ndarray:
-    """Gauss-Newton steps of the samples of loops (rows in blocks of
-    ``per_loop`` samples along each loop), each of whose components along
-    the Jacobian's ``rank`` directions is filtered along its loop: every
-    sample of a POV lies on one level set, so its offsets from it vary
-    smoothly along the loop, while one sensing's noise (sd ``noise`` per
-    residual component) does not. A Fourier mode of a component is kept
-    (whole: no bias) where its power stands out of what the noise gives
-    any of the modes, else dropped: a strong direction keeps the modes of
-    its offsets, a faint one its slow offsets only. Non-finite rows (lost
-    sensings) count as 0."""
-    u, singular, right = np.linalg.svd(jacobians, full_matrices=False)
-    u, right, singular = u[:, :, :rank], right[:, :rank, :], singular[:, :rank]
-    blocks = len(jacobians) // per_loop
-    u = u.reshape(blocks, per_loop, -1, rank)
-    # SVD vectors have arbitrary signs: flip each sample's pair (u, v) to
-    # follow the previous sample's along the loop.
-    flips = np.sign(np.einsum("lisk,lisk->lik", u[:, 1:], u[:, :-1]))
-    flips[flips == 0] = 1.0
-    sign = np.concatenate([np.ones((blocks, 1, rank)), np.cumprod(flips, axis=1)], axis=1)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        coeff = (np.einsum("lisk,lis->lik", u, residuals.reshape(blocks, per_loop, -1))
-                 * sign / singular.reshape(blocks, per_loop, rank))
-        variance = (noise / singular.reshape(blocks, per_loop, rank)) ** 2
-    lost = ~np.isfinite(coeff) | ~np.isfinite(variance)
-    coeff, variance = np.where(lost, 0.0, coeff), np.where(lost, 0.0, variance)
-    modes = np.fft.rfft(coeff, axis=1)
-    power = np.abs(modes) ** 2
-    # The universal threshold: the largest of n noise modes' powers stays below
-    # 2 ln(n) times their mean (the noise's summed variance).
-    kept = power > 2.0 * np.log(power.shape[1]) * np.sum(variance, axis=1, keepdims=True)
-    smooth = np.fft.irfft(np.where(kept, modes, 0.0), n=per_loop, axis=1) * sign
-    return -np.einsum("bk,bkm->bm", smooth.reshape(-1, rank), right)
 
 
 class LoopWalk:
@@ -392,14 +340,15 @@ class LoopWalk:
                     _nearest_rows(samples[p, 1:], np.asarray(self.paths[p]))]
                 for p in good])
             for _ in range(polish_iterations):
-                sensation = np.asarray(self.body.sense(flat), dtype=float)
+                sensation = self._sensed(flat)
                 self.calls += 1
-                self.queries[good] += n_samples - 1
+                self.queries[good] += (n_samples - 1) * self.repeats
                 residual = sensation - flat_target
                 max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
                 step = minimum_norm_correction(nearest_jac, residual, self.rank) \
                     if self.noise_sd <= 0 else loop_smoothed_correction(
-                        nearest_jac, residual, self.rank, self._noise(1)[0], n_samples - 1)
+                        nearest_jac, residual, self.rank, self._noise(1, True)[0],
+                        n_samples - 1)
                 flat = flat + _finite_or_zero(step)     # a lost row is not a step
             with np.errstate(invalid="ignore"):
                 stray = ~(np.linalg.norm(step, axis=1) <= sample_tol)
@@ -408,6 +357,17 @@ class LoopWalk:
                              sample_tol)
             samples[good, 1:] = flat.reshape(len(good), n_samples - 1, n_motors)
         return max_residual
+
+    def _sensed(self, states: np.ndarray) -> np.ndarray:
+        """Sensations of ``states`` in one call: sensed once on a noiseless
+        body; under noise each state ``repeats`` times (as the stencil's rows
+        are, ``jacobians.AveragedStep``) and averaged."""
+        if self.noise_sd <= 0 or self.repeats <= 1:
+            return np.asarray(self.body.sense(states), dtype=float)
+        rows = np.repeat(states, self.repeats, axis=0)
+        rows[:, 0] += REPEAT_JITTER * np.tile(np.arange(self.repeats), len(states))
+        sensed = np.asarray(self.body.sense(rows), dtype=float)
+        return sensed.reshape(len(states), self.repeats, -1).mean(axis=1)
 
     def _repair(self, flat, target, stray, owner, sample_tol, rounds: int = 3) -> None:
         """Gauss-Newton steps with fresh Jacobians (one call each) on the

@@ -40,6 +40,7 @@ class NaiveParams:
     cloud_rank_gap: float = _default("cloud_rank_gap")
     jacobian_max_repeats: int = _default("jacobian_max_repeats")
     accept_repeats: int = _default("accept_repeats")
+    accept_max_repeats: int = _default("accept_max_repeats")
     confirm_rounds: int = _default("confirm_rounds")
     pose_precision: float = _default("pose_precision")
     pose_precision_povs: int = _default("pose_precision_povs")

@@ -110,7 +110,7 @@ def sample_sensory_points_of_view(
     the smallest such value (sensation units), ``pattern_ratio`` the ratio
     for the gain-free Jacobian: below them the sensation does not pin the
     sensor's configuration (``jacobians.has_full_pose_rank``). ``noise_sd``:
-    the noise a 1-D walk leaves alone (``loop_walk.loop_smoothed_correction``).
+    the noise a 1-D walk leaves alone (``jacobians.loop_smoothed_correction``).
     """
     start = _checked_starts(body, motor_states, rank)
     n_motors = start.shape[1]

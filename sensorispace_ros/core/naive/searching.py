@@ -125,6 +125,23 @@ class SearchAndSample:
             max_error=self._max_pose_error(), max_step=max_step)
         return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
 
+    def _size_repeats(self) -> None:
+        """With an ``AveragedStep``, once the POVs' separation is measured:
+        the sensings averaged per anchor and per round of a search's end
+        (``_repeats``) as many as keep the predicted pose error of a
+        compensation between two such averages within ``_max_pose_error``
+        where the weakest singular value is half the one measured at the
+        start, ``accept_repeats`` to ``accept_max_repeats``. Elsewhere
+        unchanged."""
+        limit = self._max_pose_error()
+        if not isinstance(self._fd_step, AveragedStep) or not np.isfinite(limit) or \
+                self.structure.weakest <= 0:
+            return
+        # Two averages of R sensings: variance 2 sd^2 / R, over (weakest / 2)^2.
+        wanted = 8.0 * (self.structure.noise / (limit * self.structure.weakest)) ** 2
+        self._repeats = int(np.clip(np.ceil(wanted), self.params.accept_repeats,
+                                    self.params.accept_max_repeats))
+
     def _max_pose_error(self) -> float:
         """The largest predicted pose error (motor space, one standard
         deviation) a compensation may keep: ``pose_precision`` times the
