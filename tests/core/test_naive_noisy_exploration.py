@@ -75,6 +75,11 @@ def test_the_step_is_averaged_only_where_one_symmetric_difference_hides_the_weak
     # Capped by the budget of repeats.
     capped = finite_difference_step(NaiveParams(fd_step=1e-6, jacobian_max_repeats=2), loud, 6)
     assert capped.repeats == 2
+    # Rounding (repeats that do not spread): never averaged.
+    rounded = BodyStructure(n_motors=4, pose_rank=3, rank_gap=10.0, gain=0.8, floor=0.0,
+                            votes=8, probes=8, noise=1e-3, fd_step=0.05, weakest=0.0133,
+                            repeat_noise=0.0, quantum=3.5e-3)
+    assert not isinstance(finite_difference_step(params, rounded, 6), AveragedStep)
     # 1: never averaged.
     assert not isinstance(finite_difference_step(
         NaiveParams(fd_step=1e-6, jacobian_max_repeats=1), loud, 6), AveragedStep)

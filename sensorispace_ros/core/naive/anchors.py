@@ -236,7 +236,7 @@ class SnapshotMatching:
             starts = self._search_plan(guessed, current)[-1] if guessed else np.zeros(
                 (0, self.n_motors))
             self._body.stage = "rank"
-            with self._body.lookahead(jacobian_stencil(starts, self._fd_step)):
+            with self._body.lookahead(jacobian_stencil(starts, self._first_search_step())):
                 full, _ = check_pose_rank(self._body, self._store.samples[unknown, 0],
                                           rank=self.structure.pose_rank,
                                           fd_step=self._fd_step,

@@ -54,8 +54,9 @@ def finite_difference_step(params: NaiveParams, structure: BodyStructure,
     motor_equivalent = structure.noise * np.sqrt(n_sensors) / structure.gain
     wanted = (3.0 * motor_equivalent * params.fd_curvature_scale ** 2 / np.sqrt(2.0)) ** (1 / 3)
     symmetric = SymmetricStep(max(step, min(params.fd_max_step, wanted)))
+    # Averaging pays only for noise that repeats do not repeat (not rounding).
     if jacobian_noise(structure, n_sensors, symmetric) <= structure.weakest or \
-            params.jacobian_max_repeats <= 1:
+            params.jacobian_max_repeats <= 1 or structure.repeat_noise < 0.5 * structure.noise:
         return symmetric
     return averaged_step(params, structure, n_sensors, symmetric)
 

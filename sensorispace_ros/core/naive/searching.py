@@ -21,7 +21,8 @@ from scipy.stats import chi2
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
-from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, stencil_rows
+from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
+from sensorispace_ros.core.naive.noise import noise_residual, noise_step
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 
@@ -159,16 +160,7 @@ class SearchAndSample:
         p = self.params
         isolated = self.structure.pov_dim == 0
         self._body.stage = "compensation"
-        search = compensate(self._body, unique_targets[owner], starts,
-                            rank=self.structure.pose_rank,
-                            min_singular=self._tol.min_singular,
-                            pattern_ratio=p.pattern_ratio, fd_step=self._fd_step,
-                            max_iterations=p.lm_max_iterations, error_tol=p.lm_error_tol,
-                            motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio,
-                            max_step=p.lm_max_step, initial_damping=p.lm_initial_damping,
-                            stall_iterations=p.lm_stall_iterations,
-                            stop_found_targets=not isolated,
-                            noise_step=self._tol.noise_step)
+        search = self._compensate(unique_targets[owner], starts, isolated)
         solution: dict[int, np.ndarray] = {}
         others: dict[int, np.ndarray] = {}
         gain: dict[int, float] = {}
@@ -182,6 +174,54 @@ class SearchAndSample:
             others[g] = _distinct(search.motor_states[ok], p.pov_min_step)[1:] if isolated \
                 else np.zeros((0, self.n_motors))
         return solution, others, gain
+
+    def _compensate(self, targets, starts, isolated):
+        """``compensation.compensate`` with the agent's parameters. With an
+        ``AveragedStep`` in two passes: every search with one sensing per
+        stencil row (a ``SymmetricStep`` of the same size, held to what one
+        sensing's noise allows: most searches never come near their target
+        and stop on that), then the accepted ones again from where they
+        ended with the averaged stencil and tolerances."""
+        p = self.params
+        common = dict(rank=self.structure.pose_rank, min_singular=self._tol.min_singular,
+                      pattern_ratio=p.pattern_ratio, max_iterations=p.lm_max_iterations,
+                      motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio, max_step=p.lm_max_step,
+                      initial_damping=p.lm_initial_damping,
+                      stall_iterations=p.lm_stall_iterations, stop_found_targets=not isolated)
+        fine = dict(fd_step=self._fd_step, error_tol=p.lm_error_tol,
+                    noise_step=self._tol.noise_step)
+        if not isinstance(self._fd_step, AveragedStep):
+            return compensate(self._body, targets, starts, **common, **fine)
+        coarse = compensate(self._body, targets, starts, **common,
+                            fd_step=self._first_search_step(),
+                            error_tol=self._coarse_error_tol(),
+                            noise_step=noise_step(p, self.structure))
+        found = np.flatnonzero(coarse.accepted)
+        coarse.accepted[:] = False
+        if len(found):
+            refined = compensate(self._body, targets[found], coarse.motor_states[found],
+                                 **common, **fine)
+            for name in ("motor_states", "sensory_error", "gain", "motor_residual",
+                         "rank_ratio", "accepted"):
+                getattr(coarse, name)[found] = getattr(refined, name)
+            coarse.queries[found] += refined.queries
+            coarse.calls += refined.calls
+        return coarse
+
+    def _first_search_step(self):
+        """The step of a search's first pass (``_compensate``): one sensing per
+        stencil row where the agent averages them, else its step."""
+        if isinstance(self._fd_step, AveragedStep):
+            return SymmetricStep(float(self._fd_step))
+        return self._fd_step
+
+    def _coarse_error_tol(self) -> float:
+        """The sensory error (motor-equivalent) a first pass accepts: twice the
+        ``noise_confidence`` quantile of what two single sensings of one pose
+        differ by, over the gain."""
+        n_sensors = self._body.n_sensors
+        return 2.0 * noise_residual(self.params, self.structure, n_sensors) / \
+            self.structure.gain
 
     def _search_plan(self, requests, current):
         """The searches for ``requests`` (not empty): identical targets are
