@@ -22,6 +22,7 @@ from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
+from sensorispace_ros.core.naive.fd_steps import walk_step
 from sensorispace_ros.core.naive.noise import noise_residual, noise_step
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
@@ -335,7 +336,8 @@ class SearchAndSample:
         (each stencil row is sensed ``repeats`` times)."""
         if not isinstance(self._fd_step, AveragedStep):
             return self.params.pov_max_queries
-        return int(self.params.pov_max_queries * stencil_rows(self.n_motors, self._fd_step)
+        return int(self.params.pov_max_queries * stencil_rows(self.n_motors,
+                                                              walk_step(self._fd_step))
                    / (self.n_motors + 1))
 
     def _walk_povs(self, motor_states: np.ndarray):
@@ -344,8 +346,8 @@ class SearchAndSample:
         p = self.params
         return sample_sensory_points_of_view(
             self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
-            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
-            max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
+            fd_step=walk_step(self._fd_step), initial_step=p.pov_initial_step,
+            min_step=p.pov_min_step, max_step=p.pov_max_step, predictor_tol=p.pov_predictor_tol,
             rank_ratio=p.rank_ratio, max_queries=self._walk_budget(),
             polish_iterations=p.pov_polish_iterations, closure_tol=p.pov_closure_tol,
             sample_tol=p.pov_sample_tol,
