@@ -145,3 +145,13 @@ def test_loop_samples_keep_a_smooth_offset_and_lose_most_of_the_noise():
     # The strong direction keeps its offset (noise 1e-3 there) as the plain step does.
     strong = np.einsum("bm,bm->b", strongest, smooth + motor)
     assert np.sqrt(np.mean(strong ** 2)) < 1e-3
+
+
+def test_a_walk_steers_with_half_the_repeats_of_the_searches():
+    from sensorispace_ros.core.naive.fd_steps import walk_step
+    step = walk_step(AveragedStep(0.2, 7))
+    assert isinstance(step, AveragedStep) and step.repeats == 4 and float(step) == 0.2
+    assert walk_step(AveragedStep(0.2, 1)).repeats == 1
+    # Any other step is the walk's as it is.
+    symmetric = SymmetricStep(0.05)
+    assert walk_step(symmetric) is symmetric and walk_step(1e-6) == 1e-6
