@@ -148,7 +148,7 @@ def test_loop_samples_keep_a_smooth_offset_and_lose_most_of_the_noise():
 
 
 def test_a_walk_steers_with_half_the_repeats_of_the_searches():
-    from sensorispace_ros.core.naive.fd_steps import walk_step
+    from sensorispace_ros.core.naive.noise import walk_step
     step = walk_step(AveragedStep(0.2, 7))
     assert isinstance(step, AveragedStep) and step.repeats == 4 and float(step) == 0.2
     assert walk_step(AveragedStep(0.2, 1)).repeats == 1

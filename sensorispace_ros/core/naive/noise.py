@@ -39,13 +39,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
-from sensorispace_ros.core.naive.fd_steps import (averaged_search_params,  # noqa: F401
-    averaged_step, finite_difference_step, jacobian_noise)
-from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
+from sensorispace_ros.core.naive.jacobians import AveragedStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.structure import (BodyStructure, measure_cloud_structure,
-                                                   measure_structure, probe_rows,
-                                                   probe_structure, repeat_variance)
+from sensorispace_ros.core.naive.structure import (BodyStructure, measure_structure,
+                                                   probe_rows, probe_structure,
+                                                   repeat_variance, rounded_structure)
 
 # MAD -> standard deviation of a normal distribution.
 _MAD_TO_SD = 1.482602218505602
@@ -295,46 +293,6 @@ def averaged_structure(body, center: np.ndarray, params: NaiveParams, noise: Sen
         repeats = count
 
 
-# Cloud half widths tried, as shares of ``naive.cloud_step``.
-_CLOUD_LADDER = (1.0, 0.5, 0.25)
-
-
-def rounded_structure(body, center: np.ndarray, params: NaiveParams) -> BodyStructure:
-    """The structure of a body whose outputs are rounded, from Jacobians
-    fitted over clouds of ``2 * cloud_pairs`` states around each probe
-    (``structure.measure_cloud_structure``). A wider cloud averages the
-    rounding over more steps (its floor falls as 1 / width) while the
-    polynomial follows the sensation less well (its misfit grows with the
-    width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
-    lowest floor (relative to the gain) is kept; its clouds are then made
-    four times larger, up to ``cloud_max_pairs`` (a budget), while that
-    reveals more of the rank, the probes disagree, or the clouds of the
-    budget would count more than the rank (``structure.more_could_count``,
-    the fit's errors taken independent, of the sd its floor stands for;
-    where the floor overstates them, as on the MuJoCo body's images, whose
-    trailing singular values sum to less than it predicts, the first
-    reasons are left)."""
-    pairs = int(params.cloud_pairs)
-
-    def measured(width, pairs):
-        with getattr(body, "fresh", contextlib.nullcontext)():
-            return measure_cloud_structure(
-                body, center, step=CloudStep(width, pairs, len(center)),
-                probes=params.structure_probes, radius=params.structure_radius,
-                rank_gap=params.cloud_rank_gap, spent=pairs / params.cloud_max_pairs)
-
-    tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
-             for share in _CLOUD_LADDER]
-    width, (structure, settled) = min(
-        tried, key=lambda t: t[1][0].floor / max(t[1][0].gain, 1e-300))
-    revealed = -1
-    while 4 * pairs <= params.cloud_max_pairs and not (
-            settled and structure.votes == structure.probes and structure.pose_rank <= revealed):
-        revealed, pairs = structure.pose_rank, 4 * pairs
-        structure, settled = measured(width, pairs)
-    return structure
-
-
 def averaged_sd(noise, repeats: int) -> float:
     """Per-receptor sd of a sensation averaged over ``repeats`` sensings: the
     random part (``repeat_sd``) shrinks, the part that repeats exactly
@@ -425,3 +383,106 @@ def noise_residual(params: NaiveParams, structure: BodyStructure, n_sensors: int
     if structure.noise <= 0:
         return 0.0
     return float(structure.noise * np.sqrt(2.0 * chi2.ppf(params.noise_confidence, n_sensors)))
+
+
+def jacobian_noise(structure: BodyStructure, n_sensors: int, step: float | None = None) -> float:
+    """Expected spectral norm of a finite-difference Jacobian's noise
+    (sensation per phase) at ``step`` (default: the structure's forward
+    step; a ``SymmetricStep`` differences two noisy rows ``2 step`` apart)."""
+    step = structure.fd_step if step is None else step
+    if step <= 0:
+        return 0.0
+    spread = np.sqrt(n_sensors) + np.sqrt(structure.n_motors)
+    if isinstance(step, AveragedStep):
+        return float(structure.noise * np.sqrt(2.0 / step.repeats) * spread / (2.0 * step))
+    if isinstance(step, SymmetricStep):
+        return float(structure.noise * np.sqrt(2.0) * spread / (2.0 * step))
+    return float(structure.noise * np.sqrt(2.0) * spread / step)
+
+
+# A forward-difference Jacobian whose noise reaches this share of the pose's
+# weakest singular value tilts the directions the walks and searches follow.
+_WEAK_SHARE = 0.125
+
+
+def finite_difference_step(params: NaiveParams, structure: BodyStructure,
+                           n_sensors: int) -> float:
+    """The step every Jacobian of the agent takes: the sized forward step,
+    or, where its noise would reach ``_WEAK_SHARE`` of the weakest singular
+    value measured at the start (and only there: a symmetric stencil senses
+    ``2M + 1`` rows instead of ``M + 1``), a ``SymmetricStep`` where the
+    central difference's truncation (``step^2 / (6 L^2)``, relative, ``L``
+    the ``fd_curvature_scale``) and its noise are alike, within
+    ``fd_max_step``."""
+    step = params.fd_step
+    if structure.noise <= 0 or structure.weakest <= 0 or structure.gain <= 0 or \
+            jacobian_noise(structure, n_sensors, step) <= _WEAK_SHARE * structure.weakest:
+        return step
+    motor_equivalent = structure.noise * np.sqrt(n_sensors) / structure.gain
+    wanted = (3.0 * motor_equivalent * params.fd_curvature_scale ** 2 / np.sqrt(2.0)) ** (1 / 3)
+    symmetric = SymmetricStep(max(step, min(params.fd_max_step, wanted)))
+    # Averaging pays only for noise that repeats do not repeat (not rounding).
+    if jacobian_noise(structure, n_sensors, symmetric) <= structure.weakest or \
+            params.jacobian_max_repeats <= 1 or structure.repeat_noise < 0.5 * structure.noise:
+        return symmetric
+    return averaged_step(params, structure, n_sensors, symmetric)
+
+
+# Share of the pose's weakest singular value that an averaged Jacobian's
+# noise and its truncation error may each reach (``averaged_step``).
+_AVERAGED_SHARE = 0.5
+
+
+def averaged_step(params: NaiveParams, structure: BodyStructure, n_sensors: int,
+                  symmetric: float) -> AveragedStep:
+    """The ``AveragedStep`` of a body whose weakest pose direction lies below
+    the noise of one symmetric difference (no rank test could pass it): the
+    step where the central difference's truncation (``step^2 / (6 L^2)``
+    of the gain, ``L`` the ``fd_curvature_scale``) reaches
+    ``_AVERAGED_SHARE`` of the weakest singular value (a larger step needs
+    fewer repeats for the same noise), never below ``symmetric``; sensed as
+    many times as brings the Jacobian's noise to that share too, at most
+    ``jacobian_max_repeats``."""
+    weakest = structure.weakest
+    truncated = params.fd_curvature_scale * np.sqrt(6.0 * _AVERAGED_SHARE * weakest
+                                                    / structure.gain)
+    step = max(float(symmetric), float(truncated))
+    single = jacobian_noise(structure, n_sensors, SymmetricStep(step))
+    repeats = int(np.ceil((single / (_AVERAGED_SHARE * weakest)) ** 2))
+    return AveragedStep(step, int(min(max(repeats, 1), params.jacobian_max_repeats)))
+
+
+def averaged_search_params(params: NaiveParams, structure: BodyStructure, n_sensors: int,
+                           step: float) -> NaiveParams:
+    """``params`` with the searches' accepted sensory error tightened to what
+    an ``AveragedStep`` leaves: the ``noise_confidence`` quantile of the
+    distance between a state's sensation averaged ``repeats`` times and one
+    sensing of its target, in motor-equivalent units (over the gain). A
+    search whose end lies farther goes on (or stalls) instead of ending
+    where only the averaged test of ``confirm`` would reject it. The POV
+    walk's predictor tolerance: the motor step the noise of its averaged
+    probe asks for through the weakest singular value (instead of one
+    sensing's). Unchanged with any other step."""
+    if not isinstance(step, AveragedStep) or structure.noise <= 0 or structure.gain <= 0:
+        return params
+    distance = structure.noise * np.sqrt((1.0 + 1.0 / step.repeats)
+                                         * chi2.ppf(params.noise_confidence, n_sensors))
+    # A walk's corrections leave what is noise (``jacobians.shrink``); what
+    # is left of its farthest probe's is a drift once it reaches that probe's
+    # noise through the weakest direction, which the knot interval follows.
+    weakest = structure.weakest if structure.weakest > 0 else structure.gain
+    drift = structure.noise * np.sqrt(2.0 / walk_step(step).repeats) / weakest
+    return replace(params, lm_error_tol=float(distance / structure.gain),
+                   pov_predictor_tol=float(min(params.pov_predictor_tol, drift)))
+
+
+def walk_step(step: float) -> float:
+    """The step of a POV walk's Jacobians: ``step``, or for an
+    ``AveragedStep`` half its repeats (rounded up): a walk's Jacobians only
+    steer it between corrections that leave the noise alone and a
+    projection of its samples that filters it along the loop (measured on
+    the paper grid at noise 1e-3: a quarter to a half of the rows of the
+    full repeats for the same precision of its samples)."""
+    if not isinstance(step, AveragedStep):
+        return step
+    return AveragedStep(float(step), (step.repeats + 1) // 2)

@@ -22,8 +22,7 @@ from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
-from sensorispace_ros.core.naive.fd_steps import walk_step
-from sensorispace_ros.core.naive.noise import noise_residual, noise_step
+from sensorispace_ros.core.naive.noise import noise_residual, noise_step, walk_step
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 

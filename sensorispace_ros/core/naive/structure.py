@@ -28,12 +28,13 @@ so no tolerance is in the units of the receptors.
 """
 from __future__ import annotations
 
+import contextlib
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from sensorispace_ros.core.naive.jacobians import (cloud_design, cloud_fit,
+from sensorispace_ros.core.naive.jacobians import (CloudStep, cloud_design, cloud_fit,
                                                    jacobian_stencil, stencil_rows)
 
 # Fixed directions of the probe states around the start (any body's motor
@@ -430,3 +431,42 @@ def measure_cloud_structure(body, center: np.ndarray, *, step, probes: int = 8,
     return structure, not more_could_count(jac, None, floor, ranks, structure.pose_rank,
                                            rank_gap, spent)
 
+
+# Cloud half widths tried, as shares of ``naive.cloud_step``.
+_CLOUD_LADDER = (1.0, 0.5, 0.25)
+
+
+def rounded_structure(body, center: np.ndarray, params) -> BodyStructure:
+    """The structure of a body whose outputs are rounded, from Jacobians
+    fitted over clouds of ``2 * cloud_pairs`` states around each probe
+    (``structure.measure_cloud_structure``). A wider cloud averages the
+    rounding over more steps (its floor falls as 1 / width) while the
+    polynomial follows the sensation less well (its misfit grows with the
+    width): the widths of ``_CLOUD_LADDER`` are measured and the one of the
+    lowest floor (relative to the gain) is kept; its clouds are then made
+    four times larger, up to ``cloud_max_pairs`` (a budget), while that
+    reveals more of the rank, the probes disagree, or the clouds of the
+    budget would count more than the rank (``structure.more_could_count``,
+    the fit's errors taken independent, of the sd its floor stands for;
+    where the floor overstates them, as on the MuJoCo body's images, whose
+    trailing singular values sum to less than it predicts, the first
+    reasons are left)."""
+    pairs = int(params.cloud_pairs)
+
+    def measured(width, pairs):
+        with getattr(body, "fresh", contextlib.nullcontext)():
+            return measure_cloud_structure(
+                body, center, step=CloudStep(width, pairs, len(center)),
+                probes=params.structure_probes, radius=params.structure_radius,
+                rank_gap=params.cloud_rank_gap, spent=pairs / params.cloud_max_pairs)
+
+    tried = [(params.cloud_step * share, measured(params.cloud_step * share, pairs))
+             for share in _CLOUD_LADDER]
+    width, (structure, settled) = min(
+        tried, key=lambda t: t[1][0].floor / max(t[1][0].gain, 1e-300))
+    revealed = -1
+    while 4 * pairs <= params.cloud_max_pairs and not (
+            settled and structure.votes == structure.probes and structure.pose_rank <= revealed):
+        revealed, pairs = structure.pose_rank, 4 * pairs
+        structure, settled = measured(width, pairs)
+    return structure
