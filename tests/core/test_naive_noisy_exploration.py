@@ -75,6 +75,9 @@ def test_the_step_is_averaged_only_where_one_symmetric_difference_hides_the_weak
     # Capped by the budget of repeats.
     capped = finite_difference_step(NaiveParams(fd_step=1e-6, jacobian_max_repeats=2), loud, 6)
     assert capped.repeats == 2
+    # Where one sensing per row would do at the averaged step's size, the
+    # symmetric step as it was.
+    assert not isinstance(finite_difference_step(params, _structure(3e-4), 6), AveragedStep)
     # Rounding (repeats that do not spread): never averaged.
     rounded = BodyStructure(n_motors=4, pose_rank=3, rank_gap=10.0, gain=0.8, floor=0.0,
                             votes=8, probes=8, noise=1e-3, fd_step=0.05, weakest=0.0133,
