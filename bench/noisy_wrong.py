@@ -41,6 +41,7 @@ class TaggingAgent(NaiveAgent):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.tags: list[dict] = []
+        self.match_log: list = []
 
     def _search(self, requests, current, tree, split_now):
         self._plan = self._search_plan(requests, current) if requests else None
@@ -65,6 +66,9 @@ class TaggingAgent(NaiveAgent):
     def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
         if current is not None:
             self._matches = matches
+            for snap, (before, after) in zip(self._pool, matches):
+                if len(before):
+                    self.match_log.append((self._event, snap.event, before.copy(), after.copy()))
         return super()._anchor_requests(matches, rest_hits, rank_now, current)
 
     def _neighbourhood(self, r, x):
@@ -201,6 +205,22 @@ def main() -> None:
                 print(kind, "right" if ok else "wrong", "chosen start counts", chosen.tolist(),
                       "motor jump quantiles 50/90/99/max",
                       np.round(np.percentile(jumps, [50, 90, 99, 100]), 3).tolist())
+    pose = arm.forward(agent.points_of_view[:, 0])
+    wrong_matches, n_matches, wrong_by_lag = 0, 0, {}
+    for event, snap_event, before, after in agent.match_log:
+        shift = centers[event] - centers[snap_event]
+        err = np.linalg.norm(pose[after, :2] - pose[before, :2] - shift, axis=1)
+        bad = int(np.sum(err > tolerance))
+        wrong_matches += bad
+        n_matches += len(before)
+        if bad:
+            print(json.dumps({"wrong matches at": event, "snapshot": snap_event,
+                              "matched": len(before), "wrong": bad,
+                              "median error": round(float(np.median(err)), 3)}))
+        lag = min(event - snap_event, 5)
+        wrong_by_lag[lag] = wrong_by_lag.get(lag, 0) + bad
+    print(json.dumps({"sweep matches": n_matches, "wrong": wrong_matches,
+                      "wrong by lag (5: 5+)": wrong_by_lag}))
     front = [r for r in rows if r["kind"] == "frontier" and "d_j" in r]
     if front:
         np.save("/tmp/nw_front.npy", np.array([[r["error"], r["d_j"], r["d_x"], r["d_x3"],
