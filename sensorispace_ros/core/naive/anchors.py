@@ -192,7 +192,7 @@ def held_by_neighbours(pov_samples, neighbours: Neighbours, motor_state, *, rati
     distances that differ from place to place) for most of the neighbours
     (a wrong match among them is outvoted)."""
     near = curve_distances(motor_state, pov_samples[neighbours.after])
-    agree = near <= ratio * neighbours.reach + slack
+    agree = (near <= ratio * neighbours.reach + slack) & (near >= neighbours.reach / (ratio + 1))
     return 2 * int(np.sum(agree)) > len(agree)
 
 
@@ -256,6 +256,8 @@ _HIT_SHARE = 4.0
 # separations of the POVs (``SnapshotMatching._held_by_neighbours``).
 _NEIGHBOUR_RATIO = 3.0
 _NEIGHBOUR_SLACK = 1.0
+# Matches of a snapshot's rows that confirm it under noise (``_verify_matches``).
+_MIN_MATCHES = 2
 # A frontier row is searched only within this many separations of the POVs
 # from a matched row's POV (``SnapshotMatching._far_from_matched``).
 _FRONTIER_REACH = 4.0
@@ -364,13 +366,16 @@ class SnapshotMatching:
         other sensed then): it passes the averaged test of a known POV
         against an anchor (``_verify_rest_hits``) or is dropped, so a row
         within the chain allowance of a sensation it does not reproduce
-        confirms nothing and adds no equality. Returns the matches kept."""
+        confirms nothing and adds no equality. A lone match confirms nothing
+        either: one pose sensing like another far away is what noise lets
+        through, many poses moved alike are the displacement. Returns the
+        matches kept."""
         if not self._noisy:
             return matches
         kept = []
         for snap, (before, after) in zip(self._pool, matches):
-            if not len(before):
-                kept.append((before, after))
+            if len(before) < _MIN_MATCHES:
+                kept.append((before[:0], after[:0]))
                 continue
             solution = {i: self._store.samples[a, 0] for i, a in enumerate(after)}
             counts = {i: snap.count(int(b)) for i, b in enumerate(before)}
@@ -379,6 +384,8 @@ class SnapshotMatching:
             ok = self._confirm(solution, snap.sensations[before], counts, rounds=1,
                                max_step=_HIT_SHARE * self._max_pose_error(), repeats=repeats)
             good = np.isin(np.arange(len(before)), list(ok))
+            if np.sum(good) < _MIN_MATCHES:
+                good[:] = False
             kept.append((before[good], after[good]))
         return kept
 
