@@ -189,12 +189,14 @@ def held_by_neighbours(pov_samples, neighbours: Neighbours, motor_state, *, rati
     neighbours: the object moved every pose by one displacement, so
     neighbours stay neighbours. Within ``ratio`` times the row's distance
     plus ``slack`` (the arm's joints map a pose difference to motor
-    distances that differ from place to place), and no nearer than that
-    distance over ``ratio + 1`` (not on a neighbour's pose), for most of the
-    neighbours (a wrong match among them is outvoted)."""
+    distances that differ from place to place) for most of the neighbours
+    (a wrong match among them is outvoted), and for every one no nearer
+    than that distance over ``ratio + 1`` (on a partner's pose it is that
+    neighbour's compensation, not the row's)."""
     near = curve_distances(motor_state, pov_samples[neighbours.after])
-    agree = (near <= ratio * neighbours.reach + slack) & (near >= neighbours.reach / (ratio + 1))
-    return 2 * int(np.sum(agree)) > len(agree)
+    agree = near <= ratio * neighbours.reach + slack
+    apart = near >= neighbours.reach / (ratio + 1)
+    return 2 * int(np.sum(agree)) > len(agree) and bool(np.all(apart))
 
 
 def pooled_sweep(pool: list, matches, current: np.ndarray, cap: int):
