@@ -109,29 +109,3 @@ def test_a_compensation_on_a_neighbours_partner_is_not_the_rows():
     # pose of one of them is not the row's (it is that neighbour's).
     on_partner = samples[neighbours.after[0], 10]
     assert not held_by_neighbours(samples, neighbours, on_partner, ratio=RATIO, slack=SLACK)
-
-
-def _matching_agent(accept):
-    """The parts of a NaiveAgent ``_verify_matches`` reads; its averaged
-    test accepts the match indices in ``accept``."""
-    snap = Snapshot(0, np.zeros((6, 6)), np.full(6, RANK_FULL), np.zeros(6), np.zeros(2), 0)
-    return SimpleNamespace(
-        _noisy=True, _pool=[snap], _repeats=16, _max_pose_error=lambda: 0.01,
-        _store=SimpleNamespace(samples=np.zeros((8, 3, 2))),
-        _confirm=lambda solution, *a, **k: {i: solution[i] for i in solution if i in accept})
-
-
-def test_a_lone_match_confirms_no_snapshot_under_noise():
-    lone = [(np.array([2]), np.array([5]))]
-    kept = SnapshotMatching._verify_matches(_matching_agent({0}), lone)
-    assert len(kept[0][0]) == 0 and len(kept[0][1]) == 0
-    three = [(np.array([1, 2, 3]), np.array([4, 5, 6]))]
-    kept = SnapshotMatching._verify_matches(_matching_agent({0, 2}), three)
-    assert list(kept[0][0]) == [1, 3] and list(kept[0][1]) == [4, 6]
-    # Of three, one passes the averaged test: it is alone.
-    kept = SnapshotMatching._verify_matches(_matching_agent({1}), three)
-    assert len(kept[0][0]) == 0
-    # A noiseless agent keeps its lone matches.
-    noiseless = _matching_agent({0})
-    noiseless._noisy = False
-    assert SnapshotMatching._verify_matches(noiseless, lone) is lone

@@ -259,8 +259,6 @@ _HIT_SHARE = 4.0
 # separations of the POVs (``SnapshotMatching._held_by_neighbours``).
 _NEIGHBOUR_RATIO = 3.0
 _NEIGHBOUR_SLACK = 1.0
-# Matches of a snapshot's rows that confirm it under noise (``_verify_matches``).
-_MIN_MATCHES = 2
 # A frontier row is searched only within this many separations of the POVs
 # from a matched row's POV (``SnapshotMatching._far_from_matched``).
 _FRONTIER_REACH = 4.0
@@ -369,16 +367,13 @@ class SnapshotMatching:
         other sensed then): it passes the averaged test of a known POV
         against an anchor (``_verify_rest_hits``) or is dropped, so a row
         within the chain allowance of a sensation it does not reproduce
-        confirms nothing and adds no equality. A lone match confirms nothing
-        either: one pose sensing like another far away is what noise lets
-        through, many poses moved alike are the displacement. Returns the
-        matches kept."""
+        confirms nothing and adds no equality. Returns the matches kept."""
         if not self._noisy:
             return matches
         kept = []
         for snap, (before, after) in zip(self._pool, matches):
-            if len(before) < _MIN_MATCHES:
-                kept.append((before[:0], after[:0]))
+            if not len(before):
+                kept.append((before, after))
                 continue
             solution = {i: self._store.samples[a, 0] for i, a in enumerate(after)}
             counts = {i: snap.count(int(b)) for i, b in enumerate(before)}
@@ -387,8 +382,6 @@ class SnapshotMatching:
             ok = self._confirm(solution, snap.sensations[before], counts, rounds=1,
                                max_step=_HIT_SHARE * self._max_pose_error(), repeats=repeats)
             good = np.isin(np.arange(len(before)), list(ok))
-            if np.sum(good) < _MIN_MATCHES:
-                good[:] = False
             kept.append((before[good], after[good]))
         return kept
 
