@@ -1,13 +1,15 @@
 """A frontier compensation under noise is held to its row's matched
 neighbours: one displacement moved every pose, so the row's neighbours'
-partners lie around its compensation (``anchors.held_by_neighbours``)."""
+partners lie around its compensation (``neighbours.held_by_neighbours``)."""
 from types import SimpleNamespace
 
 import numpy as np
 
 from sensorispace_ros.core.naive import anchors
 from sensorispace_ros.core.naive.anchors import (RANK_FULL, Snapshot, SnapshotMatching,
-    curve_distances, frontier_requests, held_by_neighbours, matched_neighbours)
+    frontier_requests)
+from sensorispace_ros.core.naive.neighbours import (curve_distances, held_by_neighbours,
+    matched_neighbours)
 
 
 def _curves(centres, n=20, length=0.05):

@@ -25,6 +25,8 @@ from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     check_pose_rank, match_sensations)
+from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
+    matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
 
 
@@ -45,18 +47,6 @@ class Request:
     start: np.ndarray | None = None
     count: int = 1
     neighbours: "Neighbours | None" = None
-
-
-@dataclass
-class Neighbours:
-    """A frontier row's matched neighbours: ``before`` ``(k,)`` the
-    snapshot's rows nearest its POV (motor space, point to POV curve),
-    ``after`` ``(k,)`` the known POVs matched to them now, ``reach`` ``(k,)``
-    the distances of the row's POV to the ``before`` POVs' curves."""
-
-    before: np.ndarray
-    after: np.ndarray
-    reach: np.ndarray
 
 
 @dataclass
@@ -160,43 +150,6 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
                 r.start = pov_samples[r.neighbours.after[0], 0]
         return requests
     return []
-
-
-# Matched neighbours a frontier compensation is held to, and how many of
-# them must agree with it (``held_by_neighbours``).
-_NEIGHBOURS = 5
-
-
-def curve_distances(point: np.ndarray, curves: np.ndarray) -> np.ndarray:
-    """Distance (torus of phases) from ``point`` ``(M,)`` to the nearest
-    sample of each of ``curves`` ``(K, N, M)``: ``(K,)``."""
-    wrapped = (curves - point + np.pi) % (2.0 * np.pi) - np.pi
-    return np.sqrt(np.min(np.sum(wrapped * wrapped, axis=2), axis=1))
-
-
-def matched_neighbours(pov_samples, before, after, motor_state) -> Neighbours:
-    """The ``_NEIGHBOURS`` matched rows ``before`` whose POVs lie nearest
-    ``motor_state`` (a POV's first sample), with their partners ``after``."""
-    reach = curve_distances(motor_state, pov_samples[before])
-    nearest = np.argsort(reach, kind="stable")[:_NEIGHBOURS]
-    return Neighbours(before[nearest], after[nearest], reach[nearest])
-
-
-def held_by_neighbours(pov_samples, neighbours: Neighbours, motor_state, *, ratio: float,
-                       slack: float) -> bool:
-    """Whether ``motor_state`` (a frontier row's compensation) lies as near
-    its row's matched neighbours' partners as the row lay to the
-    neighbours: the object moved every pose by one displacement, so
-    neighbours stay neighbours. Within ``ratio`` times the row's distance
-    plus ``slack`` (the arm's joints map a pose difference to motor
-    distances that differ from place to place) for most of the neighbours
-    (a wrong match among them is outvoted), and for every one no nearer
-    than that distance over ``ratio + 1`` (on a partner's pose it is that
-    neighbour's compensation, not the row's)."""
-    near = curve_distances(motor_state, pov_samples[neighbours.after])
-    agree = near <= ratio * neighbours.reach + slack
-    apart = near >= neighbours.reach / (ratio + 1)
-    return 2 * int(np.sum(agree)) > len(agree) and bool(np.all(apart))
 
 
 def pooled_sweep(pool: list, matches, current: np.ndarray, cap: int):
