@@ -25,6 +25,8 @@ from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     check_pose_rank, match_sensations)
+from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
+    matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
 
 
@@ -33,7 +35,10 @@ class Request:
     """An anchor to search for: row ``row`` of snapshot ``snapshot``'s sweep
     (-1: its resting anchor), recorded at ``anchor_motor_state``; ``start``
     an extra state to search from (None: none); ``count`` the sensings
-    averaged in ``target``."""
+    averaged in ``target``; ``neighbours`` (``anchor_requests(by_motor=True)``,
+    else None): the matched rows nearest ``anchor_motor_state`` in motor
+    space, the known POVs now sensing what they sensed, and their motor
+    distances (``Neighbours``)."""
 
     snapshot: int
     row: int
@@ -41,6 +46,7 @@ class Request:
     anchor_motor_state: np.ndarray
     start: np.ndarray | None = None
     count: int = 1
+    neighbours: "Neighbours | None" = None
 
 
 @dataclass
@@ -73,13 +79,15 @@ class Snapshot:
 
 
 def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
-                    pov_samples: np.ndarray, frontier_budget: int):
+                    pov_samples: np.ndarray, frontier_budget: int, by_motor: bool = False):
     """Anchors: matched by a known POV, or searched for. A snapshot none
     of whose POVs matches is from before a redistribution or from before
     a long translation; its anchor is searched only while few POVs were
     known (later a long translation puts the anchor's target out of reach
     too, and the search would be wasted). ``matches`` of full rank only;
-    ``rest_hits[k]`` the POV now sensing snapshot ``k``'s anchor (-1: none).
+    ``rest_hits[k]`` the POV now sensing snapshot ``k``'s anchor (-1: none);
+    ``by_motor``: the requests of a snapshot with matches carry their
+    ``Neighbours`` (frontier rows as ``frontier_requests``'s).
     Returns ``({snapshot index: known POV}, [Request, ...])``."""
     known_comp: dict[int, int] = {}
     requests: list[Request] = []
@@ -95,24 +103,29 @@ def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
         elif len(matches[k][0]) > 0:
             requests.append(Request(k, -1, snap.rest_sensation, snap.rest_motor_state,
                                     count=snap.rest_count))
+            if by_motor:
+                requests[-1].neighbours = matched_neighbours(pov_samples, *matches[k],
+                                                             snap.rest_motor_state)
         elif unconfirmed_left > 0 and len(snap.sensations) < params.unconfirmed_max_povs:
             requests.append(Request(k, -1, snap.rest_sensation, snap.rest_motor_state,
                                     count=snap.rest_count))
             unconfirmed_left -= 1
     requests.extend(frontier_requests(pool, matches, pov_samples=pov_samples,
                                       attempts=params.frontier_attempts,
-                                      budget=frontier_budget))
+                                      budget=frontier_budget, by_motor=by_motor))
     return known_comp, requests
 
 
 def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts: int,
-                      budget: int) -> list:
+                      budget: int, by_motor: bool = False) -> list:
     """Anchors beyond the rest: rows of the most recent confirmed snapshot
     that no known POV matches, the ``budget`` nearest (in that snapshot's
     sensations) to a matched row (none if ``attempts`` is 0). Their targets
     are the unknown positions next to the known ones moved by the
     displacement; the matched neighbour's partner is a start a lattice step
-    from the target."""
+    from the target. ``by_motor``: the neighbour is the matched row whose
+    POV lies nearest the row's in motor space (a sensation alike may be a
+    far pose's), and the request carries its ``Neighbours``."""
     for k, snap in enumerate(pool):
         before, after = matches[k]
         if len(before) == 0:
@@ -126,10 +139,16 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
         distance, nearest = cKDTree(snap.sensations[before]).query(
             snap.sensations[unmatched], k=1)
         order = np.argsort(distance, kind="stable")[:budget]
-        return [Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
-                        pov_samples[unmatched[i], 0], pov_samples[after[nearest[i]], 0],
-                        snap.count(int(unmatched[i])))
-                for i in order]
+        requests = [Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
+                            pov_samples[unmatched[i], 0], pov_samples[after[nearest[i]], 0],
+                            snap.count(int(unmatched[i])))
+                    for i in order]
+        if by_motor:
+            for r in requests:
+                r.neighbours = matched_neighbours(pov_samples, before, after,
+                                                  r.anchor_motor_state)
+                r.start = pov_samples[r.neighbours.after[0], 0]
+        return requests
     return []
 
 
@@ -175,9 +194,27 @@ def _within_noise(rows, counts, target, count, sd2, quantile) -> bool:
     return bool(np.any(distance2 <= limit))
 
 
+def _far_from_matched(request, agent) -> bool:
+    """Whether a frontier row's POV lies farther than ``_FRONTIER_REACH``
+    separations of the agent's POVs (motor space) from every matched row's:
+    its target is no neighbour of a pose the match located, and nothing
+    holds a far pose sensing it alike (``SnapshotMatching._held_by_neighbours``)."""
+    if request.neighbours is None or agent._store.count < agent.params.pose_precision_povs:
+        return False
+    return bool(request.neighbours.reach[0] > _FRONTIER_REACH * agent._store.separation())
+
+
 # A known POV matching an anchor may lie this many predicted pose errors
 # (``searching._max_pose_error``) from it: its own error and the anchor's.
 _HIT_SHARE = 4.0
+# A frontier compensation's motor distance to a neighbour's partner may be
+# this many times its row's distance to the neighbour, plus this many
+# separations of the POVs (``SnapshotMatching._held_by_neighbours``).
+_NEIGHBOUR_RATIO = 3.0
+_NEIGHBOUR_SLACK = 1.0
+# A frontier row is searched only within this many separations of the POVs
+# from a matched row's POV (``SnapshotMatching._far_from_matched``).
+_FRONTIER_REACH = 4.0
 
 
 class SnapshotMatching:
@@ -325,9 +362,29 @@ class SnapshotMatching:
             if _within_noise(snap.sensations[others], counts[others], r.target, r.count,
                              sd2, quantile) or \
                     _within_noise(current, np.ones(len(current)), r.target, r.count, sd2,
-                                  quantile):
+                                  quantile) or _far_from_matched(r, self):
                 continue
             kept.append(r)
+        return kept
+
+
+    def _held_by_neighbours(self, solution, requests, group):
+        """Where noise sized the tolerances: ``solution`` ``{group: state}``
+        without the compensations (of a frontier row, or of the anchor of a
+        snapshot some POVs matched) that do not lie among the matched
+        neighbours' partners of the pose they were asked for
+        (``held_by_neighbours``, within ``_NEIGHBOUR_RATIO`` times plus
+        ``_NEIGHBOUR_SLACK`` separations of the POVs): a far pose sensing
+        the target alike is not the one asked for."""
+        if not self._noisy or not solution:
+            return solution
+        slack = _NEIGHBOUR_SLACK * self._store.separation()
+        kept = {}
+        for g, state in solution.items():
+            if all(held_by_neighbours(self._store.samples, r.neighbours, state,
+                                      ratio=_NEIGHBOUR_RATIO, slack=slack)
+                   for r, h in zip(requests, group) if h == g and r.neighbours is not None):
+                kept[g] = state
         return kept
 
     def _track_frontier(self, requests, found, new_povs) -> None:
@@ -379,7 +436,8 @@ class SnapshotMatching:
         known_comp, requests = anchor_requests(self._pool, matches, rest_hits, rank_now,
                                                self._anchor_params(),
                                                pov_samples=self._store.samples,
-                                               frontier_budget=self._frontier_budget())
+                                               frontier_budget=self._frontier_budget(),
+                                               by_motor=self._noisy)
         if current is not None:
             requests = self._distinct_targets(requests, current)
         return known_comp, requests

@@ -52,6 +52,7 @@ class SearchAndSample:
             # sweep's row as many as its chain of matches pooled (``Request.count``).
             counts = {g: requests[int(np.flatnonzero(group == g)[0])].count for g in solution}
             solution = self._confirm(solution, unique_targets, counts)
+            solution = self._held_by_neighbours(solution, requests, group)
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
