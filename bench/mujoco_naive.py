@@ -2,6 +2,7 @@
 (docs/mujoco.md, docs/benchmarks.md "A MuJoCo body").
 
     .venv/bin/python -m bench.mujoco_naive --config config/mujoco-smoke.yaml [--seed S]
+    .venv/bin/python -m bench.mujoco_naive --config config/mujoco-arm.yaml --views 4000
 
 Runs the naive agent through the configuration's world (lockstep, as
 ``sensorispace reproduce``), then joins each accepted compensation with
@@ -10,7 +11,10 @@ resting anchor, a search for a frontier row of a sweep), its pose error
 against the pose its anchor asks for, and whether it spans a state change.
 Prints JSON: the evaluator's headline numbers, wrong compensations by kind
 with their errors, the rows and seconds of each stage, and the body's
-rendering time per frame.
+rendering time per frame. ``--views N`` runs no agent: it renders N views
+(joint states about the start, sd 1 rad, the object at seeded grid
+positions) and prints how many of them show almost nothing (few pixels
+above 20 gray levels), and the CPU time per frame.
 """
 from __future__ import annotations
 
@@ -130,6 +134,30 @@ def diagnose(cfg: dict, seed: int) -> dict:
     }
 
 
+def view_content(cfg: dict, n_views: int, seed: int) -> dict:
+    """What ``n_views`` views hold: pixels above 20 gray levels per view, and CPU ms per frame."""
+    from sensorispace_ros.bodies import run_world
+    from sensorispace_ros.core.seeding import rng_for
+
+    world = run_world(cfg, seed)
+    body = world.body(lights=world.initial_lights)
+    rng = rng_for(seed, "bench_views")
+    lit, cpu, batch = [], 0.0, 200
+    for _ in range(max(1, n_views // batch)):
+        body.set_lights(world.grid[rng.integers(len(world.grid))] + world.initial_offsets)
+        states = world.m0 + rng.normal(0.0, 1.0, size=(batch, len(world.m0)))
+        started = time.process_time()
+        images = body.sense(states)
+        cpu += time.process_time() - started
+        lit.append(np.sum(images > 20, axis=1))
+    lit = np.concatenate(lit)
+    return {"model": str(cfg["mujoco"]["model"]), "views": int(len(lit)),
+            "share_lit_at_most_10": round(float(np.mean(lit <= 10)), 3),
+            "share_lit_at_most_30": round(float(np.mean(lit <= 30)), 3),
+            "median_lit": float(np.median(lit)),
+            "cpu_ms_per_frame": round(1e3 * cpu / len(lit), 3)}
+
+
 def main(argv=None) -> None:
     from sensorispace_ros.config import load_config, parse_overrides
 
@@ -138,9 +166,14 @@ def main(argv=None) -> None:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one parameter (YAML value), e.g. world.grid_count=4")
+    parser.add_argument("--views", type=int, default=0, metavar="N",
+                        help="render N views and count those of almost nothing (no agent)")
     args = parser.parse_args(argv)
     cfg = load_config(args.config, parse_overrides(args.set) or None)
     seed = int(cfg["seed"] if args.seed is None else args.seed)
+    if args.views:
+        print(json.dumps(view_content(cfg, args.views, seed), indent=1))
+        return
     print(json.dumps(diagnose(cfg, seed), indent=1))
 
 
