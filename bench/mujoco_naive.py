@@ -2,6 +2,8 @@
 (docs/mujoco.md, docs/benchmarks.md "A MuJoCo body").
 
     .venv/bin/python -m bench.mujoco_naive --config config/mujoco-smoke.yaml [--seed S]
+    .venv/bin/python -m bench.mujoco_naive --config config/mujoco-arm.yaml --views 4000
+    .venv/bin/python -m bench.mujoco_naive --config config/mujoco-arm.yaml --graph-against DIR
 
 Runs the naive agent through the configuration's world (lockstep, as
 ``sensorispace reproduce``), then joins each accepted compensation with
@@ -10,7 +12,14 @@ resting anchor, a search for a frontier row of a sweep), its pose error
 against the pose its anchor asks for, and whether it spans a state change.
 Prints JSON: the evaluator's headline numbers, wrong compensations by kind
 with their errors, the rows and seconds of each stage, and the body's
-rendering time per frame.
+rendering time per frame. ``--views N`` runs no agent: it renders N views
+(joint states about the start, sd 1 rad, the object at seeded grid
+positions) and prints how many of them show almost nothing (few pixels
+above 20 gray levels), and the CPU time per frame. ``--graph-against DIR``
+runs the configuration's seed through the graph (its nodes in this process,
+``graph.command_timeout_s`` 120 s: a large command takes the renderer
+seconds) and compares what it gives with DIR, the output of ``sensorispace
+reproduce --strategy naive`` on the same configuration and seed.
 """
 from __future__ import annotations
 
@@ -130,6 +139,53 @@ def diagnose(cfg: dict, seed: int) -> dict:
     }
 
 
+def view_content(cfg: dict, n_views: int, seed: int) -> dict:
+    """What ``n_views`` views hold: pixels above 20 gray levels per view, and CPU ms per frame."""
+    from sensorispace_ros.bodies import run_world
+    from sensorispace_ros.core.seeding import rng_for
+
+    world = run_world(cfg, seed)
+    body = world.body(lights=world.initial_lights)
+    rng = rng_for(seed, "bench_views")
+    lit, cpu, batch = [], 0.0, 200
+    for _ in range(max(1, n_views // batch)):
+        body.set_lights(world.grid[rng.integers(len(world.grid))] + world.initial_offsets)
+        states = world.m0 + rng.normal(0.0, 1.0, size=(batch, len(world.m0)))
+        started = time.process_time()
+        images = body.sense(states)
+        cpu += time.process_time() - started
+        lit.append(np.sum(images > 20, axis=1))
+    lit = np.concatenate(lit)
+    return {"model": str(cfg["mujoco"]["model"]), "views": int(len(lit)),
+            "share_lit_at_most_10": round(float(np.mean(lit <= 10)), 3),
+            "share_lit_at_most_30": round(float(np.mean(lit <= 30)), 3),
+            "median_lit": float(np.median(lit)),
+            "cpu_ms_per_frame": round(1e3 * cpu / len(lit), 3)}
+
+
+def graph_against(config_path: str, offline_dir: str, domain_id: int = 93) -> dict:
+    """The graph's run (in one process) against reproduce's ``arrays.npz`` in ``offline_dir``."""
+    import tempfile
+    from pathlib import Path
+
+    from sensorispace_ros.graph import in_process
+
+    out = Path(tempfile.mkdtemp(prefix="mujoco-graph-"))
+    started = time.perf_counter()
+    result = in_process.run_graph_in_process(config_path, domain_id, out, timeout_s=5400,
+                                             parameters={"graph.command_timeout_s": 120.0})
+    graph = np.load(out / "representation.npz")
+    offline = np.load(Path(offline_dir) / "arrays.npz")
+    agent = result["nodes"]["agent"].agent
+    equal = {key: bool(graph[key].shape == offline[key].shape
+                       and np.array_equal(graph[key], offline[key]))
+             for key in ("povs", "pairs", "set_ids", "hausdorff", "embedding_2d_iterations",
+                         "embedding_3d_iterations") if key in offline and key in graph}
+    return {"wall_s": round(time.perf_counter() - started, 1), "povs": int(len(graph["povs"])),
+            "compensated": int(agent.compensated), "queries_total": int(agent.queries_total),
+            "equal_to_offline": equal, "results": str(out)}
+
+
 def main(argv=None) -> None:
     from sensorispace_ros.config import load_config, parse_overrides
 
@@ -138,9 +194,19 @@ def main(argv=None) -> None:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one parameter (YAML value), e.g. world.grid_count=4")
+    parser.add_argument("--views", type=int, default=0, metavar="N",
+                        help="render N views and count those of almost nothing (no agent)")
+    parser.add_argument("--graph-against", default="", metavar="DIR",
+                        help="run through the graph and compare with reproduce's output DIR")
     args = parser.parse_args(argv)
+    if args.graph_against:
+        print(json.dumps(graph_against(args.config, args.graph_against), indent=1))
+        return
     cfg = load_config(args.config, parse_overrides(args.set) or None)
     seed = int(cfg["seed"] if args.seed is None else args.seed)
+    if args.views:
+        print(json.dumps(view_content(cfg, args.views, seed), indent=1))
+        return
     print(json.dumps(diagnose(cfg, seed), indent=1))
 
 
