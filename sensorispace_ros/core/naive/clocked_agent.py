@@ -110,7 +110,6 @@ class ClockedAgent(NaiveAgent):
         self._witnesses = None      # (states, sensations) of this reaction's sweep
         self._lookouts = None       # states (phases) a reaction's lookout is chosen from
         self._lookout = None        # (state, sensation) the next reaction watches
-        self.lookout_rows = 0       # rows ``sense_sentinels`` sensed after the resting state
         self.cut_stage = None       # the stage a sentinel stopped last
         self.crossing = None        # a walk's change in this reaction (``_cross``)
         self.crossings = 0          # walks started again in a new world
@@ -179,7 +178,7 @@ class ClockedAgent(NaiveAgent):
     def sense_sentinels(self, rest) -> np.ndarray:
         """Sense the resting state ``rest`` (body units) afresh, with the
         lookout candidates (the last sweep's witnesses, else the first known
-        POVs) after it in the same call (``lookout_rows`` rows); the candidate
+        POVs) after it in the same call; the candidate
         that sensed most becomes the lookout the next reaction watches beside
         its resting state (``tripwire``): a resting state that senses nothing
         sees no change. Returns the resting state's sensation."""
@@ -187,7 +186,6 @@ class ClockedAgent(NaiveAgent):
             self._store.samples[:WITNESSES, 0]
         candidates = self._to_body(candidates).reshape(-1, self.n_motors)
         sensed = self.sense_again(np.vstack([np.asarray(rest, float)[None], candidates]))
-        self.lookout_rows = len(candidates)
         self._lookout = None
         if len(candidates):
             found = sensed[1:]
@@ -322,15 +320,26 @@ class ClockedAgent(NaiveAgent):
         chosen = chosen[lit[chosen] > 0]
         return states[chosen].copy(), sensed[chosen].copy()
 
+    def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
+        self._lost = not (np.any(np.asarray(rest_hits) >= 0) or
+                          any(len(before) for before, _ in matches))
+        return super()._anchor_requests(matches, rest_hits, rank_now, current)
+
     def _anchor_params(self):
         """The agent's parameters, except that once it knows more POVs than
         ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
         per change: with a bounded sweep most snapshots go unconfirmed (their
-        matches were not sensed), not only those a redistribution made stale."""
+        matches were not sensed), not only those a redistribution made stale.
+        With ``clock_unconfirmed_when_lost`` only in a reaction whose sweep
+        confirmed no snapshot (``_lost``): one that did has its compensation
+        to search, and an unconfirmed anchor is seldom found."""
         params = self.params
         if self._store.count >= params.unconfirmed_max_povs:
+            attempts = min(params.unconfirmed_attempts, 1)
+            if params.clock_unconfirmed_when_lost and not getattr(self, "_lost", True):
+                attempts = 0
             params = replace(params, unconfirmed_max_povs=self._store.count + 1,
-                             unconfirmed_attempts=min(params.unconfirmed_attempts, 1))
+                             unconfirmed_attempts=attempts)
         return params
 
     def _search(self, requests, current, tree, split_now):
