@@ -12,10 +12,10 @@ waiting world:
   search's solution is compared with the known POVs nearest to it in motor
   space, sensed in this world (``_sense_near``): a solution sensing what one senses is
   that POV, swept or not;
-* every call a reaction sends ends with a *sentinel*, the resting state
-  of before, whose sensation in this world the agent holds (``Tripwire``):
-  when it moved, the world changed while the agent was working and the
-  reaction stops (``WorldChanged``);
+* every call a reaction sends ends with its *sentinels*, the resting state
+  of before and a lookout, whose sensations in this world the agent holds
+  (``tripwire``; ``sense_sentinels``): when one moved, the world changed
+  while the agent was working and the reaction stops (``WorldChanged``);
 * a reaction can be undone (``checkpoint``/``restore``): what it found
   spans two worlds and is dropped, its probing still counted, except the
   POVs whose walks were verified before the change, and the search
