@@ -60,7 +60,8 @@ class AllPairsSweep(EqualitySetSweep):
         tree = cKDTree(finite_rows(current, -1.0))
         for previous, previous_rank in self.history:
             before, after = match_sensations(previous, current, match_tol=self.match_tol,
-                                             separation=self.separation, tree=tree)
+                                             separation=self.separation, tree=tree,
+                                             ratio=self.ratio)
             known = np.where(rank[after] != RANK_UNKNOWN, rank[after], previous_rank[before])
             rank[after] = known
             unknown = after[known == RANK_UNKNOWN]
