@@ -6,7 +6,7 @@ wherever that falls; the agent gets no notice. It holds still at its
 resting state while its sensation stays within its noise band
 (``change_detection.band``, one ``hold`` call), reacts when it leaves it
 (confirmed by sensing the state once more). Every call of a reaction ends
-with sentinel rows (``tripwire.Tripwire``: the resting state and a lookout,
+with sentinel rows (``change_detection.Tripwire``: the resting state and a lookout,
 ``ClockedAgent.sense_sentinels``); after each reaction the
 agent senses again its resting state of before, its new one and the
 witnesses of its sweep: if any moved, the world changed while it worked,

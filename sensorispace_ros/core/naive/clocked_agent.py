@@ -14,7 +14,7 @@ waiting world:
   that POV, swept or not;
 * every call a reaction sends ends with its *sentinels*, the resting state
   of before and a lookout, whose sensations in this world the agent holds
-  (``tripwire``; ``sense_sentinels``): when one moved, the world changed
+  (``change_detection.Tripwire``; ``sense_sentinels``): when one moved, the world changed
   while the agent was working and the reaction stops (``WorldChanged``);
 * a reaction can be undone (``checkpoint``/``restore``): what it found
   spans two worlds and is dropped, its probing still counted, except the
@@ -38,7 +38,7 @@ from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
-from sensorispace_ros.core.naive.tripwire import Tripwire, WorldChanged
+from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 
 __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
@@ -181,7 +181,7 @@ class ClockedAgent(NaiveAgent):
         lookout candidates (the last sweep's witnesses, else the first known
         POVs) after it in the same call; the candidate
         that sensed most becomes the lookout the next reaction watches beside
-        its resting state (``tripwire``): a resting state that senses nothing
+        its resting state (``change_detection.Tripwire``): a resting state that senses nothing
         sees no change. Returns the resting state's sensation."""
         candidates = self._lookouts if self._lookouts is not None else \
             self._store.samples[:WITNESSES, 0]
