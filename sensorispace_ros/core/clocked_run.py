@@ -6,7 +6,8 @@ wherever that falls; the agent gets no notice. It holds still at its
 resting state while its sensation stays within its noise band
 (``change_detection.band``, one ``hold`` call), reacts when it leaves it
 (confirmed by sensing the state once more). Every call of a reaction ends
-with a sentinel row (``clocked_agent.Tripwire``); after each reaction the
+with sentinel rows (``change_detection.Tripwire``: the resting state and a lookout,
+``ClockedAgent.sense_sentinels``); after each reaction the
 agent senses again its resting state of before, its new one and the
 witnesses of its sweep: if any moved, the world changed while it worked,
 and the reaction is undone
@@ -177,6 +178,7 @@ class ClockedRun:
         self.log = ChangeLog()
         self.event_states: list[tuple[int, int]] = []
         self.lost_rows = 0
+        self._sentinel_row = -1
         self.undone = 0
         self.salvaged = 0
         self.pending_povs = 0
@@ -193,17 +195,18 @@ class ClockedRun:
         rest = agent.rest_motor_state
         if body.hold(rest, low, high) is None:
             return None
-        sensed = agent.sense_again(rest)[0]
+        sensed = self._sense_sentinels(rest)
         changed = change_detection.differs(agent.noise_sd, reference, sensed)
-        self.log.add(reference_row, body.row - 1, changed, rest, "hold")
+        self.log.add(reference_row, self._rest_row(), changed, rest, "hold")
         return sensed if changed else False
 
     def react(self, sensed_at_rest: np.ndarray, reaction=None):
         """React (``reaction``, default ``agent.react``) until a reaction is
-        not cut by a change; ``sensed_at_rest`` was sensed at the last row.
+        not cut by a change; ``sensed_at_rest`` was sensed by the last call
+        (``ClockedAgent.sense_sentinels``).
         Returns the new reference sensation and the row it was sensed at."""
         agent, body = self.agent, self.body
-        reference_row = body.row - 1
+        reference_row = self._rest_row()
         while True:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
@@ -217,8 +220,8 @@ class ClockedRun:
                     # Kept; the world its sweep saw is gone: react again at
                     # once, for a snapshot of the world as it is.
                     self._crossed(reference_row, first_row, first_row - sent, before_rest, again)
-                    sensed_at_rest = again[0]
-                    reference_row = body.row - 2
+                    sensed_at_rest = self._sense_sentinels(before_rest)
+                    reference_row = self._rest_row()
                     continue
                 cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
                     (agent.phase == EXPLORING and
@@ -232,8 +235,20 @@ class ClockedRun:
                 return again[1], body.row - 1
             self._undo(saved, rows_before, stages_before, cut_in)
             # The world of this row, at the resting state the undone reaction started from.
-            sensed_at_rest = agent.sense_again(before_rest)[0]
-            reference_row = body.row - 1
+            sensed_at_rest = self._sense_sentinels(before_rest)
+            reference_row = self._rest_row()
+
+    def _sense_sentinels(self, rest: np.ndarray) -> np.ndarray:
+        """``ClockedAgent.sense_sentinels``; notes the row the resting state
+        was sensed at (the call's first: the body's position before it)."""
+        row = self.body.row
+        sensed = self.agent.sense_sentinels(rest)
+        self._sentinel_row = row
+        return sensed
+
+    def _rest_row(self) -> int:
+        """The row the resting state was last sensed at (``_sense_sentinels``)."""
+        return self._sentinel_row
 
     def _crossed(self, reference_row: int, first_row: int, offset: int, rest: np.ndarray,
                  again: np.ndarray) -> None:
@@ -263,12 +278,12 @@ class ClockedRun:
                 if agent.crossing is not None:
                     fired = body.row - agent.rows_sent + agent.crossing["fired"] - 1
                     self.log.add(reference_row, fired, True, agent.rest_motor_state, "walk")
-                    return agent.sense_again(agent.rest_motor_state)[0]
-            except WorldChanged as stop:
+                    return self._sense_sentinels(agent.rest_motor_state)
+            except WorldChanged:
                 self.log.add(reference_row, body.row - 1, True, agent.rest_motor_state, "walk")
                 self._count_lost(rows_before, stages_before, "pending_walk")
                 agent.restore(saved, salvage=False)
-                return np.asarray(stop.args[0], dtype=float)
+                return self._sense_sentinels(agent.rest_motor_state)
         return None
 
     def _count_lost(self, rows_before: int, stages_before: dict, cut_in: str) -> None:

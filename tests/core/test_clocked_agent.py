@@ -155,3 +155,16 @@ def test_lost_rows_are_counted_by_stage(clocked_smoke):
         "naive.clock.undone_reactions"]
     # Undone reactions and dropped pending walks lose rows; the start's retries too.
     assert sum(by_stage.values()) <= metrics["naive.clock.lost_rows"]
+
+
+def test_simulation_2_matches_with_the_ratio_test_where_the_agent_measured_noise():
+    # Smoke seed 1 measures a round-off noise (a separation of ~1e-13): its
+    # matches must stand out by the ratio, as the lockstep sweep's do; a
+    # match by separation alone is refused (ValueError) and the run stops.
+    cfg = config.load_config(SMOKE, {"seed": 1, "world.clock": "rows",
+                                     "world.change_interval": 1000.0})
+    world = run_world(cfg)
+    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=1000.0)
+    sweep = run.agent._sweep
+    assert sweep is not None and sweep.ratio > 0 and sweep.separation < sweep.match_tol
+    assert len(sweep.history) > 1            # simulation 2 matched sweeps to its end

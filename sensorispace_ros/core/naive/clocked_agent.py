@@ -12,10 +12,10 @@ waiting world:
   search's solution is compared with the known POVs nearest to it in motor
   space, sensed in this world (``_sense_near``): a solution sensing what one senses is
   that POV, swept or not;
-* every call a reaction sends ends with a *sentinel*, the resting state
-  of before, whose sensation in this world the agent holds (``Tripwire``):
-  when it moved, the world changed while the agent was working and the
-  reaction stops (``WorldChanged``);
+* every call a reaction sends ends with its *sentinels*, the resting state
+  of before and a lookout, whose sensations in this world the agent holds
+  (``change_detection.Tripwire``; ``sense_sentinels``): when one moved, the world changed
+  while the agent was working and the reaction stops (``WorldChanged``);
 * a reaction can be undone (``checkpoint``/``restore``): what it found
   spans two worlds and is dropped, its probing still counted, except the
   POVs whose walks were verified before the change, and the search
@@ -38,71 +38,12 @@ from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
+from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
+
+__all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
 NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
 WITNESSES = 8        # swept POVs sensed again after a reaction
-
-
-class WorldChanged(Exception):
-    """The sentinel's sensation left its band: the world changed."""
-
-
-class Tripwire:
-    """The agent's body with a sentinel row after every call while armed
-    (``arm``): its sensation is tested against the one the agent holds
-    (``change_detection.differs``): when it passes, every row of the call
-    saw the world the agent holds. Rows are the body's units.
-    ``on_pass()`` is called after every sentinel that passes."""
-
-    def __init__(self, body, on_pass=None):
-        self._body = body
-        self.n_motors = int(body.n_motors)
-        self.n_sensors = int(body.n_sensors)
-        self.description = getattr(body, "description", None)
-        self._sentinel = None
-        self._reference = None
-        self.noise_sd = 0.0
-        self.rows = 0                  # sentinel rows sensed
-        self.passed = 0                # sentinels that passed
-        self.sent = 0                  # rows sent to the body, sentinels included
-        self.passed_at = 0             # ``sent`` after the last sentinel that passed
-
-    @property
-    def armed(self) -> bool:
-        return self._sentinel is not None
-
-    def arm(self, motor_state, reference, noise_sd: float) -> None:
-        self._sentinel = np.asarray(motor_state, dtype=float).reshape(1, -1)
-        self._reference = np.asarray(reference, dtype=float).reshape(-1)
-        self.noise_sd = float(noise_sd)
-
-    def disarm(self) -> None:
-        self._sentinel = self._reference = None
-
-    def rearm(self, reference) -> None:
-        """The same sentinel, held to ``reference`` (its sensation in a new world)."""
-        self._reference = np.asarray(reference, dtype=float).reshape(-1)
-
-    def check(self) -> None:
-        """Sense the sentinel alone (raises ``WorldChanged``)."""
-        self.sense(np.zeros((0, self.n_motors)))
-
-    def sense(self, motor_states) -> np.ndarray:
-        motor_states = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
-        if self._sentinel is None:
-            self.sent += len(motor_states)
-            return self._body.sense(motor_states)
-        sensed = self._body.sense(np.vstack([motor_states, self._sentinel]))
-        self.rows += 1
-        self.sent += len(motor_states) + 1
-        if change_detection.differs(self.noise_sd, self._reference, sensed[-1]):
-            raise WorldChanged(sensed[-1])
-        self.passed += 1
-        self.passed_at = self.sent
-        return sensed[:-1]
-
-    def move(self, motor_states) -> None:
-        self.sense(motor_states)
 
 
 class AllPairsSweep(EqualitySetSweep):
@@ -119,7 +60,8 @@ class AllPairsSweep(EqualitySetSweep):
         tree = cKDTree(finite_rows(current, -1.0))
         for previous, previous_rank in self.history:
             before, after = match_sensations(previous, current, match_tol=self.match_tol,
-                                             separation=self.separation, tree=tree)
+                                             separation=self.separation, tree=tree,
+                                             ratio=self.ratio)
             known = np.where(rank[after] != RANK_UNKNOWN, rank[after], previous_rank[before])
             rank[after] = known
             unknown = after[known == RANK_UNKNOWN]
@@ -167,6 +109,8 @@ class ClockedAgent(NaiveAgent):
         self._cut_walk = None       # the start states of a walk a change cut
         self._search_current = None
         self._witnesses = None      # (states, sensations) of this reaction's sweep
+        self._lookouts = None       # states (phases) a reaction's lookout is chosen from
+        self._lookout = None        # (state, sensation) the next reaction watches
         self.cut_stage = None       # the stage a sentinel stopped last
         self.crossing = None        # a walk's change in this reaction (``_cross``)
         self.crossings = 0          # walks started again in a new world
@@ -211,7 +155,12 @@ class ClockedAgent(NaiveAgent):
         at the call, whose sensation in this world is ``sensed_at_rest``. Raises
         ``WorldChanged`` (the agent then inside an unfinished reaction:
         ``restore`` it)."""
-        self._tripwire.arm(self.rest_motor_state, sensed_at_rest, self.noise_sd)
+        states, held = [self.rest_motor_state], [sensed_at_rest]
+        if self._lookout is not None:
+            states.append(self._lookout[0])
+            held.append(self._lookout[1])
+            self._lookout = None
+        self._tripwire.arm(np.vstack(states), np.vstack(held), self.noise_sd)
         self._verified = self._store.count
         self._cut_walk = None
         self._witnesses = None
@@ -226,6 +175,26 @@ class ClockedAgent(NaiveAgent):
         finally:
             self._tripwire.disarm()
             self._body.pause()
+
+    def sense_sentinels(self, rest) -> np.ndarray:
+        """Sense the resting state ``rest`` (body units) afresh, with the
+        lookout candidates (the last sweep's witnesses, else the first known
+        POVs) after it in the same call; the candidate
+        that sensed most becomes the lookout the next reaction watches beside
+        its resting state (``change_detection.Tripwire``): a resting state that senses nothing
+        sees no change. Returns the resting state's sensation."""
+        candidates = self._lookouts if self._lookouts is not None else \
+            self._store.samples[:WITNESSES, 0]
+        candidates = self._to_body(candidates).reshape(-1, self.n_motors)
+        sensed = self.sense_again(np.vstack([np.asarray(rest, float)[None], candidates]))
+        self._lookout = None
+        if len(candidates):
+            found = sensed[1:]
+            lit = np.where(np.all(np.isfinite(found), axis=1), np.linalg.norm(found, axis=1), -1.0)
+            best = int(np.argmax(lit))
+            if lit[best] >= 0:
+                self._lookout = (candidates[best].copy(), found[best].copy())
+        return sensed[0]
 
     def walk_pending(self, sensed_at_rest) -> int:
         """Walk the oldest pending solution, watched as a reaction is; the
@@ -316,6 +285,7 @@ class ClockedAgent(NaiveAgent):
         lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
         top = np.argsort(-lit, kind="stable")[:WITNESSES]
         self._witnesses = (self._store.samples[chosen[top], 0].copy(), sensed[top].copy())
+        self._lookouts = self._witnesses[0]
         return current, np.zeros((0, n_sensors))
 
     def witnesses_moved(self) -> bool:
@@ -351,15 +321,26 @@ class ClockedAgent(NaiveAgent):
         chosen = chosen[lit[chosen] > 0]
         return states[chosen].copy(), sensed[chosen].copy()
 
+    def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
+        self._lost = not (np.any(np.asarray(rest_hits) >= 0) or
+                          any(len(before) for before, _ in matches))
+        return super()._anchor_requests(matches, rest_hits, rank_now, current)
+
     def _anchor_params(self):
         """The agent's parameters, except that once it knows more POVs than
         ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
         per change: with a bounded sweep most snapshots go unconfirmed (their
-        matches were not sensed), not only those a redistribution made stale."""
+        matches were not sensed), not only those a redistribution made stale.
+        With ``clock_unconfirmed_when_lost`` only in a reaction whose sweep
+        confirmed no snapshot (``_lost``): one that did has its compensation
+        to search, and an unconfirmed anchor is seldom found."""
         params = self.params
         if self._store.count >= params.unconfirmed_max_povs:
+            attempts = min(params.unconfirmed_attempts, 1)
+            if params.clock_unconfirmed_when_lost and not getattr(self, "_lost", True):
+                attempts = 0
             params = replace(params, unconfirmed_max_povs=self._store.count + 1,
-                             unconfirmed_attempts=min(params.unconfirmed_attempts, 1))
+                             unconfirmed_attempts=attempts)
         return params
 
     def _search(self, requests, current, tree, split_now):
@@ -439,7 +420,7 @@ class ClockedAgent(NaiveAgent):
             except WorldChanged as stop:
                 if not self._tripwire.armed or attempt == attempts - 1:
                     raise
-                self._cross(np.asarray(stop.args[0], dtype=float))
+                self._cross(np.asarray(stop.args[-1], dtype=float))
         raise AssertionError("unreachable")
 
     def _cross(self, sensed: np.ndarray) -> None:
@@ -455,7 +436,8 @@ class ClockedAgent(NaiveAgent):
         tripwire = self._tripwire
         if self.crossing is None:
             self.crossing = {"passed": self._search_end, "fired": tripwire.sent}
-        self.crossing.update(reference=sensed.copy(), latest=tripwire.sent)
+        sensed = sensed.reshape(-1, tripwire.n_sensors)
+        self.crossing.update(reference=sensed[0].copy(), latest=tripwire.sent)
         self.crossings += 1
         tripwire.rearm(sensed)
         self._body.forget()
