@@ -11,7 +11,9 @@ settle, the first call of the next change (the sweep of the known POVs,
 change k's passive sensation, so that call waits for no round trip.
 
 A command unanswered after ``command_timeout_s`` is published again with the
-same frame id (a restarted body lost it). After a restart the answers come from
+same frame id (a restarted body lost it); a large command waits longer, in
+proportion to the time per row the body has taken so far (a camera
+rendering a cloud of thousands of rows is slow, not lost). After a restart the answers come from
 the agent's journal (``state.agent_journal``), checked by command number and
 crc, before the proxy goes live. It publishes and spins only through the two
 callables it is given, so the node stays the ROS wiring.
@@ -27,6 +29,10 @@ from sensorispace_ros.graph import tracing
 from sensorispace_ros.graph.framework import frame
 from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, AgentJournal, CheckpointError,
                                                   command_check)
+
+# A command is re-sent after command_timeout_s, or after this many times the
+# body's time per row so far (``row_s``), times its rows, if that is longer.
+RESEND_AFTER_ROW_TIMES = 4.0
 
 
 # A band's open side on /body/hold (a table holds no inf): the largest float64.
@@ -87,6 +93,7 @@ class BodyOverTopics:
         self.retransmits = 0
         self.aborted = False
         self.round_trip_s = 0.0          # total time spent waiting for the body
+        self._answered = [0.0, 0]        # seconds and rows of the answers waited for whole
         # Restart: answers read back from the journal, by command
         # number, served before going live; the journal new answers go to.
         self.replay: dict[int, tuple[int, np.ndarray]] = {}
@@ -213,12 +220,15 @@ class BodyOverTopics:
             return sent.replayed
         last_sent = sent.started
         wait_s = min(0.5, self.command_timeout_s)
+        timeout_s = max(self.command_timeout_s,
+                        RESEND_AFTER_ROW_TIMES * self.row_s * len(sent.motor_states))
+        retransmits = self.retransmits
         while self._reply is None:
             if self.aborted:
                 raise RunAborted("shutting down while waiting for the body")
             self._spin_once(wait_s)
             now = time.perf_counter()
-            if resend and self._reply is None and now - last_sent >= self.command_timeout_s:
+            if resend and self._reply is None and now - last_sent >= timeout_s:
                 self.retransmits += 1
                 if self._on_retransmit is not None:
                     self._on_retransmit(sent.frame_id, now - sent.started)
@@ -227,10 +237,20 @@ class BodyOverTopics:
         if since == sent.started:        # waited from the publication on (not a move's)
             tracing.stamp("agent.resume")
         self.round_trip_s += time.perf_counter() - since
+        if since == sent.started and self.retransmits == retransmits:
+            self._answered[0] += time.perf_counter() - sent.started
+            self._answered[1] += len(sent.motor_states)
         reply, self._reply = self._reply, None
         if self.journal is not None:
             self.journal.answer(sent.number, sent.check, reply)
         return reply
+
+    @property
+    def row_s(self) -> float:
+        """Seconds per row the body has taken, over every answer waited for
+        from its publication on and not re-sent (0 before the first)."""
+        seconds, rows = self._answered
+        return seconds / rows if rows else 0.0
 
     def _replayed(self, number: int, check: int, recorded, n_rows: int) -> np.ndarray:
         recorded_check, rows = recorded
