@@ -16,9 +16,8 @@ rendering time per frame. ``--views N`` runs no agent: it renders N views
 (joint states about the start, sd 1 rad, the object at seeded grid
 positions) and prints how many of them show almost nothing (few pixels
 above 20 gray levels), and the CPU time per frame. ``--graph-against DIR``
-runs the configuration's seed through the graph (its nodes in this process,
-``graph.command_timeout_s`` 120 s: a large command takes the renderer
-seconds) and compares what it gives with DIR, the output of ``sensorispace
+runs the configuration's seed through the graph (its nodes in this process)
+and compares what it gives with DIR, the output of ``sensorispace
 reproduce --strategy naive`` on the same configuration and seed.
 """
 from __future__ import annotations
@@ -172,8 +171,7 @@ def graph_against(config_path: str, offline_dir: str, domain_id: int = 93) -> di
 
     out = Path(tempfile.mkdtemp(prefix="mujoco-graph-"))
     started = time.perf_counter()
-    result = in_process.run_graph_in_process(config_path, domain_id, out, timeout_s=5400,
-                                             parameters={"graph.command_timeout_s": 120.0})
+    result = in_process.run_graph_in_process(config_path, domain_id, out, timeout_s=5400)
     graph = np.load(out / "representation.npz")
     offline = np.load(Path(offline_dir) / "arrays.npz")
     agent = result["nodes"]["agent"].agent
