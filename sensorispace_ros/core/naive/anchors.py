@@ -213,7 +213,7 @@ _HIT_SHARE = 4.0
 _NEIGHBOUR_RATIO = 3.0
 _NEIGHBOUR_SLACK = 1.0
 # A frontier row is searched only within this many separations of the POVs
-# from a matched row's POV (``SnapshotMatching._far_from_matched``).
+# from a matched row's POV (``_far_from_matched``).
 _FRONTIER_REACH = 4.0
 
 
