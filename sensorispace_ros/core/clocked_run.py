@@ -178,7 +178,7 @@ class ClockedRun:
         self.log = ChangeLog()
         self.event_states: list[tuple[int, int]] = []
         self.lost_rows = 0
-        self._sentinel_row = -1
+        self._sentinel_row = -1        # the row the resting state was last sensed at
         self.undone = 0
         self.salvaged = 0
         self.pending_povs = 0
@@ -197,7 +197,7 @@ class ClockedRun:
             return None
         sensed = self._sense_sentinels(rest)
         changed = change_detection.differs(agent.noise_sd, reference, sensed)
-        self.log.add(reference_row, self._rest_row(), changed, rest, "hold")
+        self.log.add(reference_row, self._sentinel_row, changed, rest, "hold")
         return sensed if changed else False
 
     def react(self, sensed_at_rest: np.ndarray, reaction=None):
@@ -206,7 +206,7 @@ class ClockedRun:
         (``ClockedAgent.sense_sentinels``).
         Returns the new reference sensation and the row it was sensed at."""
         agent, body = self.agent, self.body
-        reference_row = self._rest_row()
+        reference_row = self._sentinel_row
         while True:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
@@ -221,7 +221,7 @@ class ClockedRun:
                     # once, for a snapshot of the world as it is.
                     self._crossed(reference_row, first_row, first_row - sent, before_rest, again)
                     sensed_at_rest = self._sense_sentinels(before_rest)
-                    reference_row = self._rest_row()
+                    reference_row = self._sentinel_row
                     continue
                 cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
                     (agent.phase == EXPLORING and
@@ -236,7 +236,7 @@ class ClockedRun:
             self._undo(saved, rows_before, stages_before, cut_in)
             # The world of this row, at the resting state the undone reaction started from.
             sensed_at_rest = self._sense_sentinels(before_rest)
-            reference_row = self._rest_row()
+            reference_row = self._sentinel_row
 
     def _sense_sentinels(self, rest: np.ndarray) -> np.ndarray:
         """``ClockedAgent.sense_sentinels``; notes the row the resting state
@@ -245,10 +245,6 @@ class ClockedRun:
         sensed = self.agent.sense_sentinels(rest)
         self._sentinel_row = row
         return sensed
-
-    def _rest_row(self) -> int:
-        """The row the resting state was last sensed at (``_sense_sentinels``)."""
-        return self._sentinel_row
 
     def _crossed(self, reference_row: int, first_row: int, offset: int, rest: np.ndarray,
                  again: np.ndarray) -> None:
