@@ -25,7 +25,6 @@ import numpy as np
 
 from sensorispace_ros import config as config_mod
 from sensorispace_ros.core.naive import run as naive_run
-from sensorispace_ros.core.naive import searching
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.run_world import run_world
@@ -48,27 +47,43 @@ class TaggingAgent(NaiveAgent):
         return super()._search(requests, current, tree, split_now)
 
     def _run_searches(self, unique_targets, owner, starts):
-        kept = {}
-
-        def keeping(*args, **kwargs):
-            kept["search"] = original(*args, **kwargs)
-            return kept["search"]
-
-        original = searching.compensate
-        searching.compensate = keeping
-        try:
-            out = super()._run_searches(unique_targets, owner, starts)
-        finally:
-            searching.compensate = original
-        self._outcome = (owner, starts, kept["search"])
+        out = super()._run_searches(unique_targets, owner, starts)
+        self._outcome = (owner, starts, self._last_search)
         return out
+
+    def _compensate(self, targets, starts, isolated):
+        # Both passes of an averaged search end in the one outcome returned here.
+        self._last_search = super()._compensate(targets, starts, isolated)
+        return self._last_search
+
+    def _truth(self, motor_states):
+        """Noiseless sensations of ``motor_states`` (phases) in the world now."""
+        inner = self._body._body
+        return np.asarray(inner._sense(self._to_body(np.atleast_2d(motor_states))), float)
+
+    def _rest_sensation(self, motor_state):
+        self._true_rest = getattr(self, "_true_rest", {})
+        self._true_rest[self._event] = self._truth(motor_state)[0]
+        return super()._rest_sensation(motor_state)
+
+    def _sweep_known(self):
+        self._true_sweep = getattr(self, "_true_sweep", {})
+        if self._store.count:
+            self._true_sweep[self._event] = self._truth(self._store.samples[:, 0])
+        return super()._sweep_known()
 
     def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
         if current is not None:
             self._matches = matches
             for snap, (before, after) in zip(self._pool, matches):
                 if len(before):
-                    self.match_log.append((self._event, snap.event, before.copy(), after.copy()))
+                    gap = np.nan
+                    then = getattr(self, "_true_sweep", {}).get(snap.event)
+                    now = self._true_sweep.get(self._event)
+                    if then is not None and now is not None and before.max() < len(then):
+                        gap = float(np.max(np.linalg.norm(then[before] - now[after], axis=1)))
+                    self.match_log.append((self._event, snap.event, before.copy(), after.copy(),
+                                           gap))
         return super()._anchor_requests(matches, rest_hits, rank_now, current)
 
     def _neighbourhood(self, r, x):
@@ -117,6 +132,14 @@ class TaggingAgent(NaiveAgent):
                              "start": None if r.start is None else self._to_body(r.start),
                              **self._search_facts(i), **self._neighbourhood(r, found[i][1])})
         assert len(tags) == len(records)
+        for tag, rec in zip(tags, records):
+            now = self._truth(self._phase.to_phase(rec.motor_state))[0]
+            if tag["kind"] == "frontier":
+                continue
+            then = self._true_rest.get(rec.anchor_event)
+            if then is not None:
+                tag["true_gap"] = float(np.linalg.norm(now - then))
+
         for tag, rec in zip(tags, records):
             tag["pov"] = rec.pov
         self.tags.extend(tags)
@@ -167,7 +190,8 @@ def main() -> None:
         error = float(arm.pose_error(pose[None], target[None])[0])
         row = {"event": rec.event, "anchor_event": rec.anchor_event, "kind": tag["kind"],
                "count": tag.get("count"), "pov": tag["pov"], "error": error,
-               "layout_kept": explored.layout[rec.event] == explored.layout[rec.anchor_event]}
+               "layout_kept": explored.layout[rec.event] == explored.layout[rec.anchor_event],
+               "true_gap": tag.get("true_gap")}
         if tag.get("start") is not None:
             start_pose = arm.forward(tag["start"][None])[0]
             row["from_start"] = float(np.linalg.norm(pose[:2] - start_pose[:2]))
@@ -206,8 +230,8 @@ def main() -> None:
                       "motor jump quantiles 50/90/99/max",
                       np.round(np.percentile(jumps, [50, 90, 99, 100]), 3).tolist())
     pose = arm.forward(agent.points_of_view[:, 0])
-    wrong_matches, n_matches, wrong_by_lag = 0, 0, {}
-    for event, snap_event, before, after in agent.match_log:
+    wrong_matches, n_matches, wrong_by_lag, right_gaps = 0, 0, {}, []
+    for event, snap_event, before, after, gap in agent.match_log:
         shift = centers[event] - centers[snap_event]
         err = np.linalg.norm(pose[after, :2] - pose[before, :2] - shift, axis=1)
         bad = int(np.sum(err > tolerance))
@@ -215,10 +239,15 @@ def main() -> None:
         n_matches += len(before)
         if bad:
             print(json.dumps({"wrong matches at": event, "snapshot": snap_event,
-                              "matched": len(before), "wrong": bad,
+                              "matched": len(before), "wrong": bad, "true_gap": gap,
                               "median error": round(float(np.median(err)), 3)}))
+        if not bad and np.isfinite(gap):
+            right_gaps.append(gap)
         lag = min(event - snap_event, 5)
         wrong_by_lag[lag] = wrong_by_lag.get(lag, 0) + bad
+    if right_gaps:
+        print("right match logs: largest true gap quantiles 50/90/99/max",
+              np.round(np.percentile(right_gaps, [50, 90, 99, 100]), 5).tolist())
     print(json.dumps({"sweep matches": n_matches, "wrong": wrong_matches,
                       "wrong by lag (5: 5+)": wrong_by_lag}))
     front = [r for r in rows if r["kind"] == "frontier" and "d_j" in r]

@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
-    check_pose_rank, match_sensations)
+    check_pose_rank, match_counted)
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
     matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
@@ -231,16 +231,18 @@ class SnapshotMatching:
         match senses the same relative pose in the same light layout)."""
         rank_now = np.full(len(current), RANK_UNKNOWN)
         match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
-                     ratio=self._tol.ratio)
+                     ratio=self._tol.ratio, confidence=self.params.noise_confidence,
+                     noise_sd=self.structure.noise if self._noisy else 0.0)
         matches = []
         for snap in self._pool:
-            before, after = match_sensations(snap.sensations, current, **match)
+            before, after = match_counted(snap.sensations, current, counts=snap.counts, **match)
             known = snap.rank[before]
             rank_now[after[known != RANK_UNKNOWN]] = known[known != RANK_UNKNOWN]
             matches.append((before, after))
         rest_hits = np.full(len(self._pool), -1)
         for k, snap in enumerate(self._pool):
-            _, hit = match_sensations(snap.rest_sensation[None], current, **match)
+            _, hit = match_counted(snap.rest_sensation[None], current,
+                                   counts=[snap.rest_count], **match)
             if len(hit):
                 rest_hits[k] = hit[0]
                 if snap.rest_rank != RANK_UNKNOWN:

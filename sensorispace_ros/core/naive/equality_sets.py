@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2, norm
 
 from sensorispace_ros.core.naive.jacobians import has_full_pose_rank, sensory_jacobian
 
@@ -94,6 +95,89 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
     counts = np.bincount(cur_idx, minlength=len(current))
     single = counts[cur_idx] == 1
     return ref_idx[single], cur_idx[single]
+
+
+def noisy_matches(reference: np.ndarray, current: np.ndarray, *, reference_var: np.ndarray,
+                  current_var: np.ndarray, confidence: float, tree: cKDTree | None = None):
+    """Unique one-to-one matches between two sets of noisy sensations, by a
+    statistical test against their measured noise instead of a tolerance.
+
+    Row ``i`` of ``reference`` (per-receptor noise variance ``reference_var[i]``,
+    the measured ``sd^2`` over the sensings averaged in it) matches row ``j``
+    of ``current`` (``current_var[j]``) when
+
+    * their difference is what the noise of the two explains: ``|r - c|^2 /
+      (var_r + var_c)`` within the ``confidence`` quantile of chi-square with
+      ``S`` degrees of freedom;
+    * it stands out from the next nearest row on either side by more than
+      the noise: the margin of ``r`` past the hyperplane halfway between
+      ``c`` and the next nearest current row ``c'``, ``(|r - c'|^2 - |r -
+      c|^2) / (2 |c' - c|)``, exceeds the ``confidence`` quantile of its
+      normal noise (sd ``sqrt(var_r + (var_c + var_c') / 4)``), and so does
+      the margin of ``c`` between ``r`` and the next nearest reference row;
+    * no other reference row matches ``current[j]``.
+
+    Where two candidates lie within what the noise lets one sensing tell
+    apart, no match is made: refusing costs a match, a wrong one costs a
+    wrong pose. ``tree``: a ``cKDTree`` of ``finite_rows(current, -1)``. A
+    lost (non-finite) row matches nothing."""
+    reference = finite_rows(reference, 1.0)
+    current = finite_rows(current, -1.0)
+    empty = np.zeros(0, dtype=int)
+    if len(reference) == 0 or len(current) == 0:
+        return empty, empty
+    reference_var = np.broadcast_to(np.asarray(reference_var, dtype=float), len(reference))
+    current_var = np.broadcast_to(np.asarray(current_var, dtype=float), len(current))
+    n_sensors = reference.shape[1]
+    limit = chi2.ppf(confidence, n_sensors)
+    z = norm.ppf(confidence)
+    tree = cKDTree(current) if tree is None else tree
+    k = min(2, len(current))
+    distance, index = tree.query(reference, k=k)
+    distance, index = distance.reshape(len(reference), k), index.reshape(len(reference), k)
+    best = index[:, 0]
+    close = distance[:, 0] ** 2 <= limit * (reference_var + current_var[best])
+    if k == 2:
+        close &= _stands_out(reference, current[best], current[index[:, 1]], reference_var,
+                             current_var[best], current_var[index[:, 1]], z)
+    if len(reference) > 1 and close.any():
+        rows = np.flatnonzero(close)
+        _, other = cKDTree(reference).query(current[best[rows]], k=2)
+        # The nearest reference row to c is r itself when r is the closest.
+        second = np.where(other[:, 0] == rows, other[:, 1], other[:, 0])
+        close[rows] &= (other[:, 0] == rows) & _stands_out(
+            current[best[rows]], reference[rows], reference[second], current_var[best[rows]],
+            reference_var[rows], reference_var[second], z)
+    ref_idx = np.flatnonzero(close)
+    cur_idx = best[close]
+    counts = np.bincount(cur_idx, minlength=len(current))
+    single = counts[cur_idx] == 1
+    return ref_idx[single], cur_idx[single]
+
+
+def match_counted(reference: np.ndarray, current: np.ndarray, *, counts=None,
+                  noise_sd: float = 0.0, confidence: float = 0.999, tree=None, **tolerances):
+    """``noisy_matches`` where the agent measured noise (``noise_sd > 0``;
+    ``reference`` rows averaged ``counts`` sensings each, None: one, ``current``
+    rows one each), else ``match_sensations`` with ``tolerances``."""
+    if noise_sd <= 0:
+        return match_sensations(reference, current, tree=tree, **tolerances)
+    sd2 = float(noise_sd) ** 2
+    counts = np.ones(len(reference)) if counts is None else np.asarray(counts, dtype=float)
+    return noisy_matches(reference, current, reference_var=sd2 / counts, current_var=sd2,
+                         confidence=confidence, tree=tree)
+
+
+def _stands_out(point, nearest, second, var_point, var_nearest, var_second, z):
+    """Whether each ``point`` lies nearer ``nearest`` than ``second`` by more
+    than ``z`` standard deviations of the noise of its margin past the
+    hyperplane halfway between them (rows; variances per receptor)."""
+    gap = np.linalg.norm(second - nearest, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        margin = (np.sum((point - second) ** 2, axis=1)
+                  - np.sum((point - nearest) ** 2, axis=1)) / (2.0 * gap)
+    spread = np.sqrt(var_point + 0.25 * (var_nearest + var_second))
+    return (gap > 0) & (margin > z * spread)
 
 
 def check_pose_rank(body, motor_states: np.ndarray, *, rank: int, fd_step: float = 1e-6,
