@@ -123,7 +123,8 @@ class TaggingAgent(NaiveAgent):
             elif k in found_rest:
                 r = next(r for r in requests if r.snapshot == k and r.row < 0)
                 i = next(i for i, q in enumerate(requests) if q.snapshot == k and q.row < 0)
-                tags.append({"kind": "anchor", "count": r.count, **self._search_facts(i)})
+                tags.append({"kind": "anchor", "count": r.count, **self._search_facts(i),
+                             "confirmed": bool(len(self._matches[k][0]))})
             else:
                 continue
         for i, r in enumerate(requests):
@@ -191,7 +192,7 @@ def main() -> None:
         row = {"event": rec.event, "anchor_event": rec.anchor_event, "kind": tag["kind"],
                "count": tag.get("count"), "pov": tag["pov"], "error": error,
                "layout_kept": explored.layout[rec.event] == explored.layout[rec.anchor_event],
-               "true_gap": tag.get("true_gap")}
+               "true_gap": tag.get("true_gap"), "confirmed": tag.get("confirmed")}
         if tag.get("start") is not None:
             start_pose = arm.forward(tag["start"][None])[0]
             row["from_start"] = float(np.linalg.norm(pose[:2] - start_pose[:2]))
@@ -213,6 +214,13 @@ def main() -> None:
     for kind in ("hit", "anchor", "frontier"):
         of = [r for r in rows if r["kind"] == kind]
         summary[kind] = (len(of), sum(r["error"] > tolerance for r in of))
+    anchors = [r for r in rows if r["kind"] == "anchor"]
+    summary["anchor of a confirmed snapshot"] = (
+        sum(bool(r["confirmed"]) for r in anchors),
+        sum(bool(r["confirmed"]) and r["error"] > tolerance for r in anchors))
+    summary["anchor of an unconfirmed snapshot"] = (
+        sum(not r["confirmed"] for r in anchors),
+        sum(not r["confirmed"] and r["error"] > tolerance for r in anchors))
     print(json.dumps({"povs": agent._store.count, "queries": agent.queries_total,
                       "wrong_by_kind": summary, "wall_s": round(time.perf_counter() - started, 1),
                       "spacing": world.spacing}))

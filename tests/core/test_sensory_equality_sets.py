@@ -36,6 +36,36 @@ def test_two_references_on_one_row_match_neither():
     assert len(ref) == len(cur) == 0
 
 
+def test_noisy_matches_pair_noisy_repeats_and_refuse_what_noise_cannot_tell():
+    rng = np.random.default_rng(3)
+    sd, n_sensors = 1e-3, 6
+    truth = rng.uniform(0.0, 1.0, (40, n_sensors))      # far apart against the noise
+    order = rng.permutation(40)
+    # The snapshot's rows: 16 sensings each; this sweep's: one each.
+    reference = truth + rng.normal(0.0, sd / 4.0, truth.shape)
+    current = truth[order] + rng.normal(0.0, sd, truth.shape)
+    # Row 0's pose is not among the current rows: one lies 12 sd away, a
+    # shift a tolerance for chains of compensations would have taken.
+    current[np.flatnonzero(order == 0)[0]] = truth[0] + 12.0 * sd / np.sqrt(n_sensors)
+    # Row 1's pose has a neighbour sensing within the noise of one sensing.
+    current = np.vstack([current, truth[1] + 0.5 * sd])
+    ref, cur = equality_sets.noisy_matches(reference, current, reference_var=(sd / 4.0) ** 2,
+                                           current_var=sd ** 2, confidence=0.999)
+    pairs = dict(zip(ref.tolist(), cur.tolist()))
+    assert 0 not in pairs and 1 not in pairs
+    assert all(order[j] == i for i, j in pairs.items())
+    assert len(pairs) == 38
+
+
+def test_noisy_matches_refuse_two_references_within_the_noise_of_one_row():
+    sd = 1e-3
+    reference = np.array([[0.3, 0.5, 0.7], [0.3, 0.5, 0.7 + 2.0 * sd], [0.9, 0.1, 0.2]])
+    current = np.array([[0.3, 0.5, 0.7 + sd], [0.9, 0.1, 0.2 + 0.5 * sd]])
+    ref, cur = equality_sets.noisy_matches(reference, current, reference_var=sd ** 2,
+                                           current_var=sd ** 2, confidence=0.999)
+    assert ref.tolist() == [2] and cur.tolist() == [1]
+
+
 def test_match_tolerance_must_be_below_separation():
     with pytest.raises(ValueError, match="match_tol"):
         match_sensations(np.zeros((1, 2)), np.zeros((1, 2)), match_tol=1e-3, separation=1e-4)
