@@ -140,6 +140,11 @@ class TaggingAgent(NaiveAgent):
             then = self._true_rest.get(rec.anchor_event)
             if then is not None:
                 tag["true_gap"] = float(np.linalg.norm(now - then))
+            state = self._phase.to_phase(rec.motor_state)
+            eye = 1e-5 * np.eye(len(state))
+            sensed = self._truth(np.vstack([state + eye, state - eye]))
+            jac = (sensed[:len(state)] - sensed[len(state):]).T / 2e-5
+            tag["singular"] = np.linalg.svd(jac, compute_uv=False)[:3].round(4).tolist()
 
         for tag, rec in zip(tags, records):
             tag["pov"] = rec.pov
@@ -192,7 +197,8 @@ def main() -> None:
         row = {"event": rec.event, "anchor_event": rec.anchor_event, "kind": tag["kind"],
                "count": tag.get("count"), "pov": tag["pov"], "error": error,
                "layout_kept": explored.layout[rec.event] == explored.layout[rec.anchor_event],
-               "true_gap": tag.get("true_gap"), "confirmed": tag.get("confirmed")}
+               "true_gap": tag.get("true_gap"), "confirmed": tag.get("confirmed"),
+               "singular": tag.get("singular")}
         if tag.get("start") is not None:
             start_pose = arm.forward(tag["start"][None])[0]
             row["from_start"] = float(np.linalg.norm(pose[:2] - start_pose[:2]))
@@ -228,6 +234,14 @@ def main() -> None:
         if r["error"] > tolerance:
             print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
                               for k, v in r.items()}))
+    for kind in ("hit", "anchor"):
+        for ok in (True, False):
+            weak = [r["singular"][-1] for r in rows if r["kind"] == kind and r.get("singular")
+                    and (r["error"] <= tolerance) == ok]
+            if weak:
+                print(kind, "right" if ok else "wrong", "weakest singular value quantiles "
+                      "0/10/50/90/100", np.round(np.percentile(weak, [0, 10, 50, 90, 100]),
+                                                 4).tolist())
     for kind in ("anchor", "frontier"):
         for ok in (True, False):
             of = [r for r in rows if r["kind"] == kind and (r["error"] <= tolerance) == ok]
