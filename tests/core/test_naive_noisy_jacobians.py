@@ -274,3 +274,40 @@ def test_a_repaired_row_whose_sensation_is_lost_keeps_its_state_and_fails():
     np.testing.assert_allclose(flat[[0, 2]], [[0.1, 0.2], [0.9, -0.8]], atol=1e-6)
     assert all(np.isfinite(rows).all() for rows in asked)
     assert calls == len(sensed) and 1 in sensed[0]
+
+
+class FadingBody:
+    """Six outputs, linear in three joints; the third joint moves them by
+    ``weak`` (0: the sensation does not pin it)."""
+
+    n_motors, n_sensors = 3, 6
+
+    def __init__(self, weak):
+        self.A = np.array([[1.0, 0.2, 0.3], [0.0, 0.5, -0.2], [0.3, 0.0, 0.5],
+                           [0.1, 0.1, 0.1], [0.0, 0.3, -0.4], [0.2, 0.0, 0.2]])
+        self.A[:, 2] *= weak / np.linalg.norm(self.A[:, 2])
+
+    def sense(self, motor_states):
+        return 0.4 + np.asarray(motor_states, dtype=float) @ self.A.T
+
+
+@pytest.mark.parametrize("weak, pinned", [(0.0, False), (0.05, True)])
+def test_the_last_rank_test_rejects_a_state_the_sensation_does_not_pin(weak, pinned):
+    from sensorispace_ros.core.naive.jacobians import AveragedStep
+    from sensorispace_ros.core.naive.noise import jacobian_noise
+    from types import SimpleNamespace
+
+    body = ImperfectSensing(FadingBody(weak), seed=2, noise=1e-3)
+    states = np.zeros((12, 3))
+    target = FadingBody(weak).sense(states[:1])[0]
+    common = dict(noise_sd=1e-3, repeats=16, rank=3, fd_step=AveragedStep(0.2, 7),
+                  confidence=0.999)
+    targets = np.repeat(target[None], len(states), axis=0)
+    variance = np.full(len(states), 1e-8)
+    _, without, _ = confirm_compensations(body, states, targets, variance, **common)
+    step = AveragedStep(0.2, 64)
+    floor = 4.0 * jacobian_noise(SimpleNamespace(noise=1e-3, n_motors=3), 6, step)
+    _, accepted, _ = confirm_compensations(body, states, targets, variance, rank_step=step,
+                                           rank_floor=floor, **common)
+    assert without.mean() >= 0.9       # the rounds' own tests do not see it
+    assert accepted.all() if pinned else not accepted.any()
