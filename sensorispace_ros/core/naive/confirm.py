@@ -38,8 +38,7 @@ def finite_mean(rows: np.ndarray) -> np.ndarray:
 def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
                           target_variance: np.ndarray, *, noise_sd: float, repeats: int,
                           rank: int, fd_step: float, confidence: float, rounds: int = 3,
-                          max_error: float = np.inf, max_step: float | None = None,
-                          rank_step: float | None = None, rank_floor: float = 0.0):
+                          max_error: float = np.inf, max_step: float | None = None):
     """Refine every state of ``states`` ``(K, M)`` toward its target
     ``targets`` ``(K, S)`` with averaged sensings and accept it only where
     what is left of the residual is noise.
@@ -64,13 +63,6 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     sensing's noise lets the search tell; the rounds take it to what the
     averages tell, and a state a lattice step away along a weak pose direction,
     which a single sensing cannot reject, is moved or rejected.
-
-    ``rank_step`` (None: none): the accepted states' Jacobians are sensed
-    once more at this (averaged) step, and a state whose ``rank``-th
-    singular value there is below ``rank_floor`` is rejected: where the
-    sensation barely pins the pose, noise lifts the weakest singular value
-    of the rounds' Jacobians over a rank test often enough that a search
-    hunting for a target it cannot reach ends there.
 
     Returns ``(refined states (K, M), accepted (K,) bool, averaged
     sensations at the last round (K, S))``."""
@@ -97,26 +89,8 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
         refined[pending[explained]] += step[explained]
         accepted[pending[settled]] = True
         pending = pending[explained & ~settled]
-    if rank_step is not None and accepted.any():
-        kept = np.flatnonzero(accepted)
-        accepted[kept] = pinned(body, refined[kept], rank_step, rank, rank_floor)
     refined[~accepted] = states[~accepted]
     return refined, accepted, means
-
-
-def pinned(body, states: np.ndarray, fd_step, rank: int, floor: float) -> np.ndarray:
-    """Whether the ``rank``-th singular value of the Jacobian at each of
-    ``states`` ``(K, M)``, sensed at ``fd_step`` (one call), reaches
-    ``floor``; a stencil with a lost row does not."""
-    rows = stencil_rows(states.shape[1], fd_step)
-    with getattr(body, "fresh", _nothing)():
-        sensed = np.asarray(body.sense(jacobian_stencil(states, fd_step)), dtype=float)
-    _, jac = stencil_jacobian(sensed.reshape(len(states), rows, -1), fd_step)
-    whole = np.all(np.isfinite(jac), axis=(1, 2))
-    singular = np.zeros(len(states))
-    if whole.any():
-        singular[whole] = np.linalg.svd(jac[whole], compute_uv=False)[:, rank - 1]
-    return whole & (singular >= floor)
 
 
 def _judge(jac, residual, rank, whole, variances, limits, max_error, max_step):

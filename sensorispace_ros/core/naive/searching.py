@@ -22,7 +22,7 @@ from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
-from sensorispace_ros.core.naive.noise import jacobian_noise, noise_residual, noise_step, walk_step
+from sensorispace_ros.core.naive.noise import noise_residual, noise_step, walk_step
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 
@@ -124,18 +124,8 @@ class SearchAndSample:
             rank=self.structure.pose_rank, fd_step=self._fd_step,
             confidence=self.params.noise_confidence,
             rounds=self.params.confirm_rounds if rounds is None else rounds,
-            max_error=self._max_pose_error(), max_step=max_step, **self._pinning())
+            max_error=self._max_pose_error(), max_step=max_step)
         return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
-
-    def _pinning(self) -> dict:
-        """With an ``AveragedStep``: ``confirm_compensations``'s last rank test,
-        the stencil sensed ``jacobian_max_repeats`` times, its weakest pose
-        singular value ``rank_noise_gap`` times that Jacobian's noise."""
-        if not isinstance(self._fd_step, AveragedStep):
-            return {}
-        step = AveragedStep(float(self._fd_step), self.params.jacobian_max_repeats)
-        return {"rank_step": step, "rank_floor": self.params.rank_noise_gap * jacobian_noise(
-            self.structure, self._body.n_sensors, step)}
 
     def _size_repeats(self) -> None:
         """With an ``AveragedStep``, once the POVs' separation is measured:
