@@ -86,6 +86,7 @@ class NaiveParams:
     remember_split_povs: bool = _default("remember_split_povs")
     clock_sweep_budget: int = _default("clock_sweep_budget")
     clock_equality_changes: int = _default("clock_equality_changes")
+    clock_equality_budget: int = _default("clock_equality_budget")
     clock_walk_attempts: int = _default("clock_walk_attempts")
     clock_brief_walk: bool = _default("clock_brief_walk")
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
