@@ -311,12 +311,28 @@ class ClockedAgent(NaiveAgent):
     def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
         self._lost = not (np.any(np.asarray(rest_hits) >= 0) or
                           any(len(before) for before, _ in matches))
-        return super()._anchor_requests(matches, rest_hits, rank_now, current)
+        known_comp, requests = super()._anchor_requests(matches, rest_hits, rank_now, current)
+        if current is not None:     # this reaction's requests (not the rank tests' guess)
+            self._unconfirmed_asked = [
+                i for i, r in enumerate(requests) if r.row < 0 and not len(matches[r.snapshot][0])
+                and self._store.count >= self.params.unconfirmed_max_povs]
+            credit = getattr(self, "_unconfirmed_credit", 1.0) - len(self._unconfirmed_asked)
+            self._unconfirmed_credit = min(1.0, credit + self._unconfirmed_rate())
+        return known_comp, requests
+
+    def _unconfirmed_rate(self) -> float:
+        """Share of reactions that search an unconfirmed anchor once more than
+        ``unconfirmed_max_povs`` POVs are known: all while such searches find
+        compensations (a moving average, as the frontier's), down to
+        ``clock_unconfirmed_min_rate`` when they keep failing."""
+        share = min(1.0, getattr(self, "_unconfirmed_success", 1.0) / 0.2)
+        return max(self.params.clock_unconfirmed_min_rate, share)
 
     def _anchor_params(self):
         """The agent's parameters, except that once it knows more POVs than
         ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
-        per change: with a bounded sweep most snapshots go unconfirmed (their
+        in a share of its reactions (``_unconfirmed_rate``; each while they find
+        compensations): with a bounded sweep most snapshots go unconfirmed (their
         matches were not sensed), not only those a redistribution made stale.
         With ``clock_unconfirmed_when_lost`` only in a reaction whose sweep
         confirmed no snapshot (``_lost``): one that did has its compensation
@@ -326,6 +342,8 @@ class ClockedAgent(NaiveAgent):
             attempts = min(params.unconfirmed_attempts, 1)
             if params.clock_unconfirmed_when_lost and not getattr(self, "_lost", True):
                 attempts = 0
+            if getattr(self, "_unconfirmed_credit", 1.0) < 1.0:
+                attempts = 0
             params = replace(params, unconfirmed_max_povs=self._store.count + 1,
                              unconfirmed_attempts=attempts)
         return params
@@ -333,10 +351,15 @@ class ClockedAgent(NaiveAgent):
     def _search(self, requests, current, tree, split_now):
         self._search_current = current
         try:
-            return super()._search(requests, current,
-                                   None if tree is None else _CurrentTree(current), split_now)
+            found, new_povs, sensations = super()._search(
+                requests, current, None if tree is None else _CurrentTree(current), split_now)
         finally:
             self._search_current = None
+        for i in getattr(self, "_unconfirmed_asked", ()):
+            self._unconfirmed_success = 0.9 * getattr(self, "_unconfirmed_success", 1.0) + \
+                0.1 * (i in found)
+        self._unconfirmed_asked = []
+        return found, new_povs, sensations
 
     def _run_searches(self, unique_targets, owner, starts):
         solution, others, gain = super()._run_searches(unique_targets, owner, starts)

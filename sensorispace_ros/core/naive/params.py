@@ -92,6 +92,7 @@ class NaiveParams:
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
     clock_pov_polish_iterations: int = _default("clock_pov_polish_iterations")
     clock_unconfirmed_when_lost: bool = _default("clock_unconfirmed_when_lost")
+    clock_unconfirmed_min_rate: float = _default("clock_unconfirmed_min_rate")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.
