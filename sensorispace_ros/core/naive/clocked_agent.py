@@ -316,9 +316,20 @@ class ClockedAgent(NaiveAgent):
             self._unconfirmed_asked = [
                 i for i, r in enumerate(requests) if r.row < 0 and not len(matches[r.snapshot][0])
                 and self._store.count >= self.params.unconfirmed_max_povs]
-            credit = getattr(self, "_unconfirmed_credit", 1.0) - len(self._unconfirmed_asked)
-            self._unconfirmed_credit = min(1.0, credit + self._unconfirmed_rate())
+            self._spend_unconfirmed(len(self._unconfirmed_asked))
         return known_comp, requests
+
+    def _spend_unconfirmed(self, asked: int) -> None:
+        """A reaction asked ``asked`` unconfirmed anchors: each costs one
+        credit, and each reaction earns ``_unconfirmed_rate`` (one at most
+        held); the next searches one only with a whole credit."""
+        credit = getattr(self, "_unconfirmed_credit", 1.0) - asked
+        self._unconfirmed_credit = min(1.0, credit + self._unconfirmed_rate())
+
+    def _unconfirmed_found(self, found: bool) -> None:
+        """The moving average of the unconfirmed anchors' searches that succeeded."""
+        self._unconfirmed_success = 0.9 * getattr(self, "_unconfirmed_success", 1.0) + \
+            0.1 * bool(found)
 
     def _unconfirmed_rate(self) -> float:
         """Share of reactions that search an unconfirmed anchor once more than
@@ -356,8 +367,7 @@ class ClockedAgent(NaiveAgent):
         finally:
             self._search_current = None
         for i in getattr(self, "_unconfirmed_asked", ()):
-            self._unconfirmed_success = 0.9 * getattr(self, "_unconfirmed_success", 1.0) + \
-                0.1 * (i in found)
+            self._unconfirmed_found(i in found)
         self._unconfirmed_asked = []
         return found, new_povs, sensations
 
