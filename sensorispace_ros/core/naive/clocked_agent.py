@@ -31,11 +31,14 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sensorispace_ros.core.seeding import CounterStream
+
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
-from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
-    EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
+from sensorispace_ros.core.naive.clock_equality import AllPairsSweep
+from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.records import EQUALITY_PASS
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
@@ -44,41 +47,6 @@ __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
 NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
 WITNESSES = 8        # swept POVs sensed again after a reaction
-
-
-class AllPairsSweep(EqualitySetSweep):
-    """Simulation 2 that matches each sweep with every earlier one, not
-    only the previous: a world the agent met before is a displacement it can
-    still tell, however many changes it missed in between (``history``:
-    each sweep's sensations and ranks)."""
-
-    def observe(self) -> np.ndarray:
-        current = np.asarray(self.body.sense(self.probe_states), dtype=float)
-        self.rows += len(current)
-        self.calls += 1
-        rank = np.full(len(current), RANK_UNKNOWN)
-        tree = cKDTree(finite_rows(current, -1.0))
-        for previous, previous_rank in self.history:
-            before, after = match_sensations(previous, current, match_tol=self.match_tol,
-                                             separation=self.separation, tree=tree,
-                                             ratio=self.ratio)
-            known = np.where(rank[after] != RANK_UNKNOWN, rank[after], previous_rank[before])
-            rank[after] = known
-            unknown = after[known == RANK_UNKNOWN]
-            if len(unknown):
-                full, rows = check_pose_rank(self.body, self.probe_states[unknown],
-                                             rank=self.rank, fd_step=self.fd_step,
-                                             rank_ratio=self.rank_ratio,
-                                             min_singular=self.min_singular,
-                                             pattern_ratio=self.pattern_ratio)
-                self.rows += rows
-                self.calls += 1
-                rank[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
-            previous_rank[before] = rank[after]
-            good = rank[after] == RANK_FULL
-            self.sets.add(before[good], after[good])
-        self.history.append((current, rank))
-        return np.zeros((0, 2), dtype=int)
 
 
 class _CurrentTree:
@@ -215,12 +183,31 @@ class ClockedAgent(NaiveAgent):
             self._body.pause()
         return len(new)
 
+    def start(self, initial_motor_state, seed: int = 0):
+        self._seed = int(seed)
+        return super().start(initial_motor_state, seed=seed)
+
     def begin_equality_pass(self) -> None:
-        """Simulation 2 with every earlier sweep matched (``AllPairsSweep``)."""
-        super().begin_equality_pass()
-        sweep = self._sweep
-        sweep.__class__ = AllPairsSweep
-        sweep.history = [(sweep._previous, sweep._previous_rank)]
+        """Simulation 2 with every earlier sweep matched (``AllPairsSweep``),
+        each sweep ``clock_equality_budget`` known POVs (0: every one)."""
+        if self._event < 0:
+            raise RuntimeError("begin_equality_pass() before start()")
+        self.phase = EQUALITY_PASS
+        self._body.forget()
+        self._body.stage = "equality_pass"
+        sweep = AllPairsSweep(
+            self._body, self._store.samples, rank=self.structure.pose_rank,
+            fd_step=self._fd_step, rank_ratio=self.params.rank_ratio,
+            min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
+            match_tol=self._tol.match, separation=self._tol.separation)
+        sweep.ratio, sweep.sets, sweep.history = self._tol.ratio, self._sets, []
+        sweep.budget = self.params.clock_equality_budget
+        sweep.stream = CounterStream(getattr(self, "_seed", 0), "naive.clock_equality")
+        self._sweep = sweep
+        sweep.observe()       # the sweep "before" the first change
+        self._body.stage = "rest"
+        self._body.rest(self._rest)
+        self._body.pause()
 
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""
@@ -324,12 +311,39 @@ class ClockedAgent(NaiveAgent):
     def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
         self._lost = not (np.any(np.asarray(rest_hits) >= 0) or
                           any(len(before) for before, _ in matches))
-        return super()._anchor_requests(matches, rest_hits, rank_now, current)
+        known_comp, requests = super()._anchor_requests(matches, rest_hits, rank_now, current)
+        if current is not None:     # this reaction's requests (not the rank tests' guess)
+            self._unconfirmed_asked = [
+                i for i, r in enumerate(requests) if r.row < 0 and not len(matches[r.snapshot][0])
+                and self._store.count >= self.params.unconfirmed_max_povs]
+            self._spend_unconfirmed(len(self._unconfirmed_asked))
+        return known_comp, requests
+
+    def _spend_unconfirmed(self, asked: int) -> None:
+        """A reaction asked ``asked`` unconfirmed anchors: each costs one
+        credit, and each reaction earns ``_unconfirmed_rate`` (one at most
+        held); the next searches one only with a whole credit."""
+        credit = getattr(self, "_unconfirmed_credit", 1.0) - asked
+        self._unconfirmed_credit = min(1.0, credit + self._unconfirmed_rate())
+
+    def _unconfirmed_found(self, found: bool) -> None:
+        """The moving average of the unconfirmed anchors' searches that succeeded."""
+        self._unconfirmed_success = 0.9 * getattr(self, "_unconfirmed_success", 1.0) + \
+            0.1 * bool(found)
+
+    def _unconfirmed_rate(self) -> float:
+        """Share of reactions that search an unconfirmed anchor once more than
+        ``unconfirmed_max_povs`` POVs are known: all while such searches find
+        compensations (a moving average, as the frontier's), down to
+        ``clock_unconfirmed_min_rate`` when they keep failing."""
+        share = min(1.0, getattr(self, "_unconfirmed_success", 1.0) / 0.2)
+        return max(self.params.clock_unconfirmed_min_rate, share)
 
     def _anchor_params(self):
         """The agent's parameters, except that once it knows more POVs than
         ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor
-        per change: with a bounded sweep most snapshots go unconfirmed (their
+        in a share of its reactions (``_unconfirmed_rate``; each while they find
+        compensations): with a bounded sweep most snapshots go unconfirmed (their
         matches were not sensed), not only those a redistribution made stale.
         With ``clock_unconfirmed_when_lost`` only in a reaction whose sweep
         confirmed no snapshot (``_lost``): one that did has its compensation
@@ -339,6 +353,8 @@ class ClockedAgent(NaiveAgent):
             attempts = min(params.unconfirmed_attempts, 1)
             if params.clock_unconfirmed_when_lost and not getattr(self, "_lost", True):
                 attempts = 0
+            if getattr(self, "_unconfirmed_credit", 1.0) < 1.0:
+                attempts = 0
             params = replace(params, unconfirmed_max_povs=self._store.count + 1,
                              unconfirmed_attempts=attempts)
         return params
@@ -346,10 +362,14 @@ class ClockedAgent(NaiveAgent):
     def _search(self, requests, current, tree, split_now):
         self._search_current = current
         try:
-            return super()._search(requests, current,
-                                   None if tree is None else _CurrentTree(current), split_now)
+            found, new_povs, sensations = super()._search(
+                requests, current, None if tree is None else _CurrentTree(current), split_now)
         finally:
             self._search_current = None
+        for i in getattr(self, "_unconfirmed_asked", ()):
+            self._unconfirmed_found(i in found)
+        self._unconfirmed_asked = []
+        return found, new_povs, sensations
 
     def _run_searches(self, unique_targets, owner, starts):
         solution, others, gain = super()._run_searches(unique_targets, owner, starts)

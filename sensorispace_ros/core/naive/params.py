@@ -86,11 +86,13 @@ class NaiveParams:
     remember_split_povs: bool = _default("remember_split_povs")
     clock_sweep_budget: int = _default("clock_sweep_budget")
     clock_equality_changes: int = _default("clock_equality_changes")
+    clock_equality_budget: int = _default("clock_equality_budget")
     clock_walk_attempts: int = _default("clock_walk_attempts")
     clock_brief_walk: bool = _default("clock_brief_walk")
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
     clock_pov_polish_iterations: int = _default("clock_pov_polish_iterations")
     clock_unconfirmed_when_lost: bool = _default("clock_unconfirmed_when_lost")
+    clock_unconfirmed_min_rate: float = _default("clock_unconfirmed_min_rate")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.

@@ -1,0 +1,97 @@
+"""Where an agent on the row clock spends its search and rank rows.
+
+Runs ``sensorispace reproduce --strategy naive`` (any of its arguments; the
+configuration must set ``world.clock: rows``) with counters around the
+clocked agent's methods, which change nothing it does, and writes
+``clock_rows.json`` beside the run's ``metrics.json``:
+
+* ``req.<kind>`` / ``found.<kind>`` / ``newpov.<kind>``: the anchors asked,
+  found and found as a new POV, by kind: ``confirmed`` (the anchor of a
+  snapshot some POV matched), ``unconfirmed`` (of one none matched),
+  ``frontier`` (a row of the latest confirmed snapshot no POV matched);
+* ``search_rows.<kinds>`` / ``search_calls.<kinds>``: the rows of the
+  searches (with the nearest known POVs they sense) of reactions asking
+  those kinds;
+* ``rank_rows.test_ranks`` (the matches' rank tests), ``rank_rows.rest_after``
+  (the new resting state's), ``sweep_rows.known`` (the bounded sweeps);
+* ``known_comp``: anchors a known POV matched (no search)::
+
+    nice -n 10 .venv/bin/python bench/clock_rows.py reproduce --strategy naive \\
+        --config config/paper-clock.yaml --no-figures --quiet --out /tmp/clock_rows
+"""
+from __future__ import annotations
+
+import atexit
+import collections
+import json
+import sys
+from pathlib import Path
+
+COUNTS: collections.Counter = collections.Counter()
+
+
+def _kinds(agent, requests, matches) -> list:
+    return ["frontier" if r.row >= 0 else
+            "confirmed" if len(matches[r.snapshot][0]) else "unconfirmed" for r in requests]
+
+
+def instrument() -> None:
+    """Wrap the clocked agent's methods with counters (``COUNTS``)."""
+    from sensorispace_ros.core.naive.clocked_agent import ClockedAgent as Agent
+
+    anchor_requests, search = Agent._anchor_requests, Agent._search
+    test_ranks, rest_after, sweep_known = Agent._test_ranks, Agent._rest_after, Agent._sweep_known
+
+    def counted_requests(self, matches, rest_hits, rank_now, current=None):
+        known, requests = anchor_requests(self, matches, rest_hits, rank_now, current)
+        if current is not None:
+            self._bench_kinds = _kinds(self, requests, matches)
+            COUNTS["known_comp"] += len(known)
+        return known, requests
+
+    def counted_search(self, requests, current, tree, split_now):
+        kinds = getattr(self, "_bench_kinds", ["?"] * len(requests))
+        rows = self._body.rows
+        before = rows.get("compensation", 0) + rows.get("sweep", 0)
+        found, new, sensations = search(self, requests, current, tree, split_now)
+        key = "+".join(sorted(set(kinds))) or "none"
+        COUNTS["search_rows." + key] += rows.get("compensation", 0) + rows.get("sweep", 0) - before
+        COUNTS["search_calls." + key] += 1
+        for i, kind in enumerate(kinds):
+            COUNTS["req." + kind] += 1
+            if i in found:
+                COUNTS["found." + kind] += 1
+                COUNTS["newpov." + kind] += found[i][0] in new
+        return found, new, sensations
+
+    def rows_of(method, stage, key):
+        def counted(self, *args, **kwargs):
+            before = self._body.rows.get(stage, 0)
+            out = method(self, *args, **kwargs)
+            COUNTS[key] += self._body.rows.get(stage, 0) - before
+            return out
+        return counted
+
+    Agent._anchor_requests, Agent._search = counted_requests, counted_search
+    Agent._test_ranks = rows_of(test_ranks, "rank", "rank_rows.test_ranks")
+    Agent._rest_after = rows_of(rest_after, "rank", "rank_rows.rest_after")
+    Agent._sweep_known = rows_of(sweep_known, "sweep", "sweep_rows.known")
+
+
+def main() -> None:
+    from sensorispace_ros.cli.main import main as cli
+
+    out = Path(sys.argv[sys.argv.index("--out") + 1])
+
+    def write():
+        (out / "clock_rows.json").write_text(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
+        print(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
+
+    atexit.register(write)
+    instrument()
+    sys.argv = ["sensorispace"] + sys.argv[1:]
+    cli()
+
+
+if __name__ == "__main__":
+    main()
