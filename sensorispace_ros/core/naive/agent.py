@@ -437,7 +437,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
                 event=t, anchor_event=snap.event,
                 anchor_motor_state=self._to_body(snap.rest_motor_state),
                 motor_state=self._to_body(motor), pov=int(pov), searched=searched))
-            if rest_choice is None and pov >= 0:
+            if rest_choice is None and pov >= 0 and (not searched or self._may_rest(k, requests)):
                 rest_choice = (motor, int(pov))
         for i, r in enumerate(requests):
             if r.row >= 0 and i in found:
