@@ -1,0 +1,63 @@
+"""Where the naive agent rests after a change under noise: only on a
+compensation its matched neighbours hold, so that a far pose sensing an
+unconfirmed anchor alike never becomes the pose every later anchor is
+sensed from."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from sensorispace_ros.core.naive.agent import NaiveAgent
+from sensorispace_ros.core.naive.anchors import Request, SnapshotMatching
+from sensorispace_ros.core.naive.neighbours import Neighbours
+
+
+def _records_agent(noisy, count=20, separation=0.1):
+    """The parts of a NaiveAgent ``_compensation_records`` and ``_may_rest``
+    read: two snapshots (the most recent first) and ``count`` known POVs
+    ``separation`` apart."""
+    agent = SimpleNamespace(
+        _event=5, _noisy=noisy, _to_body=lambda m: np.array(m, float),
+        _pool=[SimpleNamespace(event=4, rest_motor_state=np.zeros(4)),
+               SimpleNamespace(event=3, rest_motor_state=np.ones(4))],
+        _store=SimpleNamespace(count=count, samples=np.zeros((count, 2, 4)),
+                               separation=lambda: separation),
+        params=SimpleNamespace(pose_precision_povs=8))
+    agent._may_rest = lambda k, requests: SnapshotMatching._may_rest(agent, k, requests)
+    return agent
+
+
+def _anchor(snapshot, reach):
+    """A request for snapshot ``snapshot``'s anchor; ``reach``: its matched
+    neighbours' distances (None: no match confirmed the snapshot)."""
+    neighbours = None if reach is None else Neighbours(
+        np.arange(len(reach)), np.arange(len(reach)), np.asarray(reach, float))
+    return Request(snapshot, -1, np.zeros(6), np.zeros(4), neighbours=neighbours)
+
+
+def test_a_noisy_agent_rests_only_on_a_compensation_its_neighbours_hold():
+    # The most recent anchor (snapshot 0) was confirmed by no match: its
+    # search may have ended on a far pose sensing it alike. The older one
+    # (snapshot 1) has matched neighbours a separation away.
+    unconfirmed, held = np.full(4, 0.25), np.full(4, 0.5)
+    found_rest = {0: (2, unconfirmed), 1: (1, held)}
+    requests = [_anchor(0, None), _anchor(1, [0.1, 0.2])]
+    for noisy, rest, pov in ((True, held, 1), (False, unconfirmed, 2)):
+        agent = _records_agent(noisy)
+        records, choice = NaiveAgent._compensation_records(agent, {}, found_rest, requests, {})
+        assert [r.pov for r in records] == [2, 1]       # both are compensations still
+        assert choice[1] == pov and np.array_equal(choice[0], rest)
+
+
+def test_a_noisy_agent_stays_where_no_neighbour_lies_near_the_anchor():
+    # Matched neighbours, but the nearest lies 10 separations from the
+    # anchor's POV: nothing holds a far pose there. A known POV matching an
+    # anchor (no search) is rested on.
+    requests = [_anchor(0, [1.0, 1.2])]
+    agent = _records_agent(True)
+    records, choice = NaiveAgent._compensation_records(
+        agent, {}, {0: (2, np.full(4, 0.25))}, requests, {})
+    assert len(records) == 1 and choice is None
+    agent._store.samples[3, 0] = 0.75
+    _, choice = NaiveAgent._compensation_records(agent, {1: 3}, {0: (2, np.full(4, 0.25))},
+                                                 requests, {})
+    assert choice[1] == 3 and np.array_equal(choice[0], np.full(4, 0.75))
