@@ -283,7 +283,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
                                 m0.copy(), self._rest_pov,
                                 RANK_FULL if new else RANK_UNKNOWN,
                                 counts=self._pooled_counts(len(current)),
-                                rest_count=self._repeats)]
+                                rest_count=self._anchor_repeats())]
         self._body.pause()
         new = np.asarray(new, dtype=int)
         return Reaction(event=0, compensated=False, rest_motor_state=self._to_body(m0),
@@ -405,7 +405,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._renew_pool(matches, known_comp, found_rest,
                          Snapshot(t, current if counts is None else pooled, rank_now,
                                   rest_sensation, self._rest.copy(), self._rest_pov,
-                                  int(rest_rank), counts=counts, rest_count=self._repeats,
+                                  int(rest_rank), counts=counts, rest_count=self._anchor_repeats(),
                                   chained=rest_choice is not None))
 
         new_idx = np.asarray(new_povs, dtype=int)

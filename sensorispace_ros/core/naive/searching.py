@@ -51,7 +51,7 @@ class SearchAndSample:
             # Sensings averaged in each target: anchors at rest ``_repeats``, a
             # sweep's row as many as its chain of matches pooled (``Request.count``).
             counts = {g: requests[int(np.flatnonzero(group == g)[0])].count for g in solution}
-            solution = self._confirm(solution, unique_targets, counts)
+            solution = self._confirm_searched(solution, unique_targets, counts, requests, group)
             solution = self._held_by_neighbours(solution, requests, group)
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
@@ -92,15 +92,47 @@ class SearchAndSample:
 
     def _rest_sensation(self, motor_state: np.ndarray) -> np.ndarray:
         """Rest at ``motor_state``; its sensation, the anchor: averaged over
-        ``_repeats`` sensings (lost ones left out) where noise sized the
-        tolerances, so a compensation toward it is judged against the noise
-        of the search's end alone (``confirm.confirm_compensations``)."""
-        if self._repeats <= 1:
+        ``_anchor_repeats()`` sensings (lost ones left out) where noise sized
+        the tolerances, so a compensation toward it is judged against the
+        noise of the search's end alone (``confirm.confirm_compensations``)."""
+        repeats = self._anchor_repeats()
+        if repeats <= 1:
             return self._body.rest(motor_state)
         with self._body.fresh():
-            more = self._body.sense(np.repeat(motor_state[None], self._repeats - 1, axis=0))
+            more = self._body.sense(np.repeat(motor_state[None], repeats - 1, axis=0))
             sensation = self._body.rest(motor_state)
         return finite_mean(np.vstack([sensation[None], more]))
+
+    def _anchor_repeats(self) -> int:
+        """Sensings averaged in the anchor recorded now: ``_repeats``; where
+        random noise sized the tolerances and fewer than
+        ``unconfirmed_max_povs`` POVs are known (its anchor may be searched
+        with no match to confirm its snapshot, ``anchors.anchor_requests``),
+        ``accept_max_repeats``: across a redistribution no match reveals,
+        only the sensation tells a far pose sensing the anchor alike, and
+        a sensing's noise hides what sets them apart."""
+        if self._repeats > 1 and self._noisy and \
+                self._store.count < self.params.unconfirmed_max_povs:
+            return max(self._repeats, int(self.params.accept_max_repeats))
+        return self._repeats
+
+    def _confirm_searched(self, solution, unique_targets, counts, requests, group):
+        """``_confirm`` of the searches' ``solution`` ``{group: state}``; the
+        ends of compensations of an anchor no match confirmed (no neighbours
+        hold them, ``anchors._held_by_neighbours``) averaged as often as
+        their targets were (``_anchor_repeats``), so that what sets a far
+        pose apart is not hidden by the end's noise."""
+        lone = {g for g in solution if any(r.row < 0 and r.neighbours is None
+                                           for r, h in zip(requests, group) if h == g)}
+        kept = {}
+        rest = {g: state for g, state in solution.items() if g not in lone}
+        if rest:
+            kept.update(self._confirm(rest, unique_targets, counts))
+        if lone:
+            repeats = max(self._repeats, max(counts[g] for g in lone))
+            kept.update(self._confirm({g: solution[g] for g in lone}, unique_targets, counts,
+                                      repeats=repeats))
+        return kept
 
     def _confirm(self, solution, unique_targets, counts, rounds=None, max_step=None,
                  repeats=None):
