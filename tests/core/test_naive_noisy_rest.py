@@ -9,6 +9,7 @@ import numpy as np
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.anchors import Request, SnapshotMatching
 from sensorispace_ros.core.naive.neighbours import Neighbours
+from sensorispace_ros.core.naive.searching import SearchAndSample
 
 
 def _records_agent(noisy, count=20, separation=0.1):
@@ -61,3 +62,38 @@ def test_a_noisy_agent_stays_where_no_neighbour_lies_near_the_anchor():
     _, choice = NaiveAgent._compensation_records(agent, {1: 3}, {0: (2, np.full(4, 0.25))},
                                                  requests, {})
     assert choice[1] == 3 and np.array_equal(choice[0], np.full(4, 0.75))
+
+
+def test_anchors_that_may_be_searched_unconfirmed_are_averaged_to_the_budget():
+    # While fewer than unconfirmed_max_povs POVs are known an anchor may be
+    # searched with no match to confirm its snapshot: it is averaged
+    # accept_max_repeats times under random noise; later, and where
+    # averaging does not pay (rounding: one sensing) or there is no noise,
+    # as before.
+    def repeats(count, noisy=True, given=16):
+        agent = SimpleNamespace(_repeats=given, _noisy=noisy, _store=SimpleNamespace(count=count),
+                                params=SimpleNamespace(unconfirmed_max_povs=100,
+                                                       accept_max_repeats=256))
+        return SearchAndSample._anchor_repeats(agent)
+
+    assert repeats(1) == 256 and repeats(99) == 256
+    assert repeats(100) == 16
+    assert repeats(1, given=1) == 1 and repeats(1, noisy=False, given=1) == 1
+
+
+def test_an_unconfirmed_anchors_compensation_is_refined_as_often_as_its_target():
+    # Group 0: an anchor no match confirmed (no neighbours), its target of
+    # 256 sensings; group 1: a frontier row held to its neighbours, of one.
+    calls = []
+    agent = SimpleNamespace(_repeats=16)
+    agent._confirm = lambda solution, targets, counts, repeats=None: (
+        calls.append((sorted(solution), repeats)) or dict(solution))
+    requests = [_anchor(0, None), Request(1, 3, np.zeros(6), np.zeros(4),
+                                          neighbours=Neighbours(np.zeros(1, int),
+                                                                np.zeros(1, int),
+                                                                np.full(1, 0.1)))]
+    solution = {0: np.zeros(4), 1: np.ones(4)}
+    kept = SearchAndSample._confirm_searched(agent, solution, np.zeros((2, 6)), {0: 256, 1: 1},
+                                             requests, np.array([0, 1]))
+    assert sorted(kept) == [0, 1]
+    assert calls == [([1], None), ([0], 256)]
