@@ -7,7 +7,8 @@ off it puts every POV found after it on a lattice of its own. Runs the
 naive agent (lockstep) on a body with imperfections no parameter names
 (``ImperfectSensing``, as ``bench/noisy_naive.py``) for the first
 ``--events`` changes and prints one JSON line: POVs, wrong compensations
-(pose more than a quarter grid step from the asked one), motor states, and
+(pose more than a quarter grid step from the asked one), distinct
+positions (POVs a quarter grid step apart), motor states, and
 the POVs' offsets from the start's lattice (grid steps: median, 90th
 percentile, share within 0.05 and 0.125); then every change of the rest's
 offset by more than 0.03 step, with the orientation of the new rest::
@@ -88,9 +89,14 @@ def main() -> None:
         target[:2] += centers[rec.event] - centers[rec.anchor_event]
         pose = arm.forward(rec.motor_state[None])[0]
         wrong += bool(arm.pose_error(pose[None], target[None])[0] > step / 4)
-    distance = np.linalg.norm(offset(arm.forward(agent.points_of_view[:, 0])), axis=1)
+    positions = arm.forward(agent.points_of_view[:, 0])
+    distance = np.linalg.norm(offset(positions), axis=1)
+    from scipy.spatial import cKDTree
+    close = cKDTree(positions[:, :2]).query_pairs(step / 4, output_type="ndarray")
+    distinct = len(positions) - len(np.unique(close.max(axis=1))) if len(close) else len(positions)
     print(json.dumps({
-        "events": events, "povs": agent._store.count, "wrong": wrong,
+        "events": events, "povs": agent._store.count, "distinct_positions": int(distinct),
+        "wrong": wrong,
         "compensations": len(agent.compensations), "queries": agent.queries_total,
         "offset_median": round(float(np.median(distance)), 4),
         "offset_p90": round(float(np.percentile(distance, 90)), 4),

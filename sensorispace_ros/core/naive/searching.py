@@ -22,6 +22,7 @@ from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
+from sensorispace_ros.core.naive.neighbours import loop_distances
 from sensorispace_ros.core.naive.noise import noise_residual, noise_step, walk_step
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
@@ -71,19 +72,24 @@ class SearchAndSample:
                 if distance <= same:
                     pov_of_group[g] = int(index)
                     continue
+            known = self._walked_pose(solution[g])
+            if known >= 0:
+                pov_of_group[g] = known
+                continue
             if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] <= same:
                 pov_of_group[g] = -1
                 self.split_walks_skipped += 1
                 continue
             fresh.append(g)
         new_povs, new_sensations = [], []
+        known_before = self._store.count
         if fresh:
             povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
                                                  keep_invalid=True,
                                                  others=[others[g] for g in fresh])
             for g, pov, sensation in zip(fresh, povs, sensations):
                 pov_of_group[g] = pov
-                if pov >= 0:
+                if pov >= known_before and pov not in new_povs:
                     new_povs.append(pov)
                     new_sensations.append(sensation)
         found = {i: (pov_of_group[group[i]], solution[group[i]])
@@ -345,6 +351,11 @@ class SearchAndSample:
                 if others is not None and len(others[i]):
                     samples = isolated_samples(np.vstack([motor_states[i:i + 1], others[i]]),
                                                self.n_samples)
+                known = self._walked_pose(samples[0])
+                if known >= 0:          # a pose walked before (in this batch too)
+                    indices.append(known)
+                    sensations.append(walk.target_sensations[i])
+                    continue
                 indices.append(self._store.append(samples))
                 self.pov_queries.append(int(walk.queries[i]))
                 self.pov_events.append(self._event)
@@ -356,6 +367,22 @@ class SearchAndSample:
                     indices.append(-1)
                     sensations.append(None)
         return indices, sensations
+
+    def _walked_pose(self, motor_state: np.ndarray) -> int:
+        """Where noise sized the tolerances and the POVs are loops: the known
+        POV whose loop passes within ``_SAME_POSITION`` of their measured
+        separation (``PovStore.separation``) of ``motor_state``, -1 if none
+        (or fewer than ``pose_precision_povs`` POVs are known). A search's
+        end is as precise as its averages; two ends on one pose then
+        sense apart by more than two sensings differ along the strong pose
+        directions, yet lie on one loop in motor space: one POV, not two
+        (each would breed its own frontier rows, one position twice)."""
+        if not self._noisy or self.structure.pov_dim != 1 or \
+                self._store.count < self.params.pose_precision_povs:
+            return -1
+        distance = loop_distances(motor_state, self._store.samples)
+        nearest = int(np.argmin(distance))
+        return nearest if distance[nearest] <= _SAME_POSITION * self._store.separation() else -1
 
     def _walk_noise(self) -> float:
         """The noise a POV walk allows for in its corrections: the measured
@@ -388,6 +415,9 @@ class SearchAndSample:
             pattern_ratio=p.pattern_ratio, noise_sd=self._walk_noise())
 
 
+# Two loops closer than this share of the POVs' separation are one position
+# (a quarter: half way to half way between neighbours; ``_walked_pose``).
+_SAME_POSITION = 0.25
 # How many times what two sensings of one pose differ by a POV's sample may
 # lie from its start's sensation: the walk's own tolerances are motor steps
 # (``pov_sample_tol``), which leave a residual along the strong pose
