@@ -1,14 +1,17 @@
-"""Where the naive agent rests after a change under noise: only on a
-compensation its matched neighbours hold, so that a far pose sensing an
-unconfirmed anchor alike never becomes the pose every later anchor is
-sensed from."""
+"""What keeps a noisy naive agent's POVs on one lattice of positions: it
+rests only on a compensation its matched neighbours hold (a far pose
+sensing an unconfirmed anchor alike never becomes the pose every later
+anchor is sensed from), averages the anchors that may be searched
+unconfirmed as often as its budget allows, and takes a pose on a known
+POV's loop for that POV."""
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.anchors import Request, SnapshotMatching
-from sensorispace_ros.core.naive.neighbours import Neighbours
+from sensorispace_ros.core.naive.neighbours import Neighbours, loop_distances
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
 
@@ -97,3 +100,47 @@ def test_an_unconfirmed_anchors_compensation_is_refined_as_often_as_its_target()
                                              requests, np.array([0, 1]))
     assert sorted(kept) == [0, 1]
     assert calls == [([1], None), ([0], 256)]
+
+
+def _circle(center, radius=1.0, n=8):
+    angle = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    loop = np.zeros((n, 4))
+    loop[:, 0], loop[:, 1] = radius * np.cos(angle), radius * np.sin(angle)
+    return loop + center
+
+
+def test_a_pose_between_two_samples_lies_on_the_loop():
+    loops = np.stack([_circle(0.0), _circle(np.array([3.0, 0, 0, 0]))])
+    between = np.array([np.cos(np.pi / 8), np.sin(np.pi / 8), 0, 0])     # on the circle
+    distance = loop_distances(between, loops)
+    chord_gap = 1 - np.cos(np.pi / 8)                 # the chord's distance to the arc
+    assert distance[0] == pytest.approx(chord_gap, rel=1e-9)
+    assert np.min(np.linalg.norm(loops[0] - between, axis=1)) > 5 * distance[0]
+    to_circle = np.linalg.norm(between[:2] - [3.0, 0.0]) - 1.0        # the far loop's circle
+    assert to_circle <= distance[1] <= to_circle + chord_gap
+    # On the torus of phases: a loop near +pi is near a point near -pi.
+    wrapped = loop_distances(np.array([-np.pi + 0.01, 0, 0, 0]),
+                             _circle(np.array([np.pi - 0.5, 0, 0, 0]), radius=0.3)[None])
+    assert wrapped[0] < 0.25
+
+
+def _walked_agent(noisy, count=10):
+    loops = np.stack([_circle(np.array([0, 0.6 * k - 3.0, 0, 0]), radius=0.2, n=16)
+                      for k in range(count)])
+    return SimpleNamespace(_noisy=noisy, structure=SimpleNamespace(pov_dim=1),
+                           params=SimpleNamespace(pose_precision_povs=8),
+                           _store=SimpleNamespace(count=count, samples=loops,
+                                                  separation=lambda: 0.4))
+
+
+def test_a_noisy_agent_takes_a_pose_on_a_known_loop_for_that_pov():
+    # Loops of radius 0.2 centred 0.6 apart, separation 0.4: a state 0.05
+    # off loop 2 (a quarter of the separation is 0.1) is POV 2; 0.2 off
+    # it is none; noiseless, or with too few POVs to measure their
+    # separation, nothing is taken for a known POV by motor distance.
+    near = np.array([0.2, -1.8, 0.05, 0])
+    far = np.array([0.2, -1.8, 0.2, 0])
+    assert SearchAndSample._walked_pose(_walked_agent(True), near) == 2
+    assert SearchAndSample._walked_pose(_walked_agent(True), far) == -1
+    assert SearchAndSample._walked_pose(_walked_agent(False), near) == -1
+    assert SearchAndSample._walked_pose(_walked_agent(True, count=5), near) == -1
