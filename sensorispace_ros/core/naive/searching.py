@@ -54,13 +54,35 @@ class SearchAndSample:
             counts = {g: requests[int(np.flatnonzero(group == g)[0])].count for g in solution}
             solution = self._confirm_searched(solution, unique_targets, counts, requests, group)
             solution = self._held_by_neighbours(solution, requests, group)
+        pov_of_group, fresh = self._known_solutions(solution, unique_targets, gain, tree,
+                                                    split_now)
+        new_povs, new_sensations = [], []
+        known_before = self._store.count
+        if fresh:
+            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
+                                                 keep_invalid=True,
+                                                 others=[others[g] for g in fresh])
+            for g, pov, sensation in zip(fresh, povs, sensations):
+                pov_of_group[g] = pov
+                if pov >= known_before and pov not in new_povs:
+                    new_povs.append(pov)
+                    new_sensations.append(sensation)
+        found = {i: (pov_of_group[group[i]], solution[group[i]])
+                 for i in range(len(requests)) if group[i] in solution}
+        return found, new_povs, new_sensations
+
+    def _known_solutions(self, solution, unique_targets, gain, tree, split_now):
+        """Which solutions ``{group: state}`` are known POVs (``tree``: their
+        sensations now) or remembered split ones (``split_now``). Returns
+        ``({group: known POV or -1}, [groups to walk])``."""
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
         # is judged by the sensory gain at the solution: a motor-equivalent
         # distance of match_tol; where the Jacobians are averaged (the match
         # tolerance, which allows for drift along chains, then spans
-        # neighbouring poses) within what two sensings of one pose differ by.
+        # neighbouring poses) within what two sensings of one pose differ by;
+        # under noise also a solution on a known POV's loop (``_walked_pose``).
         fresh = []
         split_tree = cKDTree(finite_rows(split_now, -1.0)) if len(split_now) else None
         for g in sorted(solution):
@@ -81,20 +103,7 @@ class SearchAndSample:
                 self.split_walks_skipped += 1
                 continue
             fresh.append(g)
-        new_povs, new_sensations = [], []
-        known_before = self._store.count
-        if fresh:
-            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
-                                                 keep_invalid=True,
-                                                 others=[others[g] for g in fresh])
-            for g, pov, sensation in zip(fresh, povs, sensations):
-                pov_of_group[g] = pov
-                if pov >= known_before and pov not in new_povs:
-                    new_povs.append(pov)
-                    new_sensations.append(sensation)
-        found = {i: (pov_of_group[group[i]], solution[group[i]])
-                 for i in range(len(requests)) if group[i] in solution}
-        return found, new_povs, new_sensations
+        return pov_of_group, fresh
 
     def _rest_sensation(self, motor_state: np.ndarray) -> np.ndarray:
         """Rest at ``motor_state``; its sensation, the anchor: averaged over
