@@ -12,6 +12,7 @@ import pytest
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.anchors import Request, SnapshotMatching
 from sensorispace_ros.core.naive.neighbours import Neighbours, loop_distances
+from sensorispace_ros.core.naive.points_of_view import PovStore
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
 
@@ -127,10 +128,14 @@ def test_a_pose_between_two_samples_lies_on_the_loop():
 def _walked_agent(noisy, count=10):
     loops = np.stack([_circle(np.array([0, 0.6 * k - 3.0, 0, 0]), radius=0.2, n=16)
                       for k in range(count)])
-    return SimpleNamespace(_noisy=noisy, structure=SimpleNamespace(pov_dim=1),
-                           params=SimpleNamespace(pose_precision_povs=8),
-                           _store=SimpleNamespace(count=count, samples=loops,
-                                                  separation=lambda: 0.4))
+    store = PovStore(16, 4)
+    for loop in loops:
+        store.append(loop)
+    store.separation = lambda: 0.4
+    agent = SimpleNamespace(_noisy=noisy, structure=SimpleNamespace(pov_dim=1),
+                            params=SimpleNamespace(pose_precision_povs=8), _store=store)
+    agent._longest_chord = lambda: SearchAndSample._longest_chord(agent)
+    return agent
 
 
 def test_a_noisy_agent_takes_a_pose_on_a_known_loop_for_that_pov():

@@ -389,9 +389,27 @@ class SearchAndSample:
         if not self._noisy or self.structure.pov_dim != 1 or \
                 self._store.count < self.params.pose_precision_povs:
             return -1
-        distance = loop_distances(motor_state, self._store.samples)
+        limit = _SAME_POSITION * self._store.separation()
+        samples = self._store.samples
+        # A point within ``limit`` of a chord lies within ``limit`` plus half
+        # the chord of one of its ends: only POVs with a sample that near.
+        candidates = self._store.near(motor_state, limit + 0.5 * self._longest_chord())
+        if not len(candidates):
+            return -1
+        distance = loop_distances(motor_state, samples[candidates])
         nearest = int(np.argmin(distance))
-        return nearest if distance[nearest] <= _SAME_POSITION * self._store.separation() else -1
+        return int(candidates[nearest]) if distance[nearest] <= limit else -1
+
+    def _longest_chord(self) -> float:
+        """The longest step between consecutive samples of a known POV's loop
+        (torus of phases), measured for the POVs appended since last asked."""
+        done, longest = getattr(self, "_chords", (0, 0.0))
+        if self._store.count > done:
+            loops = self._store.samples[done:]
+            step = (np.roll(loops, -1, axis=1) - loops + np.pi) % (2.0 * np.pi) - np.pi
+            longest = max(longest, float(np.sqrt(np.max(np.sum(step * step, axis=2)))))
+            self._chords = (self._store.count, longest)
+        return longest
 
     def _walk_noise(self) -> float:
         """The noise a POV walk allows for in its corrections: the measured
