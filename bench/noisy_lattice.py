@@ -106,12 +106,12 @@ def main() -> None:
     before = np.zeros(2)
     for event, motor, pov in agent.rests:
         pose = arm.forward(np.asarray(motor)[None])[0]
-        now = offset(pose)
-        if np.linalg.norm(now - before) > 0.03:
+        here = offset(pose)
+        if np.linalg.norm(here - before) > 0.03:
             print(json.dumps({"rest moved at": event, "pov": int(pov),
-                              "offset": np.round(now, 3).tolist(),
+                              "offset": np.round(here, 3).tolist(),
                               "orientation": round(float(pose[2] - pose0[2]), 3)}))
-        before = now
+        before = here
 
 
 if __name__ == "__main__":

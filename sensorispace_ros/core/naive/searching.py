@@ -73,7 +73,7 @@ class SearchAndSample:
 
     def _known_solutions(self, solution, unique_targets, gain, tree, split_now):
         """Which solutions ``{group: state}`` are known POVs (``tree``: their
-        sensations now) or remembered split ones (``split_now``). Returns
+        sensations in this environment) or remembered split ones (``split_now``). Returns
         ``({group: known POV or -1}, [groups to walk])``."""
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
@@ -119,7 +119,7 @@ class SearchAndSample:
         return finite_mean(np.vstack([sensation[None], more]))
 
     def _anchor_repeats(self) -> int:
-        """Sensings averaged in the anchor recorded now: ``_repeats``; where
+        """Sensings averaged in the anchor recorded at rest: ``_repeats``; where
         random noise sized the tolerances and fewer than
         ``unconfirmed_max_povs`` POVs are known (its anchor may be searched
         with no match to confirm its snapshot, ``anchors.anchor_requests``),
