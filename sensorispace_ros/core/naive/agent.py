@@ -283,7 +283,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
                                 m0.copy(), self._rest_pov,
                                 RANK_FULL if new else RANK_UNKNOWN,
                                 counts=self._pooled_counts(len(current)),
-                                rest_count=self._repeats)]
+                                rest_count=self._anchor_repeats())]
         self._body.pause()
         new = np.asarray(new, dtype=int)
         return Reaction(event=0, compensated=False, rest_motor_state=self._to_body(m0),
@@ -405,7 +405,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self._renew_pool(matches, known_comp, found_rest,
                          Snapshot(t, current if counts is None else pooled, rank_now,
                                   rest_sensation, self._rest.copy(), self._rest_pov,
-                                  int(rest_rank), counts=counts, rest_count=self._repeats,
+                                  int(rest_rank), counts=counts, rest_count=self._anchor_repeats(),
                                   chained=rest_choice is not None))
 
         new_idx = np.asarray(new_povs, dtype=int)
@@ -437,7 +437,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
                 event=t, anchor_event=snap.event,
                 anchor_motor_state=self._to_body(snap.rest_motor_state),
                 motor_state=self._to_body(motor), pov=int(pov), searched=searched))
-            if rest_choice is None and pov >= 0:
+            if rest_choice is None and pov >= 0 and (not searched or self._may_rest(k, requests)):
                 rest_choice = (motor, int(pov))
         for i, r in enumerate(requests):
             if r.row >= 0 and i in found:

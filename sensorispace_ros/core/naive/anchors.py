@@ -389,6 +389,23 @@ class SnapshotMatching:
                 kept[g] = state
         return kept
 
+    def _may_rest(self, snapshot: int, requests) -> bool:
+        """Whether the arm may rest on the searched compensation of snapshot
+        ``snapshot``'s anchor. Every later anchor is sensed from the rest, so
+        a rest off the start's lattice of relative poses (a far pose sensing
+        the anchor alike, across a redistribution no match revealed) puts
+        every POV found after it on a lattice of its own. Where noise sized
+        the tolerances only a compensation held to matched neighbours
+        (``_held_by_neighbours``) whose nearest one lies within
+        ``_FRONTIER_REACH`` separations of the POVs of the anchor is rested
+        on; elsewhere the arm stays where it is: any rest on the lattice
+        keeps every later compensation on it."""
+        if not self._noisy:
+            return True
+        request = next((r for r in requests if r.snapshot == snapshot and r.row < 0), None)
+        return request is not None and request.neighbours is not None and \
+            len(request.neighbours.reach) > 0 and not _far_from_matched(request, self)
+
     def _track_frontier(self, requests, found, new_povs) -> None:
         """Moving average of the frontier searches that found a new POV."""
         frontier = [i for i, r in enumerate(requests) if r.row >= 0]

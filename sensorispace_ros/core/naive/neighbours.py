@@ -62,3 +62,20 @@ def held_by_neighbours(pov_samples, neighbours: Neighbours, motor_state, *, rati
     agree = near <= ratio * neighbours.reach + slack
     apart = near >= neighbours.reach / (ratio + 1)
     return 2 * int(np.sum(agree)) > len(agree) and bool(np.all(apart))
+
+
+def loop_distances(point: np.ndarray, loops: np.ndarray) -> np.ndarray:
+    """Distance (torus of phases) from ``point`` ``(M,)`` to each closed
+    polyline through the samples of ``loops`` ``(K, N, M)``: ``(K,)``. A
+    POV's samples lie a walk's step apart; between them the loop runs
+    along the chord, so a pose on the loop lies near it, not only near a
+    sample."""
+    start = (loops - point + np.pi) % (2.0 * np.pi) - np.pi
+    chord = np.roll(loops, -1, axis=1) - loops
+    chord = (chord + np.pi) % (2.0 * np.pi) - np.pi
+    length2 = np.sum(chord * chord, axis=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        along = np.clip(np.where(length2 > 0, -np.sum(start * chord, axis=2) / length2, 0.0),
+                        0.0, 1.0)
+    nearest = start + along[..., None] * chord
+    return np.sqrt(np.min(np.sum(nearest * nearest, axis=2), axis=1))

@@ -75,6 +75,29 @@ class PovStore:
         self._separation = (count, value)
         return value
 
+    def near(self, point: np.ndarray, radius: float) -> np.ndarray:
+        """Indices of the POVs with a sample within ``radius`` of ``point``
+        (torus of phases). A tree over the samples is rebuilt when the POVs
+        have grown by an eighth; the POVs appended since are measured one by
+        one."""
+        from scipy.spatial import cKDTree
+        from sensorispace_ros.core.naive.neighbours import curve_distances
+        period = 2.0 * np.pi
+        built, tree = getattr(self, "_near", (0, None))
+        if self.count and (tree is None or self.count >= built * 9 / 8 + 1):
+            samples = np.mod(self._data[:self.count], period).reshape(-1, self._data.shape[2])
+            tree = cKDTree(np.where(samples < period, samples, 0.0), boxsize=period)
+            built = self.count
+            self._near = (built, tree)
+        if tree is None:
+            return np.zeros(0, dtype=int)
+        at = np.mod(point, period)
+        hits = tree.query_ball_point(np.where(at < period, at, 0.0), radius)
+        indexed = np.unique(np.asarray(hits, dtype=int) // self._data.shape[1])
+        later = built + np.flatnonzero(curve_distances(point, self._data[built:self.count])
+                                       <= radius)
+        return np.concatenate([indexed, later]).astype(int)
+
 
 def sample_sensory_points_of_view(
         body, motor_states: np.ndarray, *, rank: int, n_samples: int = 100,

@@ -22,6 +22,7 @@ from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
+from sensorispace_ros.core.naive.neighbours import loop_distances
 from sensorispace_ros.core.naive.noise import noise_residual, noise_step, walk_step
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
@@ -51,15 +52,37 @@ class SearchAndSample:
             # Sensings averaged in each target: anchors at rest ``_repeats``, a
             # sweep's row as many as its chain of matches pooled (``Request.count``).
             counts = {g: requests[int(np.flatnonzero(group == g)[0])].count for g in solution}
-            solution = self._confirm(solution, unique_targets, counts)
+            solution = self._confirm_searched(solution, unique_targets, counts, requests, group)
             solution = self._held_by_neighbours(solution, requests, group)
+        pov_of_group, fresh = self._known_solutions(solution, unique_targets, gain, tree,
+                                                    split_now)
+        new_povs, new_sensations = [], []
+        known_before = self._store.count
+        if fresh:
+            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
+                                                 keep_invalid=True,
+                                                 others=[others[g] for g in fresh])
+            for g, pov, sensation in zip(fresh, povs, sensations):
+                pov_of_group[g] = pov
+                if pov >= known_before and pov not in new_povs:
+                    new_povs.append(pov)
+                    new_sensations.append(sensation)
+        found = {i: (pov_of_group[group[i]], solution[group[i]])
+                 for i in range(len(requests)) if group[i] in solution}
+        return found, new_povs, new_sensations
+
+    def _known_solutions(self, solution, unique_targets, gain, tree, split_now):
+        """Which solutions ``{group: state}`` are known POVs (``tree``: their
+        sensations in this environment) or remembered split ones (``split_now``). Returns
+        ``({group: known POV or -1}, [groups to walk])``."""
         pov_of_group: dict[int, int] = {}
         # A solution sensing what a known POV senses now is that POV (the
         # solution has full rank, so the sensation pins the pose). "The same"
         # is judged by the sensory gain at the solution: a motor-equivalent
         # distance of match_tol; where the Jacobians are averaged (the match
         # tolerance, which allows for drift along chains, then spans
-        # neighbouring poses) within what two sensings of one pose differ by.
+        # neighbouring poses) within what two sensings of one pose differ by;
+        # under noise also a solution on a known POV's loop (``_walked_pose``).
         fresh = []
         split_tree = cKDTree(finite_rows(split_now, -1.0)) if len(split_now) else None
         for g in sorted(solution):
@@ -71,36 +94,60 @@ class SearchAndSample:
                 if distance <= same:
                     pov_of_group[g] = int(index)
                     continue
+            known = self._walked_pose(solution[g])
+            if known >= 0:
+                pov_of_group[g] = known
+                continue
             if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] <= same:
                 pov_of_group[g] = -1
                 self.split_walks_skipped += 1
                 continue
             fresh.append(g)
-        new_povs, new_sensations = [], []
-        if fresh:
-            povs, sensations = self._sample_povs(np.stack([solution[g] for g in fresh]),
-                                                 keep_invalid=True,
-                                                 others=[others[g] for g in fresh])
-            for g, pov, sensation in zip(fresh, povs, sensations):
-                pov_of_group[g] = pov
-                if pov >= 0:
-                    new_povs.append(pov)
-                    new_sensations.append(sensation)
-        found = {i: (pov_of_group[group[i]], solution[group[i]])
-                 for i in range(len(requests)) if group[i] in solution}
-        return found, new_povs, new_sensations
+        return pov_of_group, fresh
 
     def _rest_sensation(self, motor_state: np.ndarray) -> np.ndarray:
         """Rest at ``motor_state``; its sensation, the anchor: averaged over
-        ``_repeats`` sensings (lost ones left out) where noise sized the
-        tolerances, so a compensation toward it is judged against the noise
-        of the search's end alone (``confirm.confirm_compensations``)."""
-        if self._repeats <= 1:
+        ``_anchor_repeats()`` sensings (lost ones left out) where noise sized
+        the tolerances, so a compensation toward it is judged against the
+        noise of the search's end alone (``confirm.confirm_compensations``)."""
+        repeats = self._anchor_repeats()
+        if repeats <= 1:
             return self._body.rest(motor_state)
         with self._body.fresh():
-            more = self._body.sense(np.repeat(motor_state[None], self._repeats - 1, axis=0))
+            more = self._body.sense(np.repeat(motor_state[None], repeats - 1, axis=0))
             sensation = self._body.rest(motor_state)
         return finite_mean(np.vstack([sensation[None], more]))
+
+    def _anchor_repeats(self) -> int:
+        """Sensings averaged in the anchor recorded at rest: ``_repeats``; where
+        random noise sized the tolerances and fewer than
+        ``unconfirmed_max_povs`` POVs are known (its anchor may be searched
+        with no match to confirm its snapshot, ``anchors.anchor_requests``),
+        ``accept_max_repeats``: across a redistribution no match reveals,
+        only the sensation tells a far pose sensing the anchor alike, and
+        a sensing's noise hides what sets them apart."""
+        if self._repeats > 1 and self._noisy and \
+                self._store.count < self.params.unconfirmed_max_povs:
+            return max(self._repeats, int(self.params.accept_max_repeats))
+        return self._repeats
+
+    def _confirm_searched(self, solution, unique_targets, counts, requests, group):
+        """``_confirm`` of the searches' ``solution`` ``{group: state}``; the
+        ends of compensations of an anchor no match confirmed (no neighbours
+        hold them, ``anchors._held_by_neighbours``) averaged as often as
+        their targets were (``_anchor_repeats``), so that what sets a far
+        pose apart is not hidden by the end's noise."""
+        lone = {g for g in solution if any(r.row < 0 and r.neighbours is None
+                                           for r, h in zip(requests, group) if h == g)}
+        kept = {}
+        rest = {g: state for g, state in solution.items() if g not in lone}
+        if rest:
+            kept.update(self._confirm(rest, unique_targets, counts))
+        if lone:
+            repeats = max(self._repeats, max(counts[g] for g in lone))
+            kept.update(self._confirm({g: solution[g] for g in lone}, unique_targets, counts,
+                                      repeats=repeats))
+        return kept
 
     def _confirm(self, solution, unique_targets, counts, rounds=None, max_step=None,
                  repeats=None):
@@ -313,6 +360,11 @@ class SearchAndSample:
                 if others is not None and len(others[i]):
                     samples = isolated_samples(np.vstack([motor_states[i:i + 1], others[i]]),
                                                self.n_samples)
+                known = self._walked_pose(samples[0])
+                if known >= 0:          # a pose walked before (in this batch too)
+                    indices.append(known)
+                    sensations.append(walk.target_sensations[i])
+                    continue
                 indices.append(self._store.append(samples))
                 self.pov_queries.append(int(walk.queries[i]))
                 self.pov_events.append(self._event)
@@ -324,6 +376,40 @@ class SearchAndSample:
                     indices.append(-1)
                     sensations.append(None)
         return indices, sensations
+
+    def _walked_pose(self, motor_state: np.ndarray) -> int:
+        """Where noise sized the tolerances and the POVs are loops: the known
+        POV whose loop passes within ``_SAME_POSITION`` of their measured
+        separation (``PovStore.separation``) of ``motor_state``, -1 if none
+        (or fewer than ``pose_precision_povs`` POVs are known). A search's
+        end is as precise as its averages; two ends on one pose then
+        sense apart by more than two sensings differ along the strong pose
+        directions, yet lie on one loop in motor space: one POV, not two
+        (each would breed its own frontier rows, one position twice)."""
+        if not self._noisy or self.structure.pov_dim != 1 or \
+                self._store.count < self.params.pose_precision_povs:
+            return -1
+        limit = _SAME_POSITION * self._store.separation()
+        samples = self._store.samples
+        # A point within ``limit`` of a chord lies within ``limit`` plus half
+        # the chord of one of its ends: only POVs with a sample that near.
+        candidates = self._store.near(motor_state, limit + 0.5 * self._longest_chord())
+        if not len(candidates):
+            return -1
+        distance = loop_distances(motor_state, samples[candidates])
+        nearest = int(np.argmin(distance))
+        return int(candidates[nearest]) if distance[nearest] <= limit else -1
+
+    def _longest_chord(self) -> float:
+        """The longest step between consecutive samples of a known POV's loop
+        (torus of phases), measured for the POVs appended since last asked."""
+        done, longest = getattr(self, "_chords", (0, 0.0))
+        if self._store.count > done:
+            loops = self._store.samples[done:]
+            step = (np.roll(loops, -1, axis=1) - loops + np.pi) % (2.0 * np.pi) - np.pi
+            longest = max(longest, float(np.sqrt(np.max(np.sum(step * step, axis=2)))))
+            self._chords = (self._store.count, longest)
+        return longest
 
     def _walk_noise(self) -> float:
         """The noise a POV walk allows for in its corrections: the measured
@@ -356,6 +442,9 @@ class SearchAndSample:
             pattern_ratio=p.pattern_ratio, noise_sd=self._walk_noise())
 
 
+# Two loops closer than this share of the POVs' separation are one position
+# (a quarter: half way to half way between neighbours; ``_walked_pose``).
+_SAME_POSITION = 0.25
 # How many times what two sensings of one pose differ by a POV's sample may
 # lie from its start's sensation: the walk's own tolerances are motor steps
 # (``pov_sample_tol``), which leave a residual along the strong pose
