@@ -334,18 +334,21 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self.phase = EQUALITY_PASS
         self._body.forget()
         self._body.stage = "equality_pass"
-        self._sweep = EqualitySetSweep(
-            self._body, self._store.samples, rank=self.structure.pose_rank,
-            fd_step=self._fd_step, rank_ratio=self.params.rank_ratio,
-            min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
-            match_tol=self._tol.match,
-            separation=self._tol.separation)
-        self._sweep.ratio = self._tol.ratio
-        self._sweep.sets = self._sets
+        self._sweep = self._equality_sweep()
         self._sweep.observe()       # the sweep "before" the first change
         self._body.stage = "rest"
         self._body.rest(self._rest)
         self._body.pause()
+
+    def _equality_sweep(self, kind=EqualitySetSweep) -> EqualitySetSweep:
+        """Simulation 2's sweep (a ``kind``) of the known POVs, with the
+        agent's measured tolerances, adding to its equality sets."""
+        sweep = kind(self._body, self._store.samples, rank=self.structure.pose_rank,
+                     fd_step=self._fd_step, rank_ratio=self.params.rank_ratio,
+                     min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
+                     match_tol=self._tol.match, separation=self._tol.separation)
+        sweep.ratio, sweep.sets = self._tol.ratio, self._sets
+        return sweep
 
     # ------------------------------------------------------------ internals
 

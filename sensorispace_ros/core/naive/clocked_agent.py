@@ -38,7 +38,6 @@ from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.records import EQUALITY_PASS
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
@@ -187,27 +186,14 @@ class ClockedAgent(NaiveAgent):
         self._seed = int(seed)
         return super().start(initial_motor_state, seed=seed)
 
-    def begin_equality_pass(self) -> None:
+    def _equality_sweep(self, kind=AllPairsSweep):
         """Simulation 2 with every earlier sweep matched (``AllPairsSweep``),
         each sweep ``clock_equality_budget`` known POVs (0: every one)."""
-        if self._event < 0:
-            raise RuntimeError("begin_equality_pass() before start()")
-        self.phase = EQUALITY_PASS
-        self._body.forget()
-        self._body.stage = "equality_pass"
-        sweep = AllPairsSweep(
-            self._body, self._store.samples, rank=self.structure.pose_rank,
-            fd_step=self._fd_step, rank_ratio=self.params.rank_ratio,
-            min_singular=self._tol.min_singular, pattern_ratio=self.params.pattern_ratio,
-            match_tol=self._tol.match, separation=self._tol.separation)
-        sweep.ratio, sweep.sets, sweep.history = self._tol.ratio, self._sets, []
+        sweep = super()._equality_sweep(kind)
+        sweep.history = []
         sweep.budget = self.params.clock_equality_budget
         sweep.stream = CounterStream(getattr(self, "_seed", 0), "naive.clock_equality")
-        self._sweep = sweep
-        sweep.observe()       # the sweep "before" the first change
-        self._body.stage = "rest"
-        self._body.rest(self._rest)
-        self._body.pause()
+        return sweep
 
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""
