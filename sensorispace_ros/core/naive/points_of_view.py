@@ -28,6 +28,23 @@ from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, S
 from sensorispace_ros.core.naive.loop_walk import LoopWalk, resample_loop_spline  # noqa: F401
 
 
+PERIOD = 2.0 * np.pi     # a joint's period in phases
+
+
+def torus_phases(motor_states: np.ndarray) -> np.ndarray:
+    """``motor_states`` as phases in ``[0, 2 pi)``: ``np.mod`` rounds a phase
+    just below 0 up to exactly 2 pi, which is 0."""
+    at = np.mod(motor_states, PERIOD)
+    return np.where(at < PERIOD, at, 0.0)
+
+
+def torus_tree(motor_states: np.ndarray):
+    """A ``cKDTree`` of ``(K, M)`` motor states on the torus of phases (it
+    refuses a coordinate equal to its box: ``torus_phases``)."""
+    from scipy.spatial import cKDTree
+    return cKDTree(torus_phases(motor_states), boxsize=PERIOD)
+
+
 class PovStore:
     """Growing ``(P, N, M)`` array of POV samples (amortised appends);
     ``append`` returns the new POV's index."""
@@ -60,11 +77,9 @@ class PovStore:
         cached = self._separation
         if count < 2 or count < cached[0] * 9 / 8:
             return cached[1] if count >= 2 else 0.0
-        from scipy.spatial import cKDTree
-        period = 2.0 * np.pi
-        samples = np.mod(self._data[:count], period)
+        samples = torus_phases(self._data[:count])
         owner = np.repeat(np.arange(count), samples.shape[1])
-        tree = cKDTree(samples.reshape(-1, samples.shape[2]), boxsize=period)
+        tree = torus_tree(samples.reshape(-1, samples.shape[2]))
         k = min(samples.shape[1] + 1, count * samples.shape[1])
         distance, index = tree.query(samples[:, 0], k=k)
         other = owner[index] != np.arange(count)[:, None]
@@ -80,19 +95,15 @@ class PovStore:
         (torus of phases). A tree over the samples is rebuilt when the POVs
         have grown by an eighth; the POVs appended since are measured one by
         one."""
-        from scipy.spatial import cKDTree
         from sensorispace_ros.core.naive.neighbours import curve_distances
-        period = 2.0 * np.pi
         built, tree = getattr(self, "_near", (0, None))
         if self.count and (tree is None or self.count >= built * 9 / 8 + 1):
-            samples = np.mod(self._data[:self.count], period).reshape(-1, self._data.shape[2])
-            tree = cKDTree(np.where(samples < period, samples, 0.0), boxsize=period)
+            tree = torus_tree(self._data[:self.count].reshape(-1, self._data.shape[2]))
             built = self.count
             self._near = (built, tree)
         if tree is None:
             return np.zeros(0, dtype=int)
-        at = np.mod(point, period)
-        hits = tree.query_ball_point(np.where(at < period, at, 0.0), radius)
+        hits = tree.query_ball_point(torus_phases(point), radius)
         indexed = np.unique(np.asarray(hits, dtype=int) // self._data.shape[1])
         later = built + np.flatnonzero(curve_distances(point, self._data[built:self.count])
                                        <= radius)

@@ -1,0 +1,51 @@
+"""PovStore: the POVs' samples, their separation and the POVs near a motor
+state, on the torus of phases."""
+import numpy as np
+import pytest
+
+from sensorispace_ros.core.naive.neighbours import curve_distances
+from sensorispace_ros.core.naive.points_of_view import PERIOD, PovStore
+
+
+def _loops(count, n_samples=24, spacing=0.3):
+    """``count`` loops along joint 1, joint 0 at ``spacing * k`` (odd ones
+    one period further), each at one joint-2 phase."""
+    angle = np.linspace(0.0, PERIOD, n_samples, endpoint=False)
+    return [np.stack([np.full(n_samples, spacing * k + PERIOD * (k % 2)), angle,
+                      np.full(n_samples, 0.1 * k)], axis=1) for k in range(count)]
+
+
+def _store(loops):
+    store = PovStore(len(loops[0]), loops[0].shape[1])
+    for loop in loops:
+        store.append(loop)
+    return store
+
+
+def test_a_sample_whose_phase_rounds_up_to_the_period_is_at_zero():
+    # A phase just below 0 is 2 pi after np.mod: the store places it at 0,
+    # next to a sample at 0.2 of the other POV.
+    below_zero = -1e-17
+    assert np.mod(below_zero, PERIOD) == PERIOD
+    first = np.zeros((8, 3))
+    first[:, 1] = np.linspace(1.0, 4.0, 8)
+    first[0] = [below_zero, 3.0, 3.0]
+    second = first + [0.0, 0.0, 0.2]
+    second[0] = [0.0, 3.0, 3.2]
+    store = _store([first, second])
+    assert store.separation() == pytest.approx(0.2)
+    assert store.near(np.array([PERIOD, 3.0, 3.1]), 0.15).tolist() == [0, 1]
+    assert store.near(np.array([below_zero, 3.0, 2.9]), 0.15).tolist() == [0]
+
+
+def test_near_finds_the_povs_with_a_sample_within_the_radius():
+    loops = _loops(20)
+    store = _store(loops[:16])
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-PERIOD, 2 * PERIOD, size=(40, 3))
+    store.near(points[0], 0.5)                  # the tree holds 16 POVs
+    for loop in loops[16:]:                     # measured one by one
+        store.append(loop)
+    for point in points:
+        expected = np.flatnonzero(curve_distances(point, store.samples) <= 0.5)
+        assert sorted(store.near(point, 0.5).tolist()) == expected.tolist()
