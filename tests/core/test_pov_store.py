@@ -1,5 +1,8 @@
 """PovStore: the POVs' samples, their separation and the POVs near a motor
-state, on the torus of phases."""
+state, on the torus of phases; pickled (checkpoints) without its tree."""
+import copy
+import pickle
+
 import numpy as np
 import pytest
 
@@ -49,3 +52,28 @@ def test_near_finds_the_povs_with_a_sample_within_the_radius():
     for point in points:
         expected = np.flatnonzero(curve_distances(point, store.samples) <= 0.5)
         assert sorted(store.near(point, 0.5).tolist()) == expected.tolist()
+
+
+@pytest.mark.parametrize("round_trip", [lambda s: pickle.loads(pickle.dumps(s)), copy.deepcopy])
+def test_a_pickled_store_leaves_its_tree_and_answers_the_same(round_trip):
+    loops = _loops(20)
+    store = _store(loops[:16])
+    rng = np.random.default_rng(1)
+    points = rng.uniform(0.0, PERIOD, size=(30, 3))
+    store.near(points[0], 0.6)
+    for loop in loops[16:]:
+        store.append(loop)
+    assert b"cKDTree" not in pickle.dumps(store)
+    restored = round_trip(store)
+    assert restored._near_tree is None and restored._near_built == 16
+    for point in points:
+        assert restored.near(point, 0.6).tolist() == store.near(point, 0.6).tolist()
+    assert restored.separation() == store.separation()
+    # Grown by an eighth, both rebuild over all their POVs.
+    more = _loops(24)[20:]
+    for loop in more:
+        store.append(loop)
+        restored.append(loop)
+    for point in points:
+        assert restored.near(point, 0.6).tolist() == store.near(point, 0.6).tolist()
+    assert restored._near_built == store._near_built == 24

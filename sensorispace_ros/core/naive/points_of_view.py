@@ -47,12 +47,18 @@ def torus_tree(motor_states: np.ndarray):
 
 class PovStore:
     """Growing ``(P, N, M)`` array of POV samples (amortised appends);
-    ``append`` returns the new POV's index."""
+    ``append`` returns the new POV's index. Pickled without ``near``'s tree,
+    which is rebuilt, over the same POVs, when next queried."""
 
     def __init__(self, n_samples: int, n_motors: int):
         self._data = np.zeros((16, n_samples, n_motors))
         self.count = 0
         self._separation = (0, 0.0)      # (POVs then, separation())
+        self._near_built = 0             # POVs in near()'s tree
+        self._near_tree = None           # that tree, once built
+
+    def __getstate__(self) -> dict:
+        return {**vars(self), "_near_tree": None}
 
     def append(self, samples: np.ndarray) -> int:
         if self.count == len(self._data):
@@ -96,14 +102,14 @@ class PovStore:
         have grown by an eighth; the POVs appended since are measured one by
         one."""
         from sensorispace_ros.core.naive.neighbours import curve_distances
-        built, tree = getattr(self, "_near", (0, None))
-        if self.count and (tree is None or self.count >= built * 9 / 8 + 1):
-            tree = torus_tree(self._data[:self.count].reshape(-1, self._data.shape[2]))
-            built = self.count
-            self._near = (built, tree)
-        if tree is None:
+        if self.count >= self._near_built * 9 / 8 + 1:
+            self._near_built, self._near_tree = self.count, None
+        built = self._near_built
+        if self._near_tree is None and built:
+            self._near_tree = torus_tree(self._data[:built].reshape(-1, self._data.shape[2]))
+        if self._near_tree is None:
             return np.zeros(0, dtype=int)
-        hits = tree.query_ball_point(torus_phases(point), radius)
+        hits = self._near_tree.query_ball_point(torus_phases(point), radius)
         indexed = np.unique(np.asarray(hits, dtype=int) // self._data.shape[1])
         later = built + np.flatnonzero(curve_distances(point, self._data[built:self.count])
                                        <= radius)
