@@ -14,6 +14,8 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
+from sensorispace_ros.core.naive.jacobians import (AveragedStep, CloudStep, has_full_pose_rank,
+    jacobian_stencil, stencil_jacobian, stencil_rows)
 
 
 class AllPairsSweep(EqualitySetSweep):
@@ -28,6 +30,9 @@ class AllPairsSweep(EqualitySetSweep):
 
     budget = 0
     stream = None
+    tested = 0          # states rank-tested
+    carried = 0         # states whose rank a sensation tested in the exploration gave
+    seen = None         # (sensations, ranks) the exploration's sweeps tested
 
     def _chosen(self) -> np.ndarray:
         count = len(self.probe_states)
@@ -43,24 +48,86 @@ class AllPairsSweep(EqualitySetSweep):
         self.calls += 1
         rank = np.full(len(current), RANK_UNKNOWN)
         tree = cKDTree(finite_rows(current, -1.0))
+        matched = []
         for ids, previous, previous_rank in self.history:
             before, after = match_sensations(previous, current, match_tol=self.match_tol,
                                              separation=self.separation, tree=tree,
                                              ratio=self.ratio)
-            known = np.where(rank[after] != RANK_UNKNOWN, rank[after], previous_rank[before])
-            rank[after] = known
-            unknown = after[known == RANK_UNKNOWN]
-            if len(unknown):
-                full, rows = check_pose_rank(self.body, self.probe_states[chosen[unknown]],
-                                             rank=self.rank, fd_step=self.fd_step,
-                                             rank_ratio=self.rank_ratio,
-                                             min_singular=self.min_singular,
-                                             pattern_ratio=self.pattern_ratio)
-                self.rows += rows
-                self.calls += 1
-                rank[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
-            previous_rank[before] = rank[after]
+            matched.append((before, after))
+            carried = (rank[after] == RANK_UNKNOWN) & (previous_rank[before] != RANK_UNKNOWN)
+            rank[after[carried]] = previous_rank[before[carried]]
+        self._test(chosen, current, rank, matched)
+        for (ids, _, previous_rank), (before, after) in zip(self.history, matched):
+            unknown = previous_rank[before] == RANK_UNKNOWN
+            previous_rank[before[unknown]] = rank[after[unknown]]
             good = rank[after] == RANK_FULL
             self.sets.add(ids[before[good]], chosen[after[good]])
         self.history.append((chosen, current, rank))
         return np.zeros((0, 2), dtype=int)
+
+    def _test(self, chosen: np.ndarray, current: np.ndarray, rank: np.ndarray,
+              matched: list) -> None:
+        """Rank-test, in one call, the rows of this sweep that every earlier
+        sweep left unknown (all matches are gathered first: a rank one
+        earlier sweep carries spares the test another would ask) and that
+        can make a set: one with ``sets.min_pairs`` matches of other POVs
+        not known to be rank deficient. Fills ``rank`` in place."""
+        needed = []
+        for (ids, _, _), (before, after) in zip(self.history, matched):
+            useful = (ids[before] != chosen[after]) & (rank[after] != RANK_DEFICIENT)
+            if np.count_nonzero(useful) >= self.sets.min_pairs:
+                needed.append(after[useful])
+        unknown = np.unique(np.concatenate(needed)) if needed else np.zeros(0, dtype=int)
+        unknown = unknown[rank[unknown] == RANK_UNKNOWN]
+        if len(unknown) and self.seen is not None:
+            rank[unknown] = self._seen_rank(current[unknown])
+            self.carried += np.count_nonzero(rank[unknown] != RANK_UNKNOWN)
+            unknown = unknown[rank[unknown] == RANK_UNKNOWN]
+        if len(unknown):
+            full, rows = swept_rank(self, self.probe_states[chosen[unknown]], current[unknown])
+            self.rows += rows
+            self.calls += 1
+            self.tested += len(unknown)
+            rank[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
+
+
+    def _seen_rank(self, sensed: np.ndarray) -> np.ndarray:
+        """The rank of each of ``sensed`` that the exploration tested at a
+        state sensing the same (within the match tolerance: the same pose
+        relative to the lights, as a match carries it), when every such
+        sensation had one rank; else unknown."""
+        if getattr(self, "_seen_tree", None) is None:
+            self._seen_tree = cKDTree(finite_rows(self.seen[0], 1.0))
+        ranks = np.full(len(sensed), RANK_UNKNOWN)
+        for i, near in enumerate(self._seen_tree.query_ball_point(finite_rows(sensed, -1.0),
+                                                                   r=self.match_tol)):
+            found = np.unique(self.seen[1][near])
+            if len(found) == 1:
+                ranks[i] = found[0]
+        return ranks
+
+
+def swept_rank(sweep, states: np.ndarray, sensed: np.ndarray):
+    """``check_pose_rank`` at ``states`` whose sensations ``sensed`` this
+    sweep has just sensed in this world: the stencil's first row is the
+    state itself, so only its displaced rows are sensed (``M`` rows a state
+    instead of ``M + 1``). A step whose stencil senses the state more than
+    once (``AveragedStep``, ``CloudStep``) senses its whole stencil. Returns
+    ``(full_rank (B,) bool, rows)``."""
+    step = sweep.fd_step
+    checks = dict(rank=sweep.rank, rank_ratio=sweep.rank_ratio, min_singular=sweep.min_singular,
+                  pattern_ratio=sweep.pattern_ratio)
+    if isinstance(step, (AveragedStep, CloudStep)):
+        return check_pose_rank(sweep.body, states, fd_step=step, **checks)
+    count, n_motors = states.shape
+    per_state = stencil_rows(n_motors, step)
+    displaced = jacobian_stencil(states, step).reshape(count, per_state, n_motors)[:, 1:]
+    answer = np.asarray(sweep.body.sense(displaced.reshape(-1, n_motors)), dtype=float)
+    answer = np.concatenate([sensed[:, None, :], answer.reshape(count, per_state - 1, -1)],
+                            axis=1)
+    sensations, jacobians = stencil_jacobian(answer, step)
+    lost = ~np.all(np.isfinite(answer), axis=(1, 2))
+    sensations[lost], jacobians[lost] = np.nan, 0.0
+    full = has_full_pose_rank(jacobians, checks["rank"], checks["rank_ratio"],
+                              checks["min_singular"], sensations, checks["pattern_ratio"])
+    return full, count * (per_state - 1)
