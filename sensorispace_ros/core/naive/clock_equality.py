@@ -131,3 +131,75 @@ def swept_rank(sweep, states: np.ndarray, sensed: np.ndarray):
     full = has_full_pose_rank(jacobians, checks["rank"], checks["rank_ratio"],
                               checks["min_singular"], sensations, checks["pattern_ratio"])
     return full, count * (per_state - 1)
+
+
+def translated_sets(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int, per_set: int,
+                    stream=None):
+    """Equality sets of segments between POVs, inferred from the sets of changes.
+
+    The changes ``j_k -> j_k'`` of one set all compensate one displacement
+    ``g`` of the world: ``j_k'`` sees the moved world as ``j_k`` saw it, so
+    ``j_k' = g j_k`` for every ``k``. A displacement keeps lengths, so the
+    segment between two of its POVs ``j_k j_l`` and its image ``j_k' j_l'``
+    have one length. Each set of ``n`` changes relates ``n (n - 1) / 2``
+    segments to their images (of ``per_set`` of its changes at most, a
+    seeded sample of ``stream`` keyed by the set's id: the cost stays
+    ``per_set^2`` a set); segments related through any chain of sets have
+    one length, and each such class of two or more segments is one more
+    set. A segment is oriented so that the images of one class carry it from
+    ``j_k`` to ``j_l`` (to ``j_l - j_k`` under a translation). Returns
+    ``(pairs (K, 2), set_ids (K,))``, set ids from 0."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    set_ids = np.asarray(set_ids, dtype=np.int64).reshape(-1)
+    starts, ends = [], []
+    for set_id in np.unique(set_ids):
+        changes = pairs[set_ids == set_id]
+        if len(changes) > per_set:
+            draw = np.random.default_rng(int(set_id)) if stream is None else \
+                stream.at(int(set_id))
+            changes = changes[np.sort(draw.choice(len(changes), size=per_set, replace=False))]
+        k, l = np.triu_indices(len(changes), 1)
+        keep = (changes[k, 0] != changes[l, 0]) & (changes[k, 1] != changes[l, 1])
+        starts.append(changes[k[keep], 0] * n_povs + changes[l[keep], 0])
+        ends.append(changes[k[keep], 1] * n_povs + changes[l[keep], 1])
+    if not starts or not sum(len(s) for s in starts):
+        return np.zeros((0, 2), dtype=int), np.zeros(0, dtype=int)
+    return _segment_classes(np.concatenate(starts), np.concatenate(ends), n_povs)
+
+
+def _segment_classes(start: np.ndarray, end: np.ndarray, n_povs: int):
+    """Classes of segments ``a * n_povs + b`` (from ``a`` to ``b``) linked
+    by ``start[e] -> end[e]`` (the image of a segment under a displacement),
+    oriented along the links (``translated_sets``). Returns ``(pairs, set_ids)``
+    of the classes of two or more."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    def unordered(segment):
+        a, b = np.divmod(segment, n_povs)
+        return np.minimum(a, b) * n_povs + np.maximum(a, b), np.where(a < b, 1, -1)
+
+    (start, start_sign), (end, end_sign) = unordered(start), unordered(end)
+    keys, index = np.unique(np.concatenate([start, end]), return_inverse=True)
+    count, edges = len(keys), len(start)
+    tail, head = index[:edges], index[edges:]
+    # The sign of an edge: does the image keep the segment's (low -> high) direction?
+    sign = coo_matrix((start_sign * end_sign, (tail, head)), shape=(count + 1, count + 1)).tocsr()
+    sign = sign + sign.T
+    _, component = connected_components(sign[:count, :count], directed=False)
+    first = np.unique(component, return_index=True)[1]
+    # A root linked to one segment of each class; orientations follow a BFS tree.
+    root = coo_matrix((np.ones(len(first)), (np.full(len(first), count), first)),
+                      shape=(count + 1, count + 1))
+    order, parent = breadth_first_order(sign + root + root.T, count, directed=False)
+    orient = np.ones(count + 1, dtype=int)
+    for node in order[1:]:
+        if parent[node] != count:
+            orient[node] = orient[parent[node]] * (1 if sign[parent[node], node] >= 0 else -1)
+    low, high = np.divmod(keys, n_povs)
+    flip = orient[:count] < 0
+    oriented = np.stack([np.where(flip, high, low), np.where(flip, low, high)], axis=1)
+    sizes = np.bincount(component)
+    kept = sizes[component] >= 2
+    _, ids = np.unique(component[kept], return_inverse=True)
+    return oriented[kept].astype(int), ids.reshape(-1).astype(int)
