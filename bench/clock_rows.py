@@ -15,8 +15,7 @@ clocked agent's methods, which change nothing it does, and writes
 * ``rank_rows.test_ranks`` (the matches' rank tests), ``rank_rows.rest_after``
   (the new resting state's), ``sweep_rows.known`` (the bounded sweeps);
 * ``rank_rows.equality_pass`` / ``rank_tests.equality_pass``: simulation 2's
-  rank tests of its matches (rows, states tested; undone reactions' too),
-  ``rank_carried.equality_pass`` the ranks the exploration's tests gave it;
+  rank tests of its matches (rows, states tested; undone reactions' too);
 * ``known_comp``: anchors a known POV matched (no search)::
 
     nice -n 10 .venv/bin/python bench/clock_rows.py reproduce --strategy naive \\
@@ -79,11 +78,10 @@ def instrument() -> None:
     test_swept = AllPairsSweep._test
 
     def counted_test(self, *args):
-        rows, tested, carried = self.rows, self.tested, self.carried
+        rows, tested = self.rows, self.tested
         test_swept(self, *args)
         COUNTS["rank_rows.equality_pass"] += self.rows - rows
         COUNTS["rank_tests.equality_pass"] += self.tested - tested
-        COUNTS["rank_carried.equality_pass"] += self.carried - carried
 
     AllPairsSweep._test = counted_test
     Agent._anchor_requests, Agent._search = counted_requests, counted_search

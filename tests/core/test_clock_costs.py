@@ -159,21 +159,3 @@ def test_rows_that_can_make_no_set_are_not_rank_tested():
     sweep = _sweep(body, budget=0, count=40)
     _replay(sweep, body, [0, 37])       # three matches (one blank), a set: all tested
     assert sweep.tested == 3 and sweep.sets.n_sets == 1 and sweep.sets.n_pairs == 2
-
-
-def test_ranks_the_exploration_measured_are_carried_not_tested():
-    offsets = [0, 3, 1, 4, 2, 5, 0, 2]
-    plain_body, seen_body = HalfLit(), HalfLit()
-    plain, seen = _sweep(plain_body, budget=0), _sweep(seen_body, budget=0)
-    # The exploration tested the POVs' sensations in the world of offset 2.
-    seen_body.offset = 2.0
-    sensed = seen_body.sense(seen.probe_states)
-    lit = sensed[:, 0] > 0
-    seen.seen = (sensed[lit], np.ones(np.count_nonzero(lit), dtype=int))
-    _replay(plain, plain_body, offsets)
-    seen_body.rows = 0
-    _replay(seen, seen_body, offsets)
-    assert seen.carried > 0 and seen.tested < plain.tested
-    assert seen_body.rows < plain_body.rows
-    assert np.array_equal(seen.pairs, plain.pairs)
-    assert np.array_equal(seen.set_ids, plain.set_ids)

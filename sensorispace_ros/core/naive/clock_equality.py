@@ -4,8 +4,14 @@ The world replays its schedule; the agent is told nothing of when it
 changes and sweeps known POVs after each change it detects. A sweep is
 matched with every earlier one, not only the previous: a world the agent
 met before is a displacement it can still tell, however many changes it
-missed in between. A sweep senses a bounded, seeded sample of the known
-POVs, not every one (no stage senses every known POV at every change).
+missed in between. A sweep senses every known POV, or a bounded, seeded
+sample of them (``budget``). Its matches are rank-tested only where a set
+needs them, once each, with the sweep's own row as the stencil's base.
+
+The sets of changes imply sets of segments (``translated_sets``): a
+displacement that carries ``j`` to ``j'`` and ``k`` to ``k'`` keeps the
+length of ``j k``. Those make the regularisation converge with a few dozen
+sweeps where the sets of changes alone need hundreds (docs/clock.md).
 """
 from __future__ import annotations
 
@@ -31,8 +37,6 @@ class AllPairsSweep(EqualitySetSweep):
     budget = 0
     stream = None
     tested = 0          # states rank-tested
-    carried = 0         # states whose rank a sensation tested in the exploration gave
-    seen = None         # (sensations, ranks) the exploration's sweeps tested
 
     def _chosen(self) -> np.ndarray:
         count = len(self.probe_states)
@@ -79,32 +83,12 @@ class AllPairsSweep(EqualitySetSweep):
                 needed.append(after[useful])
         unknown = np.unique(np.concatenate(needed)) if needed else np.zeros(0, dtype=int)
         unknown = unknown[rank[unknown] == RANK_UNKNOWN]
-        if len(unknown) and self.seen is not None:
-            rank[unknown] = self._seen_rank(current[unknown])
-            self.carried += np.count_nonzero(rank[unknown] != RANK_UNKNOWN)
-            unknown = unknown[rank[unknown] == RANK_UNKNOWN]
         if len(unknown):
             full, rows = swept_rank(self, self.probe_states[chosen[unknown]], current[unknown])
             self.rows += rows
             self.calls += 1
             self.tested += len(unknown)
             rank[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
-
-
-    def _seen_rank(self, sensed: np.ndarray) -> np.ndarray:
-        """The rank of each of ``sensed`` that the exploration tested at a
-        state sensing the same (within the match tolerance: the same pose
-        relative to the lights, as a match carries it), when every such
-        sensation had one rank; else unknown."""
-        if getattr(self, "_seen_tree", None) is None:
-            self._seen_tree = cKDTree(finite_rows(self.seen[0], 1.0))
-        ranks = np.full(len(sensed), RANK_UNKNOWN)
-        for i, near in enumerate(self._seen_tree.query_ball_point(finite_rows(sensed, -1.0),
-                                                                   r=self.match_tol)):
-            found = np.unique(self.seen[1][near])
-            if len(found) == 1:
-                ranks[i] = found[0]
-        return ranks
 
 
 def swept_rank(sweep, states: np.ndarray, sensed: np.ndarray):

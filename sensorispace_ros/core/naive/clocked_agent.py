@@ -82,7 +82,6 @@ class ClockedAgent(NaiveAgent):
         self.crossing = None        # a walk's change in this reaction (``_cross``)
         self.crossings = 0          # walks started again in a new world
         self._search_end = 0        # the tripwire's rows sent when the walks began
-        self._ranks_seen = []       # (sensations, ranks) the reactions' sweeps had tested
 
     # ------------------------------------------------------------ the clock
 
@@ -194,9 +193,6 @@ class ClockedAgent(NaiveAgent):
         sweep.history = []
         sweep.budget = self.params.clock_equality_budget
         sweep.stream = CounterStream(getattr(self, "_seed", 0), "naive.clock_equality")
-        seen = getattr(self, "_ranks_seen", [])
-        if seen:
-            sweep.seen = tuple(np.concatenate(part) for part in zip(*seen))
         return sweep
 
     def equality_sets(self):
@@ -210,26 +206,13 @@ class ClockedAgent(NaiveAgent):
             getattr(self, "_seed", 0), "naive.clock_translated"))
         return np.concatenate([pairs, more]), np.concatenate([set_ids, more_ids + self._sets.n_sets])
 
-    def _test_ranks(self, matches, rest_hits, rank_now, current):
-        """``NaiveAgent._test_ranks``; the sensations of this sweep whose rank
-        it knows are kept for simulation 2 (``AllPairsSweep.seen``), undone or
-        not: every row of one reaction's calls that returned saw one world, so
-        a sensation and the rank measured at its state in that world belong
-        together."""
-        kept = super()._test_ranks(matches, rest_hits, rank_now, current)
-        known = np.flatnonzero((rank_now[:len(current)] != RANK_UNKNOWN) &
-                               np.all(np.isfinite(current), axis=1))
-        if len(known):
-            self._ranks_seen.append((current[known].copy(), rank_now[known].copy()))
-        return kept
-
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire", "_ranks_seen")}
+                if name not in ("_body", "_tripwire")}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
-                              if name not in ("body", "seen", "_seen_tree")}
+                              if name != "body"}
         return copy.deepcopy(kept)
 
     def restore(self, saved: dict, salvage: bool = True) -> int:
@@ -246,11 +229,8 @@ class ClockedAgent(NaiveAgent):
         vars(self).update(restored)
         self._body.phase = self._phase
         if sweep is not None:
-            seen = {} if self._sweep is None else {
-                name: value for name, value in vars(self._sweep).items()
-                if name in ("seen", "_seen_tree")}
             self._sweep = AllPairsSweep.__new__(AllPairsSweep)
-            vars(self._sweep).update(sweep, body=self._body, **seen)
+            vars(self._sweep).update(sweep, body=self._body)
         else:
             self._sweep = None
         for pov, walked in zip(samples, queries):
