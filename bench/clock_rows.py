@@ -14,6 +14,8 @@ clocked agent's methods, which change nothing it does, and writes
   those kinds;
 * ``rank_rows.test_ranks`` (the matches' rank tests), ``rank_rows.rest_after``
   (the new resting state's), ``sweep_rows.known`` (the bounded sweeps);
+* ``rank_rows.equality_pass`` / ``rank_tests.equality_pass``: simulation 2's
+  rank tests of its matches (rows, states tested; undone reactions' too);
 * ``known_comp``: anchors a known POV matched (no search)::
 
     nice -n 10 .venv/bin/python bench/clock_rows.py reproduce --strategy naive \\
@@ -72,6 +74,16 @@ def instrument() -> None:
             return out
         return counted
 
+    from sensorispace_ros.core.naive.clock_equality import AllPairsSweep
+    test_swept = AllPairsSweep._test
+
+    def counted_test(self, *args):
+        rows, tested = self.rows, self.tested
+        test_swept(self, *args)
+        COUNTS["rank_rows.equality_pass"] += self.rows - rows
+        COUNTS["rank_tests.equality_pass"] += self.tested - tested
+
+    AllPairsSweep._test = counted_test
     Agent._anchor_requests, Agent._search = counted_requests, counted_search
     Agent._test_ranks = rows_of(test_ranks, "rank", "rank_rows.test_ranks")
     Agent._rest_after = rows_of(rest_after, "rank", "rank_rows.rest_after")

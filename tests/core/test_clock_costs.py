@@ -122,3 +122,40 @@ def test_unconfirmed_anchors_follow_their_success(min_rate):
     # Fewer POVs than unconfirmed_max_povs: the lockstep agent's attempts.
     agent._store = _Store(5)
     assert agent._anchor_params().unconfirmed_attempts == agent.params.unconfirmed_attempts
+
+
+class HalfLit(ShiftedLine):
+    """``ShiftedLine`` whose object lights the side ``u > 0`` only: POVs on
+    the dark side sense ``(0, 0)`` and have no full pose rank there."""
+
+    def sense(self, states):
+        lit = np.maximum(super().sense(states)[:, 0], 0.0)
+        return np.stack([lit, lit * lit], axis=1)
+
+
+def test_a_rank_test_senses_the_displaced_rows_only():
+    from sensorispace_ros.core.naive.clock_equality import swept_rank
+    from sensorispace_ros.core.naive.equality_sets import check_pose_rank
+
+    body = HalfLit()
+    body.offset = 10.5
+    sweep = _sweep(body, budget=0)
+    states = sweep.probe_states
+    sensed = body.sense(states)
+    before = body.rows
+    full, rows = swept_rank(sweep, states, sensed)
+    assert rows == len(states) == body.rows - before      # M = 1 row a state, not M + 1
+    expected, _ = check_pose_rank(body, states, rank=1, fd_step=1e-6)
+    assert np.array_equal(full, expected)
+    assert full.any() and not full.all()
+
+
+def test_rows_that_can_make_no_set_are_not_rank_tested():
+    body = ShiftedLine()
+    sweep = _sweep(body, budget=0, count=40)
+    _replay(sweep, body, [0, 39])       # one match: POV 39 now senses what POV 0 did
+    assert sweep.tested == 0 and sweep.sets.n_sets == 0
+    body = ShiftedLine()
+    sweep = _sweep(body, budget=0, count=40)
+    _replay(sweep, body, [0, 37])       # three matches (one blank), a set: all tested
+    assert sweep.tested == 3 and sweep.sets.n_sets == 1 and sweep.sets.n_pairs == 2

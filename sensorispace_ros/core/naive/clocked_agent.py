@@ -35,7 +35,7 @@ from sensorispace_ros.core.seeding import CounterStream
 
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
-from sensorispace_ros.core.naive.clock_equality import AllPairsSweep
+from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
@@ -194,6 +194,17 @@ class ClockedAgent(NaiveAgent):
         sweep.budget = self.params.clock_equality_budget
         sweep.stream = CounterStream(getattr(self, "_seed", 0), "naive.clock_equality")
         return sweep
+
+    def equality_sets(self):
+        """The sets of changes, then the sets of segments they imply
+        (``clock_equality.translated_sets``, ``clock_translated_pairs`` changes a set)."""
+        pairs, set_ids = super().equality_sets()
+        per_set = self.params.clock_translated_pairs
+        if per_set < 2 or not len(pairs):
+            return pairs, set_ids
+        more, more_ids = translated_sets(pairs, set_ids, self._store.count, per_set, CounterStream(
+            getattr(self, "_seed", 0), "naive.clock_translated"))
+        return np.concatenate([pairs, more]), np.concatenate([set_ids, more_ids + self._sets.n_sets])
 
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction."""

@@ -87,6 +87,7 @@ class NaiveParams:
     clock_sweep_budget: int = _default("clock_sweep_budget")
     clock_equality_changes: int = _default("clock_equality_changes")
     clock_equality_budget: int = _default("clock_equality_budget")
+    clock_translated_pairs: int = _default("clock_translated_pairs")
     clock_walk_attempts: int = _default("clock_walk_attempts")
     clock_brief_walk: bool = _default("clock_brief_walk")
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
