@@ -60,10 +60,9 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     and of the average over the Jacobian's ``rank``-th singular value, the
     longest axis of ``variance (J^T J)^+``; a state whose pose the noise
     does not pin that well is rejected, and so is one whose Jacobian's
-    ``rank``-th singular value is not above ``min_singular`` (the expected
-    spectral norm of the Jacobian's noise: a pose whose sensation does not
-    follow every pose direction, such as one where the eye sees no light,
-    senses alike wherever it lies). ``max_step`` (motor, phases): a
+    ``rank``-th singular value is not above ``min_singular`` (its noise's
+    expected spectral norm: a pose where the eye sees no light senses alike
+    wherever it lies). ``max_step`` (motor, phases): a
     state whose Gauss-Newton step is within it is settled whatever its
     residual in range (a known POV tested against an anchor: its pose is
     where it was found, not refined). A search's end is only as close to its target as one
