@@ -226,6 +226,9 @@ def main() -> None:
         rows.append(row)
     summary = {}
     held = [r for r in rows if not r["kept"]]
+    later = [r for r in rows if r["kept"] and r["kind"] != "frontier" and not r["confirmed"]]
+    summary["unconfirmed, recorded once a later sweep confirmed it"] = (
+        len(later), sum(r["error"] > tolerance for r in later))
     summary["held back (not recorded)"] = (len(held), sum(r["error"] > tolerance for r in held))
     summary["recorded, wrong, across a redistribution"] = (
         sum(r["kept"] for r in rows), sum(r["kept"] and r["error"] > tolerance for r in rows),
