@@ -119,7 +119,7 @@ class TaggingAgent(NaiveAgent):
         tags = []
         for k in range(len(self._pool)):
             if k in known_comp:
-                tags.append({"kind": "hit"})
+                tags.append({"kind": "hit", "confirmed": bool(len(self._matches[k][0]))})
             elif k in found_rest:
                 r = next(r for r in requests if r.snapshot == k and r.row < 0)
                 i = next(i for i, q in enumerate(requests) if q.snapshot == k and q.row < 0)
@@ -129,7 +129,10 @@ class TaggingAgent(NaiveAgent):
                 continue
         for i, r in enumerate(requests):
             if r.row >= 0 and i in found:
-                tags.append({"kind": "frontier", "count": r.count,
+                taken = found[i][0] in self._matches[r.snapshot][1] or any(
+                    q.snapshot == r.snapshot and q.row != r.row and j in found
+                    and found[j][0] == found[i][0] for j, q in enumerate(requests))
+                tags.append({"kind": "frontier", "count": r.count, "taken": bool(taken),
                              "start": None if r.start is None else self._to_body(r.start),
                              **self._search_facts(i), **self._neighbourhood(r, found[i][1])})
         assert len(tags) == len(records)
@@ -148,6 +151,7 @@ class TaggingAgent(NaiveAgent):
 
         for tag, rec in zip(tags, records):
             tag["pov"] = rec.pov
+            tag["record"] = rec
         self.tags.extend(tags)
         return records, rest_choice
 
@@ -185,11 +189,14 @@ def main() -> None:
         naive_run.NaiveAgent = original
     agent = explored.agent
     centers = np.asarray(explored.centers)
-    recs = agent.compensations
+    # Every compensation the agent found, whether it kept the record
+    # (``kept``) or held it back unconfirmed (``_hold_unconfirmed``).
+    kept_ids = {id(rec) for rec in agent.compensations}
     tolerance = world.spacing / 4
     arm = world.arm
     rows = []
-    for rec, tag in zip(recs, agent.tags):
+    for tag in agent.tags:
+        rec = tag["record"]
         target = arm.forward(rec.anchor_motor_state[None])[0]
         target[:2] += centers[rec.event] - centers[rec.anchor_event]
         pose = arm.forward(rec.motor_state[None])[0]
@@ -198,7 +205,8 @@ def main() -> None:
                "count": tag.get("count"), "pov": tag["pov"], "error": error,
                "layout_kept": explored.layout[rec.event] == explored.layout[rec.anchor_event],
                "true_gap": tag.get("true_gap"), "confirmed": tag.get("confirmed"),
-               "singular": tag.get("singular")}
+               "singular": tag.get("singular"), "kept": id(rec) in kept_ids,
+               "taken": tag.get("taken")}
         if tag.get("start") is not None:
             start_pose = arm.forward(tag["start"][None])[0]
             row["from_start"] = float(np.linalg.norm(pose[:2] - start_pose[:2]))
@@ -217,13 +225,34 @@ def main() -> None:
                 - np.pi)) if tag["chosen_start"] >= 0 else None
         rows.append(row)
     summary = {}
+    held = [r for r in rows if not r["kept"]]
+    later = [r for r in rows if r["kept"] and r["kind"] != "frontier" and not r["confirmed"]]
+    summary["unconfirmed, recorded once a later sweep confirmed it"] = (
+        len(later), sum(r["error"] > tolerance for r in later))
+    summary["held back (not recorded)"] = (len(held), sum(r["error"] > tolerance for r in held))
+    summary["recorded, wrong, across a redistribution"] = (
+        sum(r["kept"] for r in rows), sum(r["kept"] and r["error"] > tolerance for r in rows),
+        sum(r["kept"] and not r["layout_kept"] for r in rows))
     for kind in ("hit", "anchor", "frontier"):
         of = [r for r in rows if r["kind"] == kind]
         summary[kind] = (len(of), sum(r["error"] > tolerance for r in of))
+        known = [r for r in of if r["pov"] >= 0 and agent.pov_events[r["pov"]] != r["event"]]
+        summary[kind + " on a POV known before (right, wrong)"] = (
+            sum(r["error"] <= tolerance for r in known), sum(r["error"] > tolerance for r in known))
+        taken = [r for r in of if r.get("taken")]
+        summary[kind + " on a POV another row of its snapshot is paired with (right, wrong)"] = (
+            sum(r["error"] <= tolerance for r in taken), sum(r["error"] > tolerance for r in taken))
+        summary[kind + " with no POV (right, wrong)"] = (
+            sum(r["pov"] < 0 and r["error"] <= tolerance for r in of),
+            sum(r["pov"] < 0 and r["error"] > tolerance for r in of))
     anchors = [r for r in rows if r["kind"] == "anchor"]
     summary["anchor of a confirmed snapshot"] = (
         sum(bool(r["confirmed"]) for r in anchors),
         sum(bool(r["confirmed"]) and r["error"] > tolerance for r in anchors))
+    hits = [r for r in rows if r["kind"] == "hit"]
+    summary["hit of an unconfirmed snapshot"] = (
+        sum(not r["confirmed"] for r in hits),
+        sum(not r["confirmed"] and r["error"] > tolerance for r in hits))
     summary["anchor of an unconfirmed snapshot"] = (
         sum(not r["confirmed"] for r in anchors),
         sum(not r["confirmed"] and r["error"] > tolerance for r in anchors))

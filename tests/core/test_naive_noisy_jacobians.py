@@ -219,6 +219,33 @@ def test_a_pose_the_noise_does_not_pin_is_rejected():
         assert (accepted.mean() >= passing) if passing else not accepted.any()
 
 
+class BlankBody:
+    """Six outputs that no joint moves: an eye that sees no light."""
+
+    n_motors, n_sensors = 3, 6
+
+    def sense(self, motor_states):
+        return np.full((len(motor_states), 6), 0.1)
+
+
+def test_a_pose_whose_sensation_does_not_follow_every_direction_is_rejected():
+    # Where the eye sees nothing, any pose senses the target (the residual is
+    # noise in and out of range); only the Jacobian's weakest direction
+    # against the noise of the Jacobian (noise.jacobian_noise) tells.
+    step = SymmetricStep(0.02)
+    floor = 1e-4 * np.sqrt(2.0) * (np.sqrt(6) + np.sqrt(3)) / (2 * 0.02)
+    states = np.repeat(np.array([0.3, 0.2, -0.4])[None], 10, axis=0)
+    for body, minimum, passing in ((BlankBody(), 0.0, True), (BlankBody(), floor, False),
+                                   (RankTwoBody(), floor, True)):
+        noisy = ImperfectSensing(body, seed=9, noise=1e-4)
+        target = finite_mean(noisy.sense(np.repeat(states[:1], 64, axis=0)))
+        _, accepted, _ = confirm_compensations(
+            noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
+            noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
+            min_singular=minimum)
+        assert (accepted.mean() >= 0.9) if passing else not accepted.any()
+
+
 def test_matched_rows_pool_the_sensings_of_their_chain():
     from sensorispace_ros.core.naive.anchors import Snapshot, pooled_sweep
     old = Snapshot(0, np.array([[1.0, 1.0], [2.0, 2.0]]), np.ones(2, int), np.zeros(2),

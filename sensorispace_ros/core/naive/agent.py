@@ -400,6 +400,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
 
         records, rest_choice = self._compensation_records(known_comp, found_rest, requests,
                                                           found)
+        records = self._hold_unconfirmed(records, matches, known_comp, found_rest)
         self.compensations.extend(records)
         rest_sensation, rest_rank = self._rest_after(rest_choice, rank_now)
         if records:

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
+from sensorispace_ros.core.naive.confirm import Provisional, settle_provisional
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     check_pose_rank, match_counted)
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
@@ -369,7 +370,6 @@ class SnapshotMatching:
             kept.append(r)
         return kept
 
-
     def _held_by_neighbours(self, solution, requests, group):
         """Where noise sized the tolerances: ``solution`` ``{group: state}``
         without the compensations (of a frontier row, or of the anchor of a
@@ -405,6 +405,32 @@ class SnapshotMatching:
         request = next((r for r in requests if r.snapshot == snapshot and r.row < 0), None)
         return request is not None and request.neighbours is not None and \
             len(request.neighbours.reach) > 0 and not _far_from_matched(request, self)
+
+    def _hold_unconfirmed(self, records, matches, known_comp, found_rest):
+        """Where noise sized the tolerances: a searched compensation with no
+        POV walked whole (``_whole_on_level_set``) is not recorded (nothing
+        vouches for its pose); that of the anchor of a snapshot no sweep row
+        matched is provisional: its POV is kept, its record waits for a
+        later sweep to confirm it (``confirm.settle_provisional``).
+        ``records``: this event's, anchors first in pool order
+        (``_compensation_records``). Returns those kept and the earlier
+        ones confirmed now."""
+        if not self._noisy:
+            return records
+        confirmed, pending = settle_provisional(getattr(self, "_provisional", []),
+                                                self._pool, matches, known_comp)
+        anchors = [k for k in range(len(self._pool)) if k in known_comp or k in found_rest]
+        kept = []
+        for i, record in enumerate(records):
+            k = anchors[i] if i < len(anchors) else -1
+            if record.pov < 0:
+                continue
+            if k < 0 or len(matches[k][0]):
+                kept.append(record)
+            elif self._pool[k].rest_pov >= 0:
+                pending.append(Provisional(record, self._pool[k].rest_pov))
+        self._provisional = pending
+        return confirmed + kept
 
     def _track_frontier(self, requests, found, new_povs) -> None:
         """Moving average of the frontier searches that found a new POV."""

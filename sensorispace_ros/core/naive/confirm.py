@@ -19,6 +19,8 @@ afford it.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.stats import chi2
 
@@ -38,7 +40,8 @@ def finite_mean(rows: np.ndarray) -> np.ndarray:
 def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
                           target_variance: np.ndarray, *, noise_sd: float, repeats: int,
                           rank: int, fd_step: float, confidence: float, rounds: int = 3,
-                          max_error: float = np.inf, max_step: float | None = None):
+                          max_error: float = np.inf, max_step: float | None = None,
+                          min_singular: float = 0.0):
     """Refine every state of ``states`` ``(K, M)`` toward its target
     ``targets`` ``(K, S)`` with averaged sensings and accept it only where
     what is left of the residual is noise.
@@ -56,7 +59,10 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     standard deviation, motor space, phases) accepted: the noise of the target
     and of the average over the Jacobian's ``rank``-th singular value, the
     longest axis of ``variance (J^T J)^+``; a state whose pose the noise
-    does not pin that well is rejected. ``max_step`` (motor, phases): a
+    does not pin that well is rejected, and so is one whose Jacobian's
+    ``rank``-th singular value is not above ``min_singular`` (its noise's
+    expected spectral norm: a pose where the eye sees no light senses alike
+    wherever it lies). ``max_step`` (motor, phases): a
     state whose Gauss-Newton step is within it is settled whatever its
     residual in range (a known POV tested against an anchor: its pose is
     where it was found, not refined). A search's end is only as close to its target as one
@@ -85,7 +91,7 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
         means[pending] = mean
         step, explained, settled = _judge(jac, mean - targets[pending], rank, whole,
                                           [v[pending] for v in variances], limits,
-                                          max_error, max_step)
+                                          (max_error, min_singular), max_step)
         refined[pending[explained]] += step[explained]
         accepted[pending[settled]] = True
         pending = pending[explained & ~settled]
@@ -93,10 +99,11 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     return refined, accepted, means
 
 
-def _judge(jac, residual, rank, whole, variances, limits, max_error, max_step):
+def _judge(jac, residual, rank, whole, variances, limits, bounds, max_step):
     """One round of ``confirm_compensations``: the Gauss-Newton step of each
     state, whether the noise explains its residual outside the Jacobian's
-    range (and it pins its pose within ``max_error``), and whether it is
+    range (and it pins its pose: ``bounds``, the largest predicted pose
+    error and the smallest ``rank``-th singular value), and whether it is
     settled (its step within ``max_step``, or its residual inside the range
     within noise too)."""
     u, singular, _ = np.linalg.svd(jac, full_matrices=False)
@@ -106,8 +113,10 @@ def _judge(jac, residual, rank, whole, variances, limits, max_error, max_step):
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.sqrt(variances[0]) / singular[:, rank - 1]
     step = minimum_norm_correction(jac, residual, rank)
+    max_error, min_singular = bounds
     explained = whole & np.isfinite(outside) & (outside <= variances[0] * limits[0]) & \
-        (spread <= max_error) & np.all(np.isfinite(step), axis=1)
+        (spread <= max_error) & (singular[:, rank - 1] > min_singular) & \
+        np.all(np.isfinite(step), axis=1)
     if max_step is None:
         settled = explained & (inside <= variances[1] * limits[1])
     else:
@@ -134,6 +143,54 @@ def _averaged_with_jacobian(body, states, repeats, fd_step):
     mean = np.stack([finite_mean(np.concatenate([sensed[k, :1], sensed[k, rows:]]))
                      for k in range(n_states)])
     return mean, jac, whole
+
+
+@dataclass
+class Provisional:
+    """A compensation (``record``: found at its ``event`` for the anchor of
+    the snapshot of its ``anchor_event``) of an anchor no sweep row
+    confirmed: only the anchor's sensation tells it from a far pose sensing
+    it alike. ``rest_pov``: the POV the arm rested on for that anchor (a row
+    of the anchor's snapshot); ``record.pov``: the POV found (a row of the
+    snapshot of the event that found it)."""
+
+    record: object
+    rest_pov: int
+
+
+def settle_provisional(pending: list, pool: list, matches, known_comp: dict):
+    """Which ``pending`` ``Provisional`` compensations this sweep confirms:
+    one known POV now senses both what the anchor's POV sensed then (a sweep
+    match of that row of the anchor's snapshot, or a hit of its anchor where
+    some of its rows matched) and what the found POV sensed when it was
+    found (a match of that row of the later snapshot). The two relative
+    poses are then one, which is what the compensation claims, shown by
+    matches independent of its search. ``pool``: the snapshots now;
+    ``matches`` ``[(before, after), ...]`` theirs; ``known_comp``
+    ``{snapshot index: POV}`` the anchors' hits. One whose snapshots left
+    the pool can never be confirmed and is dropped. Returns ``(records
+    confirmed, still pending)``."""
+    index = {snap.event: k for k, snap in enumerate(pool)}
+    confirmed, kept = [], []
+    for entry in pending:
+        then, found = index.get(entry.record.anchor_event), index.get(entry.record.event)
+        if then is None or found is None:
+            continue
+        now = _partner(matches[then], entry.rest_pov)
+        if now < 0 and len(matches[then][0]) and then in known_comp:
+            now = int(known_comp[then])
+        if now >= 0 and now == _partner(matches[found], entry.record.pov):
+            confirmed.append(entry.record)
+        else:
+            kept.append(entry)
+    return confirmed, kept
+
+
+def _partner(match, row: int) -> int:
+    """The POV ``match`` ``(before, after)`` pairs with row ``row`` (-1: none)."""
+    before, after = match
+    hit = np.flatnonzero(np.asarray(before) == row)
+    return int(after[hit[0]]) if len(hit) else -1
 
 
 class _nothing:

@@ -23,7 +23,8 @@ from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_me
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
 from sensorispace_ros.core.naive.neighbours import loop_distances
-from sensorispace_ros.core.naive.noise import noise_residual, noise_step, walk_step
+from sensorispace_ros.core.naive.noise import (jacobian_noise, noise_residual, noise_step,
+    walk_step)
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 
@@ -171,8 +172,18 @@ class SearchAndSample:
             rank=self.structure.pose_rank, fd_step=self._fd_step,
             confidence=self.params.noise_confidence,
             rounds=self.params.confirm_rounds if rounds is None else rounds,
-            max_error=self._max_pose_error(), max_step=max_step)
+            max_error=self._max_pose_error(), max_step=max_step,
+            min_singular=self._pinning_floor())
         return {g: stepped[i] for i, g in enumerate(groups) if accepted[i]}
+
+    def _pinning_floor(self) -> float:
+        """The ``rank``-th singular value a confirmed state's averaged
+        Jacobian must exceed: the expected spectral norm of its noise
+        (``noise.jacobian_noise``) where random noise was measured (0 where
+        the repeats do not spread)."""
+        if self._repeats <= 1:
+            return 0.0
+        return jacobian_noise(self.structure, self._body.n_sensors, self._fd_step)
 
     def _size_repeats(self) -> None:
         """With an ``AveragedStep``, once the POVs' separation is measured:
