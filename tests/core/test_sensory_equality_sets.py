@@ -66,6 +66,26 @@ def test_noisy_matches_refuse_two_references_within_the_noise_of_one_row():
     assert ref.tolist() == [2] and cur.tolist() == [1]
 
 
+def test_errors_that_repeat_exactly_on_no_lattice_match_by_the_chain_tolerance():
+    sd = 1.8e-8
+    assert equality_sets.match_noise(sd, 0.9 * sd, 0.0) == sd          # random: averaged
+    assert equality_sets.match_noise(sd, 0.0, 6.2e-8) == sd            # on a lattice
+    assert equality_sets.match_noise(sd, 0.0, 0.0) == 0.0              # float rounding
+    assert equality_sets.match_noise(0.0, 0.0, 0.0) == 0.0             # noiseless
+    rng = np.random.default_rng(5)
+    truth = rng.uniform(0.0, 1.0, (30, 6))
+    # Poses of chained compensations: each row off by 60 rounding sds, far
+    # more than a chi-square against the rounding allows, far less than the
+    # rows' spacing.
+    shifted = truth + 60.0 * sd * rng.standard_normal(truth.shape) / np.sqrt(6.0)
+    tolerances = dict(match_tol=1e-4, separation=1e-3, ratio=3.0)
+    ref, cur = equality_sets.match_counted(truth, shifted, noise_sd=sd, **tolerances)
+    assert len(ref) < 5
+    ref, cur = equality_sets.match_counted(
+        truth, shifted, noise_sd=equality_sets.match_noise(sd, 0.0, 0.0), **tolerances)
+    assert ref.tolist() == cur.tolist() == list(range(30))
+
+
 def test_match_tolerance_must_be_below_separation():
     with pytest.raises(ValueError, match="match_tol"):
         match_sensations(np.zeros((1, 2)), np.zeros((1, 2)), match_tol=1e-3, separation=1e-4)

@@ -25,7 +25,7 @@ from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.confirm import Provisional, settle_provisional
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
-    check_pose_rank, match_counted)
+    check_pose_rank, match_counted, match_noise)
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
     matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
@@ -233,7 +233,8 @@ class SnapshotMatching:
         rank_now = np.full(len(current), RANK_UNKNOWN)
         match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
                      ratio=self._tol.ratio, confidence=self.params.noise_confidence,
-                     noise_sd=self.structure.noise if self._noisy else 0.0)
+                     noise_sd=match_noise(self.structure.noise, self.structure.repeat_noise,
+                                          self.structure.quantum) if self._noisy else 0.0)
         matches = []
         for snap in self._pool:
             before, after = match_counted(snap.sensations, current, counts=snap.counts, **match)

@@ -168,6 +168,23 @@ def match_counted(reference: np.ndarray, current: np.ndarray, *, counts=None,
                          confidence=confidence, tree=tree)
 
 
+def match_noise(noise: float, repeat_noise: float, quantum: float) -> float:
+    """The per-receptor noise sd ``match_counted`` tests matches against, 0
+    for its tolerances. Two matched sensings differ by their noise and by
+    the pose errors of the compensations that placed their POVs, which add
+    up along chains of anchors. Where the noise is random (repeats spread:
+    ``repeat_noise`` at least half of ``noise``) the agent averages it out
+    of its compensations, and where the outputs lie on a lattice
+    (``quantum``) a pose error finer than its step senses alike: the noise
+    covers the difference. Where the error repeats exactly and lies on no
+    lattice (rounding to a float's relative precision), nothing averages
+    the pose errors down and they exceed the rounding many times over: the
+    chain tolerance and the ratio test tell the match instead."""
+    if noise <= 0 or (repeat_noise < 0.5 * noise and quantum <= 0):
+        return 0.0
+    return float(noise)
+
+
 def _stands_out(point, nearest, second, var_point, var_nearest, var_second, z):
     """Whether each ``point`` lies nearer ``nearest`` than ``second`` by more
     than ``z`` standard deviations of the noise of its margin past the
