@@ -1,5 +1,4 @@
-"""The naive agent's snapshots of past events, and which of their anchors it
-tries to compensate after a change.
+"""The naive agent's snapshots of past events and the anchors it compensates.
 
 A snapshot is recorded after every event, in that event's environment: the
 sensation at the resting arm (the anchor) and the sensation of one sample of
