@@ -9,10 +9,14 @@ Runs the naive agent through the configuration's world (lockstep, as
 ``sensorispace reproduce``), then joins each accepted compensation with
 ground truth: its kind (a known POV matching an anchor, a search for a
 resting anchor, a search for a frontier row of a sweep), its pose error
-against the pose its anchor asks for, and whether it spans a state change.
+against the pose its anchor asks for, and whether it spans a state change;
+for a searched one also what the agent knew of it (whether a match confirmed
+its snapshot, its matched neighbours' motor distances to the asked row and
+to the end, over the POVs' separation, and how far the end senses from the
+target, over what two sensings differ by at its measured noise).
 Prints JSON: the evaluator's headline numbers, wrong compensations by kind
-with their errors, the rows and seconds of each stage, and the body's
-rendering time per frame. ``--views N`` runs no agent: it renders N views
+with their errors, every searched compensation, the rows and seconds of
+each stage, and the body's rendering time per frame. ``--views N`` runs no agent: it renders N views
 (joint states about the start, sd 1 rad, the object at seeded grid
 positions) and prints how many of them show almost nothing (few pixels
 above 20 gray levels), and the CPU time per frame. ``--graph-against DIR``
@@ -41,6 +45,7 @@ def _run(cfg: dict, seed: int):
     world = run_world(cfg, seed)
     body = world.body(lights=world.initial_lights)
     agent = NaiveAgent(SensingOnly(body), NaiveParams(**cfg["naive"]))
+    searches = _log_searches(agent, body)
     started = time.perf_counter()
     reaction = agent.start(world.m0, seed=world.seed)
     rests, trace = [reaction.rest_motor_state], [_traced(reaction, "initial", body)]
@@ -54,7 +59,49 @@ def _run(cfg: dict, seed: int):
         rests.append(reaction.rest_motor_state)
         trace.append(_traced(reaction, event.kind, body))
     explored = NaiveExploration(agent, centers, layout, kinds, time.perf_counter() - started, 0.0)
-    return world, body, summarize_naive(explored), np.asarray(rests), started, trace
+    return world, body, summarize_naive(explored), np.asarray(rests), started, trace, searches
+
+
+def _log_searches(agent, body) -> list:
+    """Wraps ``agent._search``: per accepted search, what the agent knew of
+    it (its snapshot's matches, the nearest matched neighbour's reach over
+    the POVs' separation, the POVs known) and how far its end senses from
+    its target, in the agent's measured noise (sensed without counting as
+    the agent's)."""
+    from sensorispace_ros.core.naive.neighbours import curve_distances
+
+    log = []
+    search = agent._search
+
+    def wrapped(requests, current, tree, split_now):
+        found, new_povs, new_sensations = search(requests, current, tree, split_now)
+        # The cached separation, read without refreshing it (a refresh at
+        # another moment would change what the agent decides later).
+        separation = agent._store._separation[1] or float("nan")
+        for i, (pov, motor) in found.items():
+            r = requests[i]
+            frames = body.renderer.frames
+            image = body._look(np.asarray(agent._to_body(motor), float)[None])[0][0]
+            body.renderer.frames = frames
+            d2 = float(np.sum((image.astype(float) - r.target) ** 2))
+            reach = r.neighbours.reach if r.neighbours is not None else np.zeros(0)
+            near = curve_distances(motor, agent._store.samples[r.neighbours.after]) \
+                if r.neighbours is not None else np.zeros(0)
+            log.append({"event": agent._event, "snapshot_event": agent._pool[r.snapshot].event,
+                        "row": int(r.row), "motor": np.asarray(agent._to_body(motor), float),
+                        "confirmed": r.neighbours is not None,
+                        "reach_over_separation": [round(float(x / separation), 2)
+                                                  for x in reach],
+                        "near_over_separation": [round(float(x / separation), 2)
+                                                 for x in near],
+                        "povs_known": int(agent._store.count),
+                        "residual_over_noise": round(d2 / (2 * agent.structure.noise ** 2
+                                                           * body.n_sensors), 2),
+                        "count": int(r.count), "pov": int(pov)})
+        return found, new_povs, new_sensations
+
+    agent._search = wrapped
+    return log
 
 
 def _traced(reaction, kind: str, body) -> dict:
@@ -90,7 +137,7 @@ def diagnose(cfg: dict, seed: int) -> dict:
     from sensorispace_ros.core import arm
     from sensorispace_ros.evaluation.naive import evaluate_naive_run
 
-    world, body, result, rests, started, trace = _run(cfg, seed)
+    world, body, result, rests, started, trace, searches = _run(cfg, seed)
     wall = time.perf_counter() - started
     agent = result.agent
     evaluated = evaluate_naive_run(result, world).metrics
@@ -117,6 +164,20 @@ def diagnose(cfg: dict, seed: int) -> dict:
               "heading_error": round(sp[1], 4), "across_state_change": c, "pov": r.pov}
              for r, k, e, c, lt, sp in zip(records, kinds, errors, crossing, lit, splits)
              if e > tolerance]
+    for w, r in ((w, r) for w in wrong for r in records
+                 if r.event == w["event"] and r.anchor_event == w["anchor_event"]
+                 and r.pov == w["pov"]):
+        w["search"] = [{k: v for k, v in s.items() if k != "motor"} for s in searches
+                       if s["event"] == r.event and np.allclose(s["motor"], r.motor_state)]
+    # Every searched compensation: kind, error, and what the agent knew of it.
+    searched = []
+    for r, k, e, c in zip(records, kinds, errors, crossing):
+        for s in (s for s in searches if r.searched and s["event"] == r.event
+                  and np.allclose(s["motor"], r.motor_state)):
+            searched.append([k[0], round(float(e), 4), int(c), s["residual_over_noise"],
+                             s["povs_known"], int(s["confirmed"]), s["reach_over_separation"],
+                             s["near_over_separation"], s["count"]])
+            break
     by_kind = {kind: {"accepted": n, "wrong": sum(w["kind"] == kind for w in wrong)}
                for kind, n in Counter(kinds).items()}
     keys = ("naive.pose_rank", "naive.pov_dim", "naive.space_dim", "pov.count",
@@ -128,6 +189,10 @@ def diagnose(cfg: dict, seed: int) -> dict:
         "metrics": {k: evaluated.get(k) for k in keys},
         "compensations_by_kind": by_kind,
         "wrong": wrong,
+        "searched_columns": ["kind", "error", "across_state_change", "residual_over_noise",
+                             "povs_known", "confirmed", "reach_over_separation",
+                             "near_over_separation", "target_sensings"],
+        "searched": searched,
         "rows_by_stage": agent.queries_by_stage,
         "seconds_by_stage": {k: round(v, 1) for k, v in agent.seconds_by_stage.items()},
         "frames": int(body.renderer.frames),
