@@ -19,7 +19,8 @@ def _agent(rows, rest, noisy=True, counts=None, rest_count=16):
     snap = Snapshot(0, rows, np.ones(len(rows), int), np.asarray(rest, dtype=float),
                     np.zeros(3), -1, counts=counts, rest_count=rest_count)
     tol = SimpleNamespace(match=0.13, separation=8.3 * SD, ratio=3.0)
-    return SimpleNamespace(_noisy=noisy, structure=SimpleNamespace(noise=SD), _tol=tol,
+    structure = SimpleNamespace(noise=SD, repeat_noise=SD, quantum=0.0)   # random noise
+    return SimpleNamespace(_noisy=noisy, structure=structure, _tol=tol,
                            params=NaiveParams(), _pool=[snap])
 
 
