@@ -202,3 +202,20 @@ def test_merging_agrees_with_ground_truth_displacements(lattice_povs):
     moved = np.abs(offsets[pairs[:, 1]] - offsets[pairs[:, 0]])
     for s in np.unique(set_ids):
         assert np.allclose(moved[set_ids == s], moved[set_ids == s][0])
+
+
+def test_a_rank_test_given_the_states_own_sensations_senses_only_the_displaced_rows():
+    world = build_world(0, {"grid_count": 4})
+    body = world.body(lights=world.initial_lights)
+    states = np.random.default_rng(3).uniform(-3, 3, (5, 4))
+    states[0] = [0.0, 0.0, 0.0, 0.0]      # the eye folded back: rank deficient
+    full, rows = equality_sets.check_pose_rank(body, states, rank=3, fd_step=1e-4)
+    sensed = body.sense(states)
+    again, fewer = equality_sets.check_pose_rank(body, states, rank=3, fd_step=1e-4,
+                                                 sensed=sensed)
+    np.testing.assert_array_equal(again, full)
+    assert fewer == rows - len(states)
+    from sensorispace_ros.core.naive.jacobians import AveragedStep
+    with pytest.raises(ValueError, match="sensed"):
+        equality_sets.check_pose_rank(body, states, rank=3, fd_step=AveragedStep(1e-4, 4),
+                                      sensed=sensed)

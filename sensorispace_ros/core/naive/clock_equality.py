@@ -20,8 +20,7 @@ from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetSweep, check_pose_rank, finite_rows, match_sensations)
-from sensorispace_ros.core.naive.jacobians import (AveragedStep, CloudStep, has_full_pose_rank,
-    jacobian_stencil, stencil_jacobian, stencil_rows)
+from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
 
 
 class AllPairsSweep(EqualitySetSweep):
@@ -99,22 +98,10 @@ def swept_rank(sweep, states: np.ndarray, sensed: np.ndarray):
     once (``AveragedStep``, ``CloudStep``) senses its whole stencil. Returns
     ``(full_rank (B,) bool, rows)``."""
     step = sweep.fd_step
-    checks = dict(rank=sweep.rank, rank_ratio=sweep.rank_ratio, min_singular=sweep.min_singular,
-                  pattern_ratio=sweep.pattern_ratio)
-    if isinstance(step, (AveragedStep, CloudStep)):
-        return check_pose_rank(sweep.body, states, fd_step=step, **checks)
-    count, n_motors = states.shape
-    per_state = stencil_rows(n_motors, step)
-    displaced = jacobian_stencil(states, step).reshape(count, per_state, n_motors)[:, 1:]
-    answer = np.asarray(sweep.body.sense(displaced.reshape(-1, n_motors)), dtype=float)
-    answer = np.concatenate([sensed[:, None, :], answer.reshape(count, per_state - 1, -1)],
-                            axis=1)
-    sensations, jacobians = stencil_jacobian(answer, step)
-    lost = ~np.all(np.isfinite(answer), axis=(1, 2))
-    sensations[lost], jacobians[lost] = np.nan, 0.0
-    full = has_full_pose_rank(jacobians, checks["rank"], checks["rank_ratio"],
-                              checks["min_singular"], sensations, checks["pattern_ratio"])
-    return full, count * (per_state - 1)
+    base = None if isinstance(step, (AveragedStep, CloudStep)) else sensed
+    return check_pose_rank(sweep.body, states, rank=sweep.rank, fd_step=step,
+                           rank_ratio=sweep.rank_ratio, min_singular=sweep.min_singular,
+                           pattern_ratio=sweep.pattern_ratio, sensed=base)
 
 
 def translated_sets(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int, per_set: int,

@@ -199,14 +199,15 @@ def _stands_out(point, nearest, second, var_point, var_nearest, var_second, z):
 
 def check_pose_rank(body, motor_states: np.ndarray, *, rank: int, fd_step: float = 1e-6,
                     rank_ratio: float = 1e-3, min_singular: float = 0.0,
-                    pattern_ratio: float = 1e-6):
+                    pattern_ratio: float = 1e-6, sensed: np.ndarray | None = None):
     """Rank test of the sensory Jacobian at ``motor_states`` against the pose
-    rank ``rank`` (one ``sense`` call, ``M + 1`` rows each). Returns
-    ``(full_rank (B,) bool, rows)``."""
+    rank ``rank`` (one ``sense`` call, ``M + 1`` rows each; ``M`` where the
+    states' own sensations are given, ``sensed``: ``sensory_jacobian``).
+    Returns ``(full_rank (B,) bool, rows)``."""
     motor_states = np.asarray(motor_states, dtype=float)
     if len(motor_states) == 0:
         return np.zeros(0, dtype=bool), 0
-    sensations, jac, rows = sensory_jacobian(body, motor_states, fd_step)
+    sensations, jac, rows = sensory_jacobian(body, motor_states, fd_step, sensed)
     return has_full_pose_rank(jac, rank, rank_ratio, min_singular, sensations,
                               pattern_ratio), rows
 

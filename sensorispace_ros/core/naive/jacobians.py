@@ -172,7 +172,8 @@ def stencil_rows(n_motors: int, fd_step: float) -> int:
     return (2 if isinstance(fd_step, SymmetricStep) else 1) * int(n_motors) + 1
 
 
-def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
+def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6,
+                     sensed: np.ndarray | None = None):
     """Sensations and finite-difference sensory Jacobians of many motor states
     in ONE ``sense`` call.
 
@@ -181,19 +182,31 @@ def sensory_jacobian(body, motor_states: np.ndarray, fd_step: float = 1e-6):
     number of motor states probed. Rows are ordered state by state (the
     state, then its displaced copies), so the arm ends at the last state's
     stencil. A state with a lost (non-finite) row gets a NaN sensation and
-    a zero Jacobian.
+    a zero Jacobian. ``sensed`` ``(B, S)``: what the states themselves were
+    just sensed giving, in this world; the stencil's first rows are then
+    not sensed again (``B`` rows fewer). Only for a step whose stencil senses
+    each state once (not ``AveragedStep`` or ``CloudStep``).
     """
     motor_states = np.asarray(motor_states, dtype=float)
     n_batch, n_motors = motor_states.shape
     rows = stencil_rows(n_motors, fd_step)
-    answer = np.asarray(body.sense(jacobian_stencil(motor_states, fd_step)), dtype=float)
-    sensations, jacobians = stencil_jacobian(answer.reshape(n_batch, rows, -1), fd_step)
+    stencil = jacobian_stencil(motor_states, fd_step)
+    if sensed is None:
+        answer = np.asarray(body.sense(stencil), dtype=float).reshape(n_batch, rows, -1)
+    else:
+        if isinstance(fd_step, (AveragedStep, CloudStep)):
+            raise ValueError("sensed: the stencil of an averaged or cloud step senses each "
+                             "state more than once")
+        displaced = stencil.reshape(n_batch, rows, n_motors)[:, 1:].reshape(-1, n_motors)
+        answer = np.asarray(body.sense(displaced), dtype=float).reshape(n_batch, rows - 1, -1)
+        answer = np.concatenate([np.asarray(sensed, dtype=float)[:, None, :], answer], axis=1)
+    sensations, jacobians = stencil_jacobian(answer, fd_step)
     # A state with a lost row (non-finite) has no Jacobian and no sensation:
     # J = 0 fails every rank test, a NaN sensation every comparison.
-    lost = ~np.all(np.isfinite(answer.reshape(n_batch, rows, -1)), axis=(1, 2))
+    lost = ~np.all(np.isfinite(answer), axis=(1, 2))
     sensations[lost] = np.nan
     jacobians[lost] = 0.0
-    return sensations, jacobians, n_batch * rows
+    return sensations, jacobians, n_batch * (rows if sensed is None else rows - 1)
 
 
 def stencil_jacobian(answer: np.ndarray, fd_step: float):
