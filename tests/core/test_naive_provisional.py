@@ -57,8 +57,9 @@ def test_matches_that_disagree_leave_it_pending_and_a_lost_snapshot_drops_it():
 
 
 def _agent(noisy):
-    return SimpleNamespace(_noisy=noisy, _pool=[SimpleNamespace(event=4, rest_pov=1),
-                                                SimpleNamespace(event=3, rest_pov=2)])
+    return SimpleNamespace(_noisy=noisy, _provisional=[],
+                           _pool=[SimpleNamespace(event=4, rest_pov=1),
+                                  SimpleNamespace(event=3, rest_pov=2)])
 
 
 def test_a_noisy_agent_holds_back_the_record_of_an_unconfirmed_anchor():

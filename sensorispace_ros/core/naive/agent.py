@@ -124,6 +124,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         self.compensations: list[CompensationRecord] = []
         self._sets = EqualitySetCollection(min_pairs=2)
         self._pool: list[Snapshot] = []
+        self._provisional: list = []     # records a later sweep must confirm (_hold_unconfirmed)
         self._event = -1
         self._rest: np.ndarray | None = None
         self._rest_pov = -1

@@ -219,7 +219,7 @@ _FRONTIER_REACH = 4.0
 
 class SnapshotMatching:
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
-    ``_body``, ``_store``, ``_pool``, ``_sets``, ``_rest_pov`` and
+    ``_body``, ``_store``, ``_pool``, ``_provisional``, ``_sets``, ``_rest_pov`` and
     ``_frontier_success``, ``_repeats``, ``_noisy``, and ``_search_plan`` and
     ``_confirm`` (``searching``)."""
 
@@ -417,8 +417,8 @@ class SnapshotMatching:
         ones confirmed now."""
         if not self._noisy:
             return records
-        confirmed, pending = settle_provisional(getattr(self, "_provisional", []),
-                                                self._pool, matches, known_comp)
+        confirmed, pending = settle_provisional(self._provisional, self._pool, matches,
+                                                known_comp)
         anchors = [k for k in range(len(self._pool)) if k in known_comp or k in found_rest]
         kept = []
         for i, record in enumerate(records):
