@@ -1,11 +1,15 @@
 """Sweep matches verified against the noise of their rows (``confirm.verify_matches``):
 a match a single sensing cannot pin is still located, and the matches of one
 snapshot are tested together (``confirm.pooled_within_noise``)."""
+from types import SimpleNamespace
+
 import numpy as np
 from scipy.stats import chi2
 
+from sensorispace_ros.core.naive.anchors import Snapshot, SnapshotMatching
 from sensorispace_ros.core.naive.confirm import pooled_within_noise, verify_matches
 from sensorispace_ros.core.naive.jacobians import SymmetricStep
+from sensorispace_ros.core.naive.params import NaiveParams
 
 from imperfect_bodies import ImperfectSensing
 from test_naive_noisy_jacobians import RankTwoBody, Shifted
@@ -78,3 +82,43 @@ def test_the_pooled_test_keeps_all_or_none():
     assert not pooled_within_noise(raised, passing, 6, 0.999).any()
     # A non-candidate is never kept.
     assert not pooled_within_noise(statistic, np.zeros(300, bool), 6, 0.999).any()
+
+
+class _Staged:
+    """A noisy body the agent may label with its stage."""
+
+    n_motors, n_sensors = 3, 6
+
+    def __init__(self, body):
+        self.body, self.stage = body, None
+
+    def sense(self, motor_states):
+        return self.body.sense(motor_states)
+
+
+def _matching_agent(repeats, noisy=True):
+    """The parts of a NaiveAgent ``_verify_matches`` reads: 8 known POVs,
+    one snapshot whose rows sensed them once, matches row k -> POV k."""
+    exact = RankTwoBody()
+    states = TARGET_STATE + np.outer(np.linspace(-0.2, 0.2, 8), [1.0, 0.0, 0.5])
+    rows = ImperfectSensing(exact, seed=12, noise=1e-4).sense(states)
+    snap = Snapshot(0, rows, np.ones(8, int), rows[0], states[0], 0, counts=np.ones(8, int))
+    return SimpleNamespace(
+        _noisy=noisy, _repeats=repeats, _pool=[snap], params=NaiveParams(),
+        _store=SimpleNamespace(samples=states[:, None, :]),
+        _body=_Staged(ImperfectSensing(exact, seed=13, noise=1e-4)),
+        structure=SimpleNamespace(noise=1e-4, pose_rank=2), _fd_step=SymmetricStep(0.02),
+        _max_pose_error=lambda: 1e-3, _pinning_floor=lambda: 0.0)
+
+
+def test_the_agent_keeps_located_matches_only_where_repeats_spread():
+    matches = [(np.arange(8), np.arange(8))]
+    # Held to 1e-3 no row sensed once is precise; located, all are kept.
+    (before, after), = SnapshotMatching._verify_matches(_matching_agent(4), matches)
+    assert len(before) >= 7 and np.array_equal(before, after)
+    # Where repeats do not spread (one sensing: the error repeats exactly)
+    # only the precise test counts.
+    (before, _), = SnapshotMatching._verify_matches(_matching_agent(1), matches)
+    assert len(before) == 0
+    # A noiseless agent keeps its matches untested.
+    assert SnapshotMatching._verify_matches(_matching_agent(4, noisy=False), matches) is matches
