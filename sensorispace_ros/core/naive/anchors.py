@@ -8,11 +8,9 @@ snapshot's sweep with the new one; a snapshot with a full-rank match is
 rows next to its matched ones (the frontier), are worth searching for.
 ``SnapshotMatching`` (a mixin of ``NaiveAgent``) does the matching, the rank
 tests it needs, the equality sets it gives and keeps the pool. Where noise
-sized the tolerances, every match (of a sweep row or of an anchor) passes
-the averaged test of a compensation, and matched rows pool the sensings of
-their chains of matches (``pooled_sweep``): a snapshot's row is then a
-target of known precision, searched only where it stands out from the
-sensations like it (``_distinct_targets``).
+sized the tolerances, every match passes an averaged test (``confirm``),
+matched rows pool their chains' sensings (``pooled_sweep``), and a row is
+searched only where it stands out (``_distinct_targets``).
 """
 from __future__ import annotations
 
@@ -22,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
-from sensorispace_ros.core.naive.confirm import Provisional, settle_provisional
+from sensorispace_ros.core.naive.confirm import Provisional, settle_provisional, verify_matches
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     check_pose_rank, match_counted, match_noise)
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
@@ -187,11 +185,8 @@ def _within_noise(rows, counts, target, count, sd2, quantile) -> bool:
     """Whether a finite row of ``rows`` (each the mean of ``counts``
     sensings) lies from ``target`` (``count`` sensings) within the
     chi-square ``quantile`` of two such means' difference."""
-    if not len(rows):
-        return False
-    distance2 = np.sum((rows - target) ** 2, axis=1)
     limit = quantile * sd2 * (1.0 / np.asarray(counts, dtype=float) + 1.0 / count)
-    return bool(np.any(distance2 <= limit))
+    return bool(len(rows)) and bool(np.any(np.sum((rows - target) ** 2, axis=1) <= limit))
 
 
 def _far_from_matched(request, agent) -> bool:
@@ -287,8 +282,7 @@ class SnapshotMatching:
         return full_rank_matches(matches, rank_now)
 
     def _pooled_counts(self, rows: int) -> np.ndarray | None:
-        """Sensings pooled per row of a snapshot taken now: one each where
-        averaging pays (random noise measured), None elsewhere (nothing pooled)."""
+        """Sensings pooled per row of a snapshot taken now (None: not pooled)."""
         return np.ones(rows, dtype=int) if self._repeats > 1 else None
 
     def _pool_sweep(self, matches, current):
@@ -321,23 +315,27 @@ class SnapshotMatching:
         """Where noise sized the tolerances, a match of a sweep row to a
         snapshot's row is a compensation too (the POV now senses what the
         other sensed then): it passes the averaged test of a known POV
-        against an anchor (``_verify_rest_hits``) or is dropped, so a row
-        within the chain allowance of a sensation it does not reproduce
-        confirms nothing and adds no equality. Returns the matches kept."""
+        against an anchor (``_verify_rest_hits``), or, where repeats spread,
+        is located (``confirm.verify_matches``: a row sensed once cannot pin
+        the pose, yet the fresh averages of the snapshot's POVs reproduce its
+        rows), or it confirms nothing and adds no equality. Returns those kept."""
         if not self._noisy:
             return matches
         kept = []
         for snap, (before, after) in zip(self._pool, matches):
+            counts = np.array([snap.count(int(b)) for b in before])
             if not len(before):
                 kept.append((before, after))
                 continue
-            solution = {i: self._store.samples[a, 0] for i, a in enumerate(after)}
-            counts = {i: snap.count(int(b)) for i, b in enumerate(before)}
+            self._body.stage, error = "compensation", self._max_pose_error()
             # Averaging pays until the average's noise is a quarter of the target's.
-            repeats = min(self._repeats, 4 * max(counts.values()))
-            ok = self._confirm(solution, snap.sensations[before], counts, rounds=1,
-                               max_step=_HIT_SHARE * self._max_pose_error(), repeats=repeats)
-            good = np.isin(np.arange(len(before)), list(ok))
+            precise, located = verify_matches(
+                self._body, self._store.samples[after, 0], snap.sensations[before],
+                self.structure.noise ** 2 / counts, noise_sd=self.structure.noise,
+                repeats=min(self._repeats, 4 * int(counts.max())), rank=self.structure.pose_rank,
+                fd_step=self._fd_step, confidence=self.params.noise_confidence, max_error=error,
+                max_step=_HIT_SHARE * error, min_singular=self._pinning_floor())
+            good = precise | (located & (self._repeats > 1))
             kept.append((before[good], after[good]))
         return kept
 

@@ -99,6 +99,65 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     return refined, accepted, means
 
 
+def verify_matches(body, states: np.ndarray, targets: np.ndarray,
+                   target_variance: np.ndarray, *, noise_sd: float, repeats: int, rank: int,
+                   fd_step: float, confidence: float, max_error: float, max_step: float,
+                   min_singular: float = 0.0):
+    """Known POVs ``states`` ``(K, M)`` matched by a sweep to the rows
+    ``targets`` ``(K, S)`` of one snapshot (per-receptor variance
+    ``target_variance`` ``(K,)``), each sensed ``repeats`` times with its
+    Jacobian stencil in one call. Returns two verdicts ``(K,)``:
+
+    * ``precise``: one round of ``confirm_compensations`` with ``max_step``:
+      the match is a compensation whose pose the noise pins within
+      ``max_error``;
+    * ``located``: the POV is the one the row sensed, to what the noise of
+      the row lets any test tell: its fresh average reproduces the target
+      within the ``confidence`` quantile of chi-square with ``S`` degrees of
+      freedom, its Jacobian's ``rank``-th singular value stands above
+      ``min_singular``, and the located matches of the snapshot together
+      pass the same test with ``S`` degrees of freedom per match, or none
+      is located (``pooled_within_noise``): every row of one snapshot moved
+      by one displacement, so an error they share shows in their sum by the
+      square root of their number where each alone hides it.
+
+    A single sensing of the row leaves the pose along its weakest direction
+    uncertain by more than ``max_error`` where the noise is large: such a
+    match is never precise, yet located it shows the light layout unchanged
+    and which known POVs neighbour the rows it did not match."""
+    states = np.asarray(states, dtype=float)
+    targets = np.asarray(targets, dtype=float)
+    n_sensors = targets.shape[1]
+    mean, jac, whole = _averaged_with_jacobian(body, states, repeats, fd_step)
+    residual = mean - targets
+    target_variance = np.asarray(target_variance, dtype=float)
+    variances = (target_variance + noise_sd ** 2 / repeats,
+                 target_variance + 2.0 * noise_sd ** 2 / repeats)
+    limits = (chi2.ppf(confidence, max(n_sensors - rank, 1)), chi2.ppf(confidence, max(rank, 1)))
+    _, _, precise = _judge(jac, residual, rank, whole, variances, limits,
+                           (max_error, min_singular), max_step)
+    singular = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
+    with np.errstate(invalid="ignore"):
+        statistic = np.sum(residual ** 2, axis=1) / variances[0]
+    alone = whole & np.isfinite(statistic) & (singular > min_singular) & \
+        (statistic <= chi2.ppf(confidence, n_sensors))
+    return precise, pooled_within_noise(statistic, alone, n_sensors, confidence)
+
+
+def pooled_within_noise(statistic: np.ndarray, candidates: np.ndarray, dof: int,
+                        confidence: float) -> np.ndarray:
+    """The ``candidates`` ``(K,)`` bool if their chi-square ``statistic``
+    (``dof`` degrees of freedom each where the hypothesis holds) sum within
+    the ``confidence`` quantile of chi-square with ``dof`` per candidate,
+    else none: each passed alone, so an excess of the sum is spread over
+    them (an error they share), not one outlier to drop."""
+    keep = np.asarray(candidates, dtype=bool)
+    total = float(np.sum(np.asarray(statistic, dtype=float)[keep]))
+    if keep.any() and total > chi2.ppf(confidence, dof * int(keep.sum())):
+        return np.zeros_like(keep)
+    return keep.copy()
+
+
 def _judge(jac, residual, rank, whole, variances, limits, bounds, max_step):
     """One round of ``confirm_compensations``: the Gauss-Newton step of each
     state, whether the noise explains its residual outside the Jacobian's
