@@ -72,15 +72,15 @@ def test_wall_clock_is_refused_offline():
         run_on_clock(run_world(cfg), NaiveParams(**cfg["naive"]), "wall", interval=1000.0)
 
 
-def _agent_in_two_worlds(world, params, change_after: int):
+def _agent_in_two_worlds(world, params, change_after: int, shift=(0.4, -0.3)):
     """A started ``ClockedAgent`` whose world (the smoke world, then the same
-    lights shifted) changes ``change_after`` rows after its start."""
+    lights shifted by ``shift``) changes ``change_after`` rows after its start."""
     from sensorispace_ros.core.body import SensingOnly
     from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
     from sensorispace_ros.core.world_clock import ClockedBody
 
     lights = np.asarray(world.initial_lights, dtype=float)
-    shifted = lights + np.array([0.4, -0.3])
+    shifted = lights + np.asarray(shift, dtype=float)
     body = ClockedBody(world.body(lights=lights), [lights, shifted], np.array([10 ** 9]))
     agent = ClockedAgent(SensingOnly(body), params)
     agent.start(world.m0, seed=world.seed)
@@ -194,3 +194,8 @@ def test_a_pending_solution_on_a_known_pov_is_not_walked_again():
     del agent._pending_known
     other = on_loop + np.array([0.0, 0.3, -0.3, 0.0])
     assert agent._pending_known(other) is False
+    # Where nothing is lit, no sensation pins a pose: a blank state is no known POV.
+    dark, _ = _agent_in_two_worlds(world, NaiveParams(**cfg["naive"]), change_after=0,
+                                   shift=(100.0, 100.0))
+    assert not np.any(dark.sense_again(dark._to_body(on_loop[None])))
+    assert dark._pending_known(on_loop) is False

@@ -188,15 +188,14 @@ class ClockedAgent(NaiveAgent):
         """Does the pending solution ``state`` sense now what one of the
         ``NEAR_POVS`` known POVs nearest it in motor space senses (the sweep's
         match tolerance)? Then it is that POV, walked since its walk was cut
-        (by the reaction made again, or an earlier pending solution): walked
-        again, it would be a second POV of one position."""
+        (the reaction made again, or an earlier pending solution)."""
         ids = self._nearest_povs(state[None], np.arange(self._store.count))
-        if not len(ids):
-            return False
         self._body.stage = "sweep"
         sensed = self._body.sense(np.vstack([state[None], self._store.samples[ids, 0]]))
         here, known = sensed[0], finite_rows(sensed[1:], -1.0)
-        if not np.all(np.isfinite(here)):
+        # Fewer receptors lit than the pose rank do not pin the pose (blank says nothing).
+        if not len(ids) or not np.all(np.isfinite(here)) or \
+                np.count_nonzero(np.abs(here) > self._tol.match) < self.structure.pose_rank:
             return False
         return bool(np.min(np.linalg.norm(known - here, axis=1)) <= self._tol.match)
 
