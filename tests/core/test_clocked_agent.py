@@ -72,15 +72,15 @@ def test_wall_clock_is_refused_offline():
         run_on_clock(run_world(cfg), NaiveParams(**cfg["naive"]), "wall", interval=1000.0)
 
 
-def _agent_in_two_worlds(world, params, change_after: int):
+def _agent_in_two_worlds(world, params, change_after: int, shift=(0.4, -0.3)):
     """A started ``ClockedAgent`` whose world (the smoke world, then the same
-    lights shifted) changes ``change_after`` rows after its start."""
+    lights shifted by ``shift``) changes ``change_after`` rows after its start."""
     from sensorispace_ros.core.body import SensingOnly
     from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
     from sensorispace_ros.core.world_clock import ClockedBody
 
     lights = np.asarray(world.initial_lights, dtype=float)
-    shifted = lights + np.array([0.4, -0.3])
+    shifted = lights + np.asarray(shift, dtype=float)
     body = ClockedBody(world.body(lights=lights), [lights, shifted], np.array([10 ** 9]))
     agent = ClockedAgent(SensingOnly(body), params)
     agent.start(world.m0, seed=world.seed)
@@ -168,3 +168,34 @@ def test_simulation_2_matches_with_the_ratio_test_where_the_agent_measured_noise
     sweep = run.agent._sweep
     assert sweep is not None and sweep.ratio > 0 and sweep.separation < sweep.match_tol
     assert len(sweep.history) > 1            # simulation 2 matched sweeps to its end
+
+
+def test_a_pending_solution_on_a_known_pov_is_not_walked_again():
+    # A solution whose walk a change cut waits in ``pending``; the reaction
+    # made again may walk its POV meanwhile. Walked then, it would be a
+    # second POV of one position; a state of another pose is walked.
+    cfg = config.load_config(SMOKE)
+    world = run_world(cfg)
+    agent, _ = _agent_in_two_worlds(world, NaiveParams(**cfg["naive"]), change_after=10 ** 8)
+    known = agent._store.count
+    on_loop = agent._store.samples[0, len(agent._store.samples[0]) // 3]
+    rest = agent.rest_motor_state
+    agent.pending = on_loop[None].copy()
+    assert agent.walk_pending(agent.sense_again(rest)[0]) == 0
+    assert agent._store.count == known and not len(agent.pending)
+    # The same state without the test: a second POV of the first one's pose.
+    agent._pending_known = lambda state: False
+    agent.pending = on_loop[None].copy()
+    assert agent.walk_pending(agent.sense_again(rest)[0]) == 1
+    twin = agent._store.samples[known]
+    gap = (twin[:, None, :] - agent._store.samples[0][None] + np.pi) % (2 * np.pi) - np.pi
+    assert np.linalg.norm(gap, axis=2).min(axis=1).max() < 0.05
+    # Another pose is not taken for a known one.
+    del agent._pending_known
+    other = on_loop + np.array([0.0, 0.3, -0.3, 0.0])
+    assert agent._pending_known(other) is False
+    # Where nothing is lit, no sensation pins a pose: a blank state is no known POV.
+    dark, _ = _agent_in_two_worlds(world, NaiveParams(**cfg["naive"]), change_after=0,
+                                   shift=(100.0, 100.0))
+    assert not np.any(dark.sense_again(dark._to_body(on_loop[None])))
+    assert dark._pending_known(on_loop) is False

@@ -175,12 +175,29 @@ class ClockedAgent(NaiveAgent):
         if self.params.clock_walk_attempts > 1:
             self._body.forget()
         try:
+            if self._pending_known(state):
+                return 0
             new, _ = self._walk_through(state[None])
             self._tripwire.check()
         finally:
             self._tripwire.disarm()
             self._body.pause()
         return len(new)
+
+    def _pending_known(self, state: np.ndarray) -> bool:
+        """Does the pending solution ``state`` sense now what one of the
+        ``NEAR_POVS`` known POVs nearest it in motor space senses (the sweep's
+        match tolerance)? Then it is that POV, walked since its walk was cut
+        (the reaction made again, or an earlier pending solution)."""
+        ids = self._nearest_povs(state[None], np.arange(self._store.count))
+        self._body.stage = "sweep"
+        sensed = self._body.sense(np.vstack([state[None], self._store.samples[ids, 0]]))
+        here, known = sensed[0], finite_rows(sensed[1:], -1.0)
+        # Fewer receptors lit than the pose rank do not pin the pose (blank says nothing).
+        if not len(ids) or not np.all(np.isfinite(here)) or \
+                np.count_nonzero(np.abs(here) > self._tol.match) < self.structure.pose_rank:
+            return False
+        return bool(np.min(np.linalg.norm(known - here, axis=1)) <= self._tol.match)
 
     def start(self, initial_motor_state, seed: int = 0):
         self._seed = int(seed)
@@ -380,16 +397,21 @@ class ClockedAgent(NaiveAgent):
         unknown = np.flatnonzero(~np.all(np.isfinite(current), axis=1))
         if not len(unknown):
             return
-        samples = self._store.samples[unknown]                       # (U, N, M)
+        ids = self._nearest_povs(states, unknown)
+        self._body.stage = "sweep"
+        current[ids] = self._body.sense(self._store.samples[ids, 0])
+        self._body.stage = "compensation"
+
+    def _nearest_povs(self, states: np.ndarray, among: np.ndarray) -> np.ndarray:
+        """The ``NEAR_POVS`` POVs of ``among`` nearest (in phases, on the
+        torus) to each of ``states``, sorted."""
+        samples = self._store.samples[among]                         # (U, N, M)
         wanted = set()
         for state in states:
             gap = (samples - state + np.pi) % (2.0 * np.pi) - np.pi
             nearest = np.linalg.norm(gap, axis=2).min(axis=1)
-            wanted.update(unknown[np.argsort(nearest)[:NEAR_POVS]].tolist())
-        ids = np.asarray(sorted(wanted), dtype=int)
-        self._body.stage = "sweep"
-        current[ids] = self._body.sense(self._store.samples[ids, 0])
-        self._body.stage = "compensation"
+            wanted.update(among[np.argsort(nearest)[:NEAR_POVS]].tolist())
+        return np.asarray(sorted(wanted), dtype=int)
 
     def _sample_povs(self, motor_states, keep_invalid=False, others=None):
         if self._tripwire.armed and self.params.clock_walk_attempts > 1 and \
