@@ -32,7 +32,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.seeding import CounterStream
-
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
@@ -357,16 +356,35 @@ class ClockedAgent(NaiveAgent):
         return params
 
     def _search(self, requests, current, tree, split_now):
+        asked = self._unswept_targets(requests, current) if tree is not None else range(
+            len(requests))
         self._search_current = current
         try:
             found, new_povs, sensations = super()._search(
-                requests, current, None if tree is None else _CurrentTree(current), split_now)
+                [requests[i] for i in asked], current,
+                None if tree is None else _CurrentTree(current), split_now)
         finally:
             self._search_current = None
+        found = {asked[i]: value for i, value in found.items()}
         for i in getattr(self, "_unconfirmed_asked", ()):
             self._unconfirmed_found(i in found)
         self._unconfirmed_asked = []
         return found, new_povs, sensations
+
+    def _unswept_targets(self, requests, current) -> list:
+        """The requests worth a search: a frontier row's target may be a known POV
+        the bounded sweep left out, near its start (the matched neighbour's partner):
+        the ``NEAR_POVS`` known POVs nearest each start are sensed first (``_sense_near``),
+        and a target one of them senses is that POV, not searched (as a swept match)."""
+        starts = [r.start for r in requests if r.row >= 0 and r.start is not None]
+        if not starts:
+            return list(range(len(requests)))
+        self._sense_near(current, np.stack(starts))
+        same = self._tol.match if self._tol.ratio == 0 else min(self._tol.match,
+                                                                self._tol.separation)
+        known = current[np.all(np.isfinite(current), axis=1)]
+        return [i for i, r in enumerate(requests) if r.row < 0 or not len(known) or
+                np.min(np.linalg.norm(known - r.target, axis=1)) > same]
 
     def _search_options(self) -> dict:
         """A target's starts searched in turn (``clock_search_in_turn``): fewer rows, fewer cut."""
@@ -463,10 +481,7 @@ class ClockedAgent(NaiveAgent):
         tripwire.rearm(sensed)
         self._body.forget()
 
-    @property
-    def rows_sent(self) -> int:
-        """Rows this agent sent to its body, sentinels included."""
-        return self._tripwire.sent
+    rows_sent = property(lambda self: self._tripwire.sent, doc="Rows sent, sentinels included.")
 
     def _rest_after(self, rest_choice, rank_now):
         """``NaiveAgent._rest_after``; after a walk crossed a change the arm
@@ -476,6 +491,6 @@ class ClockedAgent(NaiveAgent):
             return None, RANK_UNKNOWN
         return super()._rest_after(rest_choice, rank_now)
 
-    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:
+    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:  # not after a crossing
         if self.crossing is None:
             super()._renew_pool(matches, known_comp, found_rest, snapshot)
