@@ -65,6 +65,8 @@ class ClockedAgent(NaiveAgent):
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
         self._tripwire = Tripwire(body)
         super().__init__(self._tripwire, params)
+        self._tripwire.every = self.params.clock_sentinel_rows \
+            if self.params.clock_walk_attempts == 1 else 0      # a crossing needs every call's
         if isinstance(sweep_budget, bool) or not isinstance(sweep_budget, (int, np.integer)) \
                 or sweep_budget < 0:
             raise ValueError(f"sweep_budget: must be an integer >= 0, got {sweep_budget!r}")
@@ -132,11 +134,11 @@ class ClockedAgent(NaiveAgent):
         self._witnesses = None
         self.crossing = None
         try:
-            if reaction == self.react:
-                return reaction(sensed_at_rest)
-            return reaction()
+            done = reaction(sensed_at_rest) if reaction == self.react else reaction()
+            self._tripwire.flush()
+            return done
         except WorldChanged:
-            self.cut_stage = self._body.stage
+            self.cut_stage = self._body.stage or "rest"     # its last sentinels
             raise
         finally:
             self._tripwire.disarm()
@@ -420,9 +422,11 @@ class ClockedAgent(NaiveAgent):
             # not carry it into a reaction kept across a change (``_cross``).
             self.cut_stage = "compensation"
             raise WorldChanged(None)
+        self._tripwire.flush()
         self._search_end = self._tripwire.sent
         try:
             walked = self._walk_through(motor_states, keep_invalid=keep_invalid, others=others)
+            self._tripwire.flush()
         except WorldChanged:
             if self._tripwire.armed:
                 self._cut_walk = np.array(motor_states, dtype=float)
