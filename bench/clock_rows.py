@@ -16,6 +16,10 @@ clocked agent's methods, which change nothing it does, and writes
   (the new resting state's), ``sweep_rows.known`` (the bounded sweeps);
 * ``rank_rows.equality_pass`` / ``rank_tests.equality_pass``: simulation 2's
   rank tests of its matches (rows, states tested; undone reactions' too);
+* ``search_cost.<kind>.<outcome>`` / ``search_count.<kind>.<outcome>``: the
+  rows of the LM searches toward each target (its starts together; the
+  nearest known POVs sensed after it not included) by kind and outcome:
+  ``new`` (a new POV), ``known`` (a known POV), ``fail``;
 * ``known_comp``: anchors a known POV matched (no search)::
 
     nice -n 10 .venv/bin/python bench/clock_rows.py reproduce --strategy naive \\
@@ -28,6 +32,8 @@ import collections
 import json
 import sys
 from pathlib import Path
+
+import numpy as np
 
 COUNTS: collections.Counter = collections.Counter()
 
@@ -51,11 +57,40 @@ def instrument() -> None:
             COUNTS["known_comp"] += len(known)
         return known, requests
 
+    search_plan, compensate = Agent._search_plan, Agent._compensate
+
+    def planned(self, requests, current):
+        plan = search_plan(self, requests, current)
+        self._bench_plan = (list(requests), plan[0], plan[2])
+        return plan
+
+    def compensated(self, targets, starts, isolated):
+        out = compensate(self, targets, starts, isolated)
+        self._bench_queries = np.array(out.queries)
+        return out
+
+    def costs(self, requests, kinds, found, new):
+        asked, group, owner = getattr(self, "_bench_plan", ([], [], []))
+        queries = getattr(self, "_bench_queries", None)
+        if queries is None or len(queries) != len(owner):
+            return
+        seen = set()
+        for i, (request, kind) in enumerate(zip(requests, kinds)):
+            at = next((j for j, r in enumerate(asked) if r is request), None)
+            if at is None or group[at] in seen:
+                continue
+            seen.add(group[at])
+            outcome = "fail" if i not in found else "new" if found[i][0] in new else "known"
+            COUNTS[f"search_cost.{kind}.{outcome}"] += int(queries[owner == group[at]].sum())
+            COUNTS[f"search_count.{kind}.{outcome}"] += 1
+
     def counted_search(self, requests, current, tree, split_now):
         kinds = getattr(self, "_bench_kinds", ["?"] * len(requests))
         rows = self._body.rows
         before = rows.get("compensation", 0) + rows.get("sweep", 0)
+        self._bench_plan, self._bench_queries = ([], [], []), None
         found, new, sensations = search(self, requests, current, tree, split_now)
+        costs(self, requests, kinds, found, new)
         key = "+".join(sorted(set(kinds))) or "none"
         COUNTS["search_rows." + key] += rows.get("compensation", 0) + rows.get("sweep", 0) - before
         COUNTS["search_calls." + key] += 1
@@ -85,6 +120,7 @@ def instrument() -> None:
 
     AllPairsSweep._test = counted_test
     Agent._anchor_requests, Agent._search = counted_requests, counted_search
+    Agent._search_plan, Agent._compensate = planned, compensated
     Agent._test_ranks = rows_of(test_ranks, "rank", "rank_rows.test_ranks")
     Agent._rest_after = rows_of(rest_after, "rank", "rank_rows.rest_after")
     Agent._sweep_known = rows_of(sweep_known, "sweep", "sweep_rows.known")

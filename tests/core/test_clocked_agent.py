@@ -199,3 +199,28 @@ def test_a_pending_solution_on_a_known_pov_is_not_walked_again():
                                    shift=(100.0, 100.0))
     assert not np.any(dark.sense_again(dark._to_body(on_loop[None])))
     assert dark._pending_known(on_loop) is False
+
+
+def test_a_frontier_target_a_known_unswept_pov_senses_is_not_searched(clocked_smoke):
+    # The bounded sweep leaves POVs out; a frontier row's target may be one of
+    # them. The known POVs nearest its start are sensed first (a few rows, not
+    # a search): a target one senses is that POV and is not searched; a target
+    # none senses, and every anchor, is.
+    from sensorispace_ros.core.naive.anchors import Request
+    from sensorispace_ros.core.naive.clock_known import NEAR_POVS
+
+    agent = clocked_smoke[1].agent
+    samples = agent._store.samples
+    k = len(samples) // 2
+    sensed = agent._body.sense(samples[:, 0])
+    elsewhere = agent._body.sense(samples[k, 0][None] + 1.3)[0]
+    current = np.full_like(sensed, np.nan)
+    current[0] = sensed[0]                        # the one POV swept
+    requests = [Request(0, 3, sensed[k], samples[3, 0], start=samples[k, 0] + 1e-3),
+                Request(0, 4, elsewhere, samples[4, 0], start=samples[k, 0] + 1e-3),
+                Request(0, -1, sensed[k], samples[0, 0])]
+    agent._body.forget()                          # what the test sensed is not the agent's
+    rows = agent._body.total_rows
+    assert agent._unswept_targets(requests, current) == [1, 2]
+    assert 0 < agent._body.total_rows - rows <= 2 * NEAR_POVS
+    np.testing.assert_array_equal(current[k], sensed[k])

@@ -113,6 +113,33 @@ def test_restarts_toward_a_found_target_stop(world):
     np.testing.assert_array_equal(both.motor_states[1], alone.motor_states[0])
 
 
+def test_restarts_in_turn_run_only_after_those_before_failed(world):
+    target = _target(world)
+    shift = np.array([0.3, 0.3])
+    body = SimulatedBody(world.receptors, world.initial_lights + shift)
+    starts = np.vstack([world.m0 + [0.6, -0.4, 0.3, -0.2], world.m0,
+                        world.m0 + [-0.8, 0.5, 0.4, -0.3]])
+    targets = np.repeat(target[None], len(starts), axis=0)
+    together = compensate(body, targets, starts)
+    in_turn = compensate(body, targets, starts, in_turn=True)
+    assert in_turn.accepted.any() and in_turn.queries.sum() < together.queries.sum()
+    # Only the start sensing most like the target searched past the first call.
+    first_error = np.linalg.norm(body.sense(starts) - target, axis=1)
+    assert np.flatnonzero(in_turn.iterations) == [np.argmin(first_error)]
+    wanted = arm.forward(world.m0) + [*shift, 0.0]
+    found = in_turn.motor_states[in_turn.accepted]
+    assert np.max(arm.pose_error(arm.forward(found), wanted)) < 1e-8
+    # Where every start fails, each runs in its turn, as long as it would at once.
+    lights = world.initial_center + draw_light_offsets(np.random.default_rng(0),
+                                                       len(world.initial_offsets))
+    moved = SimulatedBody(world.receptors, lights)
+    at_once = compensate(moved, targets, starts)
+    turns = compensate(moved, targets, starts, in_turn=True)
+    assert not turns.accepted.any()
+    np.testing.assert_array_equal(turns.iterations, at_once.iterations)
+    assert turns.calls > at_once.calls
+
+
 def test_searches_at_a_local_minimum_stop_early_with_the_same_error(world):
     # Lights redistributed: the old sensation exists nowhere, the searches
     # end in local minima with a nonzero residual.

@@ -80,3 +80,35 @@ def test_config_names_the_clock():
                        ("world.change_period_s", -1.0)):
         with pytest.raises(config.ConfigError, match=key.replace(".", r"\.")):
             config.load_config(None, {key: value})
+
+
+def test_sentinels_watch_the_rows_sent_since_they_were_last_sensed():
+    # With ``every`` rows, small calls go unwatched until the call that makes
+    # that many; a change in an unwatched call is flagged by the next
+    # sentinels (a later call or ``flush``), before anything after it passes.
+    from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
+
+    states = _states(12)
+    for every, first_flagged in [(0, 1), (7, 2)]:
+        clocked = ClockedBody(SimulatedBody(RECEPTORS), LIGHTS[:2], np.array([4]))
+        tripwire = Tripwire(clocked)
+        sentinel = states[-1:]
+        tripwire.arm(sentinel, SimulatedBody(RECEPTORS, LIGHTS[0]).sense(sentinel), 0.0)
+        tripwire.every = every
+        tripwire.sense(states[:3])                  # 3 rows (+ the sentinel when every = 0)
+        flagged = None
+        for call in range(1, 4):
+            try:
+                tripwire.sense(states[3 + 2 * call:5 + 2 * call])    # 2 rows a call
+            except WorldChanged:
+                flagged = call
+                break
+        assert flagged == first_flagged
+    clocked = ClockedBody(SimulatedBody(RECEPTORS), LIGHTS[:2], np.array([2]))
+    tripwire = Tripwire(clocked)
+    tripwire.arm(sentinel, SimulatedBody(RECEPTORS, LIGHTS[0]).sense(sentinel), 0.0)
+    tripwire.every = 100
+    tripwire.sense(states[:3])                      # unwatched: the change falls inside
+    assert tripwire.rows == 0
+    with pytest.raises(WorldChanged):
+        tripwire.flush()

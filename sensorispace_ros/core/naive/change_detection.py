@@ -89,8 +89,9 @@ class WorldChanged(Exception):
 
 class Tripwire:
     """The agent's body with the sentinel rows after every call while armed
-    (``arm``): their sensations are tested against those the agent holds
-    (``differs``): when they pass, every row of the call
+    (``arm``), or after the call that makes ``every`` rows since they were last
+    sensed (``flush`` senses them alone): their sensations are tested against those
+    the agent holds (``differs``): when they pass, every row sent before them
     saw the world the agent holds. Rows are the body's units."""
 
     def __init__(self, body):
@@ -105,6 +106,8 @@ class Tripwire:
         self.passed = 0                # calls whose sentinels passed
         self.sent = 0                  # rows sent to the body, sentinels included
         self.passed_at = 0             # ``sent`` after the last call whose sentinels passed
+        self.every = 0                 # rows a call may leave unwatched before the sentinels
+        self._unwatched = 0            # rows sent since the sentinels were last sensed
 
     @property
     def armed(self) -> bool:
@@ -116,6 +119,7 @@ class Tripwire:
         self._sentinel = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
         self._reference = np.asarray(references, dtype=float).reshape(len(self._sentinel), -1)
         self.noise_sd = float(noise_sd)
+        self._unwatched = 0
 
     def disarm(self) -> None:
         self._sentinel = self._reference = None
@@ -128,11 +132,22 @@ class Tripwire:
         """Sense the sentinels alone (raises ``WorldChanged``)."""
         self.sense(np.zeros((0, self.n_motors)))
 
+    def flush(self) -> None:
+        """Sense the sentinels alone if rows went unwatched since they were
+        last sensed (``every``): then every row sent saw the world held."""
+        if self._sentinel is not None and self._unwatched:
+            self.check()
+
     def sense(self, motor_states) -> np.ndarray:
         motor_states = np.asarray(motor_states, dtype=float).reshape(-1, self.n_motors)
         if self._sentinel is None:
             self.sent += len(motor_states)
             return self._body.sense(motor_states)
+        if len(motor_states) and self._unwatched + len(motor_states) < self.every:
+            self._unwatched += len(motor_states)      # watched by a later call's sentinels
+            self.sent += len(motor_states)
+            return self._body.sense(motor_states)
+        self._unwatched = 0
         k = len(self._sentinel)
         sensed = self._body.sense(np.vstack([motor_states, self._sentinel]))
         self.rows += k

@@ -32,10 +32,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.seeding import CounterStream
-
 from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
+from sensorispace_ros.core.naive.clock_known import KnownNearby
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
@@ -44,7 +44,6 @@ from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 
 __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
-NEAR_POVS = 3        # known POVs sensed per search solution to tell a duplicate
 WITNESSES = 8        # swept POVs sensed again after a reaction
 
 
@@ -60,12 +59,14 @@ class _CurrentTree:
         return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
 
 
-class ClockedAgent(NaiveAgent):
+class ClockedAgent(KnownNearby, NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
         self._tripwire = Tripwire(body)
         super().__init__(self._tripwire, params)
+        self._tripwire.every = self.params.clock_sentinel_rows \
+            if self.params.clock_walk_attempts == 1 else 0      # a crossing needs every call's
         if isinstance(sweep_budget, bool) or not isinstance(sweep_budget, (int, np.integer)) \
                 or sweep_budget < 0:
             raise ValueError(f"sweep_budget: must be an integer >= 0, got {sweep_budget!r}")
@@ -133,11 +134,11 @@ class ClockedAgent(NaiveAgent):
         self._witnesses = None
         self.crossing = None
         try:
-            if reaction == self.react:
-                return reaction(sensed_at_rest)
-            return reaction()
+            done = reaction(sensed_at_rest) if reaction == self.react else reaction()
+            self._tripwire.flush()
+            return done
         except WorldChanged:
-            self.cut_stage = self._body.stage
+            self.cut_stage = self._body.stage or "rest"     # its last sentinels
             raise
         finally:
             self._tripwire.disarm()
@@ -183,21 +184,6 @@ class ClockedAgent(NaiveAgent):
             self._tripwire.disarm()
             self._body.pause()
         return len(new)
-
-    def _pending_known(self, state: np.ndarray) -> bool:
-        """Does the pending solution ``state`` sense now what one of the
-        ``NEAR_POVS`` known POVs nearest it in motor space senses (the sweep's
-        match tolerance)? Then it is that POV, walked since its walk was cut
-        (the reaction made again, or an earlier pending solution)."""
-        ids = self._nearest_povs(state[None], np.arange(self._store.count))
-        self._body.stage = "sweep"
-        sensed = self._body.sense(np.vstack([state[None], self._store.samples[ids, 0]]))
-        here, known = sensed[0], finite_rows(sensed[1:], -1.0)
-        # Fewer receptors lit than the pose rank do not pin the pose (blank says nothing).
-        if not len(ids) or not np.all(np.isfinite(here)) or \
-                np.count_nonzero(np.abs(here) > self._tol.match) < self.structure.pose_rank:
-            return False
-        return bool(np.min(np.linalg.norm(known - here, axis=1)) <= self._tol.match)
 
     def start(self, initial_motor_state, seed: int = 0):
         self._seed = int(seed)
@@ -374,44 +360,30 @@ class ClockedAgent(NaiveAgent):
         return params
 
     def _search(self, requests, current, tree, split_now):
+        asked = self._unswept_targets(requests, current) if tree is not None else range(
+            len(requests))
         self._search_current = current
         try:
             found, new_povs, sensations = super()._search(
-                requests, current, None if tree is None else _CurrentTree(current), split_now)
+                [requests[i] for i in asked], current,
+                None if tree is None else _CurrentTree(current), split_now)
         finally:
             self._search_current = None
+        found = {asked[i]: value for i, value in found.items()}
         for i in getattr(self, "_unconfirmed_asked", ()):
             self._unconfirmed_found(i in found)
         self._unconfirmed_asked = []
         return found, new_povs, sensations
+
+    def _search_options(self) -> dict:
+        """A target's starts searched in turn (``clock_search_in_turn``): fewer rows, fewer cut."""
+        return {"in_turn": bool(self.params.clock_search_in_turn)}
 
     def _run_searches(self, unique_targets, owner, starts):
         solution, others, gain = super()._run_searches(unique_targets, owner, starts)
         if self._search_current is not None and solution:
             self._sense_near(self._search_current, np.stack(list(solution.values())))
         return solution, others, gain
-
-    def _sense_near(self, current: np.ndarray, states: np.ndarray) -> None:
-        """Fill the rows of ``current`` not sensed in this reaction of the ``NEAR_POVS``
-        known POVs nearest (in phases, on the torus) to each of ``states``."""
-        unknown = np.flatnonzero(~np.all(np.isfinite(current), axis=1))
-        if not len(unknown):
-            return
-        ids = self._nearest_povs(states, unknown)
-        self._body.stage = "sweep"
-        current[ids] = self._body.sense(self._store.samples[ids, 0])
-        self._body.stage = "compensation"
-
-    def _nearest_povs(self, states: np.ndarray, among: np.ndarray) -> np.ndarray:
-        """The ``NEAR_POVS`` POVs of ``among`` nearest (in phases, on the
-        torus) to each of ``states``, sorted."""
-        samples = self._store.samples[among]                         # (U, N, M)
-        wanted = set()
-        for state in states:
-            gap = (samples - state + np.pi) % (2.0 * np.pi) - np.pi
-            nearest = np.linalg.norm(gap, axis=2).min(axis=1)
-            wanted.update(among[np.argsort(nearest)[:NEAR_POVS]].tolist())
-        return np.asarray(sorted(wanted), dtype=int)
 
     def _sample_povs(self, motor_states, keep_invalid=False, others=None):
         if self._tripwire.armed and self.params.clock_walk_attempts > 1 and \
@@ -420,9 +392,11 @@ class ClockedAgent(NaiveAgent):
             # not carry it into a reaction kept across a change (``_cross``).
             self.cut_stage = "compensation"
             raise WorldChanged(None)
+        self._tripwire.flush()
         self._search_end = self._tripwire.sent
         try:
             walked = self._walk_through(motor_states, keep_invalid=keep_invalid, others=others)
+            self._tripwire.flush()
         except WorldChanged:
             if self._tripwire.armed:
                 self._cut_walk = np.array(motor_states, dtype=float)
@@ -481,10 +455,7 @@ class ClockedAgent(NaiveAgent):
         tripwire.rearm(sensed)
         self._body.forget()
 
-    @property
-    def rows_sent(self) -> int:
-        """Rows this agent sent to its body, sentinels included."""
-        return self._tripwire.sent
+    rows_sent = property(lambda self: self._tripwire.sent, doc="Rows sent, sentinels included.")
 
     def _rest_after(self, rest_choice, rank_now):
         """``NaiveAgent._rest_after``; after a walk crossed a change the arm
@@ -494,6 +465,6 @@ class ClockedAgent(NaiveAgent):
             return None, RANK_UNKNOWN
         return super()._rest_after(rest_choice, rank_now)
 
-    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:
+    def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:  # not after a crossing
         if self.crossing is None:
             super()._renew_pool(matches, known_comp, found_rest, snapshot)

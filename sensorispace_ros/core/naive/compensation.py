@@ -75,13 +75,12 @@ class CompensationSearch:
 
 
 def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank: int,
-               min_singular: float = 0.0, pattern_ratio: float = 1e-6,
-               fd_step: float = 1e-6, max_iterations: int = 40,
-               error_tol: float = 1e-10, motor_tol: float = 1e-8,
-               rank_ratio: float = 1e-3, max_step: float = 0.5,
-               initial_damping: float = 1e-3, stall_iterations: int = 6,
-               stall_factor: float = 0.5, stationary_ratio: float = 0.2,
-               stop_found_targets: bool = True, noise_step: float = 0.0) -> CompensationSearch:
+               min_singular: float = 0.0, pattern_ratio: float = 1e-6, fd_step: float = 1e-6,
+               max_iterations: int = 40, error_tol: float = 1e-10, motor_tol: float = 1e-8,
+               rank_ratio: float = 1e-3, max_step: float = 0.5, initial_damping: float = 1e-3,
+               stall_iterations: int = 6, stall_factor: float = 0.5, stationary_ratio: float = 0.2,
+               stop_found_targets: bool = True, noise_step: float = 0.0, in_turn: bool = False
+               ) -> CompensationSearch:
     """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
     from ``starts[k]`` for every search ``k`` at once.
 
@@ -93,35 +92,37 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     ``motor_residual <= _motor_tolerance``), after ``max_iterations``, when its
     error has not fallen below ``stall_factor`` times its value
     ``stall_iterations`` iterations earlier (a local minimum), or at the two
-    stops of the module docstring.
+    stops of the module docstring. ``in_turn``: a target's searches one at a time (``_Turns``).
     """
     targets, point = _checked_searches(
-        body, target_sensations, starts, rank=rank, fd_step=fd_step,
-        max_iterations=max_iterations, error_tol=error_tol, motor_tol=motor_tol,
-        rank_ratio=rank_ratio, max_step=max_step, initial_damping=initial_damping,
-        stall_iterations=stall_iterations, stall_factor=stall_factor,
-        stationary_ratio=stationary_ratio)
+        body, target_sensations, starts, rank=rank, fd_step=fd_step, max_iterations=max_iterations,
+        error_tol=error_tol, motor_tol=motor_tol, rank_ratio=rank_ratio, max_step=max_step,
+        initial_damping=initial_damping, stall_iterations=stall_iterations,
+        stall_factor=stall_factor, stationary_ratio=stationary_ratio)
     accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
     n_search, rows_per_state = len(point), stencil_rows(point.shape[1], fd_step)
     queries, iterations = np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int)
     if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
         return _none_accepted(point)
-
     sensation, jac, _ = sensory_jacobian(body, point, fd_step)
     calls, queries = 1, queries + rows_per_state
     residual = sensation - targets
     error = np.linalg.norm(residual, axis=1)
     damping = np.full(n_search, float(initial_damping))
     history = [error.copy()]
-    active = np.ones(n_search, dtype=bool)
-    _, target_id = np.unique(targets, axis=0, return_inverse=True)
-    target_id = target_id.reshape(-1)
-    for iteration in range(1, max_iterations + 1):
-        active &= ~_stopping(jac, residual + targets, residual, error, history, iteration,
+    target_id = np.unique(targets, axis=0, return_inverse=True)[1].reshape(-1)
+    turns = _Turns(target_id, error) if in_turn else None
+    active = np.ones(n_search, dtype=bool) if turns is None else ~turns.waiting
+    for iteration in range(1, max_iterations * (1 if turns is None else turns.count) + 1):
+        active &= ~_stopping(jac, residual + targets, residual, error, history,
+                             iteration if turns is None else iterations + 1,
                              target_id, accept, stall_iterations=stall_iterations,
                              stall_factor=stall_factor, stationary_ratio=stationary_ratio,
                              stop_found_targets=stop_found_targets)
+        if turns is not None:
+            turns.next(active, iterations < max_iterations, _accepted(
+                jac, residual + targets, residual, error, **accept)[0])
         if not active.any():
             break
         idx = np.flatnonzero(active)
@@ -131,7 +132,6 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         queries[idx] += rows_per_state
         iterations[idx] += 1
         history.append(error.copy())
-
     return _outcome(point, jac, residual + targets, residual, error, queries, iterations, calls,
                     **accept)
 
@@ -162,17 +162,54 @@ def _checked_searches(body, target_sensations, starts, rank, **parameters):
     return targets, point
 
 
-def _outcome(point, jac, sensation, residual, error, queries, iterations, calls, *, rank,
-             error_tol, motor_tol, rank_ratio, min_singular,
-             pattern_ratio) -> CompensationSearch:
-    """The searches' final states, with the three acceptance tests."""
+def _accepted(jac, sensation, residual, error, *, rank, error_tol, motor_tol, rank_ratio,
+              min_singular, pattern_ratio):
+    """The three acceptance tests of each search: ``(accepted, singular values, motor residual)``."""
     singular = np.linalg.svd(jac, compute_uv=False)
-    ratio = singular[:, rank - 1] / np.maximum(singular[:, 0], 1e-300)
     motor_residual = _step_norm(jac, residual, rank)
     accepted = ((error <= error_tol * singular[:, 0])
                 & (motor_residual <= _motor_tolerance(singular, rank, *motor_tol))
                 & has_full_pose_rank(jac, rank, rank_ratio, min_singular, sensation,
                                      pattern_ratio))
+    return accepted, singular, motor_residual
+
+
+class _Turns:
+    """``compensate(in_turn=True)``: after the first call, which senses every
+    start, only the search toward each target whose start sensed most like it
+    goes on; the next (by that error) only when those before it stopped
+    unaccepted, each for ``max_iterations``."""
+
+    def __init__(self, target_id: np.ndarray, error: np.ndarray):
+        order = np.lexsort((error, target_id))
+        first = np.r_[True, target_id[order][1:] != target_id[order][:-1]]
+        self.turn = np.empty(len(order), dtype=int)
+        self.turn[order] = np.arange(len(order)) - np.maximum.accumulate(
+            np.where(first, np.arange(len(order)), 0))
+        self.target_id, self.waiting = target_id, self.turn > 0
+        self.count = 1 + int(self.turn.max())
+
+    def next(self, active: np.ndarray, budget_left: np.ndarray, accepted: np.ndarray) -> None:
+        """Stop (in ``active``, in place) the searches past their iterations and
+        start the next turn of every target whose searches all stopped unaccepted."""
+        active &= budget_left
+        ids = self.target_id
+        self.waiting &= ~np.isin(ids, ids[accepted])
+        idle = np.flatnonzero(self.waiting & ~np.isin(ids, ids[active]))
+        if len(idle):
+            idle = idle[np.lexsort((self.turn[idle], ids[idle]))]
+            first = idle[np.r_[True, ids[idle][1:] != ids[idle][:-1]]]
+            active[first], self.waiting[first] = True, False
+
+
+def _outcome(point, jac, sensation, residual, error, queries, iterations, calls, *, rank,
+             error_tol, motor_tol, rank_ratio, min_singular,
+             pattern_ratio) -> CompensationSearch:
+    """The searches' final states, with the three acceptance tests."""
+    accepted, singular, motor_residual = _accepted(
+        jac, sensation, residual, error, rank=rank, error_tol=error_tol, motor_tol=motor_tol,
+        rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
+    ratio = singular[:, rank - 1] / np.maximum(singular[:, 0], 1e-300)
     return CompensationSearch(motor_states=point, sensory_error=error, gain=singular[:, 0],
                               motor_residual=motor_residual, rank_ratio=ratio,
                               accepted=accepted, queries=queries, iterations=iterations,
@@ -188,7 +225,10 @@ def _stopping(jac, sensation, residual, error, history, iteration, target_id, ac
     rank, error_tol = accept["rank"], accept["error_tol"]
     done = _converged(jac, residual, error, error_tol, accept["motor_tol"], rank)
     stop = done.copy()
-    if iteration > stall_iterations:
+    if np.ndim(iteration):      # each search's own iterations (``compensate(in_turn=True)``)
+        stop |= (iteration > stall_iterations) & (error > stall_factor * history[
+            -1 - min(stall_iterations, len(history) - 1)])
+    elif iteration > stall_iterations:
         stop |= error > stall_factor * history[-1 - stall_iterations]
     if stationary_ratio > 0 or stop_found_targets:
         u, singular, _ = np.linalg.svd(jac, full_matrices=False)

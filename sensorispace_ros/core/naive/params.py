@@ -90,6 +90,8 @@ class NaiveParams:
     clock_translated_pairs: int = _default("clock_translated_pairs")
     clock_walk_attempts: int = _default("clock_walk_attempts")
     clock_brief_walk: bool = _default("clock_brief_walk")
+    clock_search_in_turn: bool = _default("clock_search_in_turn")
+    clock_sentinel_rows: int = _default("clock_sentinel_rows")
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
     clock_pov_polish_iterations: int = _default("clock_pov_polish_iterations")
     clock_unconfirmed_when_lost: bool = _default("clock_unconfirmed_when_lost")

@@ -246,7 +246,8 @@ class SearchAndSample:
                       pattern_ratio=p.pattern_ratio, max_iterations=p.lm_max_iterations,
                       motor_tol=p.lm_motor_tol, rank_ratio=p.rank_ratio, max_step=p.lm_max_step,
                       initial_damping=p.lm_initial_damping,
-                      stall_iterations=p.lm_stall_iterations, stop_found_targets=not isolated)
+                      stall_iterations=p.lm_stall_iterations, stop_found_targets=not isolated,
+                      **self._search_options())
         fine = dict(fd_step=self._fd_step, error_tol=p.lm_error_tol,
                     noise_step=self._tol.noise_step)
         if not isinstance(self._fd_step, AveragedStep):
@@ -266,6 +267,10 @@ class SearchAndSample:
             coarse.queries[found] += refined.queries
             coarse.calls += refined.calls
         return coarse
+
+    def _search_options(self) -> dict:
+        """More arguments of every ``compensate`` call (none here)."""
+        return {}
 
     def _first_search_step(self):
         """The step of a search's first pass (``_compensate``): one sensing per
