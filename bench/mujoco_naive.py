@@ -16,7 +16,11 @@ to the end, over the POVs' separation, and how far the end senses from the
 target, over what two sensings differ by at its measured noise).
 Prints JSON: the evaluator's headline numbers, wrong compensations by kind
 with their errors, every searched compensation, the rows and seconds of
-each stage, and the body's rendering time per frame. ``--views N`` runs no agent: it renders N views
+each stage, the body's rendering time per frame, the requests searched (by
+their target's distance to the POVs known then and its place against the
+paper strategy's positions: nearer the base, farther, between) with how
+many ended and on a POV, and the paper's positions no POV reached with the
+requests that asked for each. ``--views N`` runs no agent: it renders N views
 (joint states about the start, sd 1 rad, the object at seeded grid
 positions) and prints how many of them show almost nothing (few pixels
 above 20 gray levels), and the CPU time per frame. ``--graph-against DIR``
@@ -46,10 +50,11 @@ def _run(cfg: dict, seed: int):
     body = world.body(lights=world.initial_lights)
     agent = NaiveAgent(SensingOnly(body), NaiveParams(**cfg["naive"]))
     searches = _log_searches(agent, body)
+    centers, layout, kinds = [np.asarray(world.initial_center, float)], [0], ["initial"]
+    requests = _log_requests(agent, world, centers)
     started = time.perf_counter()
     reaction = agent.start(world.m0, seed=world.seed)
     rests, trace = [reaction.rest_motor_state], [_traced(reaction, "initial", body)]
-    centers, layout, kinds = [np.asarray(world.initial_center, float)], [0], ["initial"]
     for event in world.events:
         body.set_lights(event.lights)
         centers.append(np.asarray(event.center, float))
@@ -59,7 +64,8 @@ def _run(cfg: dict, seed: int):
         rests.append(reaction.rest_motor_state)
         trace.append(_traced(reaction, event.kind, body))
     explored = NaiveExploration(agent, centers, layout, kinds, time.perf_counter() - started, 0.0)
-    return world, body, summarize_naive(explored), np.asarray(rests), started, trace, searches
+    return (world, body, summarize_naive(explored), np.asarray(rests), started, trace, searches,
+            requests)
 
 
 def _log_searches(agent, body) -> list:
@@ -104,6 +110,88 @@ def _log_searches(agent, body) -> list:
     return log
 
 
+def _log_requests(agent, world, centers: list) -> list:
+    """Wraps ``agent._anchor_requests`` and ``agent._search``: per request the
+    agent searched, its event, kind (``anchor``: a snapshot's rest;
+    ``frontier``: a row of its sweep), the sensor position it asks for (the
+    anchor's or the row's position moved as the object moved since the
+    snapshot), that target's distance to the nearest POV known then, whether
+    a search ended and whether the end is a POV (ground truth: the forward
+    model, not counted as the agent's)."""
+    log, asked = [], {}
+    requests_of, search = agent._anchor_requests, agent._search
+
+    def position(motor):
+        return world.arm.forward(np.asarray(agent._to_body(motor), float)[None])[0][:2]
+
+    def wrapped_requests(matches, rest_hits, rank_now, current=None):
+        known_comp, requests = requests_of(matches, rest_hits, rank_now, current)
+        t = agent._event
+        known = np.array([position(m) for m in agent._store.samples[:agent._store.count, 0]])
+        asked[t] = []
+        for r in requests:
+            snap = agent._pool[r.snapshot]
+            source = agent._store.samples[r.row, 0] if r.row >= 0 else snap.rest_motor_state
+            target = position(source) + centers[t] - centers[snap.event]
+            nearest = float(np.min(np.hypot(*(known - target).T))) if len(known) else np.inf
+            asked[t].append((r.row >= 0, target, nearest))
+        return known_comp, requests
+
+    def wrapped_search(requests, current, tree, split_now):
+        found, new_povs, new_sensations = search(requests, current, tree, split_now)
+        for i, (frontier, target, nearest) in enumerate(asked.pop(agent._event, [])):
+            log.append({"event": agent._event, "frontier": frontier, "target": target,
+                        "nearest_known": nearest, "ended": i in found,
+                        "pov": i in found and found[i][0] >= 0})
+        return found, new_povs, new_sensations
+
+    agent._anchor_requests, agent._search = wrapped_requests, wrapped_search
+    return log
+
+
+def _request_summary(requests: list, world, spacing: float, true_positions: np.ndarray) -> dict:
+    """The searched requests by the target's distance to the nearest known POV
+    (in grid steps) and by where the target lies against the paper strategy's
+    positions (``inside``: nearer the base than all of them; ``beyond``:
+    farther than all); and the paper's positions no POV reached, each with
+    the requests that asked for it (event, kind, whether a search ended and
+    on a POV)."""
+    from scipy.spatial import cKDTree
+
+    from sensorispace_ros.evaluation.ground_truth import paper_compensated_positions
+
+    paper = paper_compensated_positions(world)
+    radius = np.hypot(*paper.T)
+    tolerance = 0.25 * spacing
+    rows = []
+    for q in requests:
+        r = float(np.hypot(*q["target"]))
+        where = ("inside" if r < radius.min() - tolerance
+                 else "beyond" if r > radius.max() + tolerance else "between")
+        steps = q["nearest_known"] / spacing
+        reach = next(label for limit, label in ((0.2, "<=0.2"), (1.2, "0.2-1.2"),
+                                                (2.4, "1.2-2.4"), (np.inf, ">2.4"))
+                     if steps <= limit)
+        rows.append(("frontier" if q["frontier"] else "anchor", where, reach, q))
+    table = Counter((k, w, s) for k, w, s, _ in rows)
+    ended = Counter((k, w, s) for k, w, s, q in rows if q["ended"])
+    povs = Counter((k, w, s) for k, w, s, q in rows if q["pov"])
+    missed = []
+    if len(true_positions):
+        distance, _ = cKDTree(true_positions).query(paper, k=1)
+        for position in paper[distance > tolerance]:
+            asked = [f"{q['event']}:{'f' if q['frontier'] else 'a'}:"
+                     f"{'pov' if q['pov'] else 'ended' if q['ended'] else 'no'}"
+                     for q in requests if np.hypot(*(q["target"] - position)) <= tolerance]
+            missed.append([np.round(position, 2).tolist(), asked])
+    return {
+        "requests_columns": ["kind", "target", "nearest known POV (grid steps)", "requests",
+                             "ended", "ended on a POV"],
+        "requests": [[*key, n, ended[key], povs[key]] for key, n in sorted(table.items())],
+        "paper_positions_missed": missed,
+    }
+
+
 def _traced(reaction, kind: str, body) -> dict:
     """One event: its kind, compensations, new POVs and rows, and per
     compensation what its image holds (pixels above 20 gray levels, the
@@ -137,7 +225,7 @@ def diagnose(cfg: dict, seed: int) -> dict:
     from sensorispace_ros.core import arm
     from sensorispace_ros.evaluation.naive import evaluate_naive_run
 
-    world, body, result, rests, started, trace, searches = _run(cfg, seed)
+    world, body, result, rests, started, trace, searches, requests = _run(cfg, seed)
     wall = time.perf_counter() - started
     agent = result.agent
     evaluated = evaluate_naive_run(result, world).metrics
@@ -200,6 +288,9 @@ def diagnose(cfg: dict, seed: int) -> dict:
         "render_s": round(body.render_seconds, 1),
         "events": [f"{t}:{step['kind']}:c{step['comp']}:n{step['new']}:r{step['rows']}"
                    for t, step in enumerate(trace)],
+        **_request_summary(requests, world, spacing,
+                           world.arm.forward(agent.points_of_view[:, 0])[:, :2]
+                           if len(agent.points_of_view) else np.zeros((0, 2))),
     }
 
 

@@ -85,13 +85,16 @@ class NaiveGroundTruth:
 def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
     """Ground truth of POVs recorded without it (a graph run): sensor poses
     from the forward model, object grid position from the tip displacement
-    since the initial pose."""
+    since the initial pose; ``grid`` the world's object positions, as the
+    offline run writes them (a MuJoCo world lays its grid about the object's
+    start, ``bodies.mujoco_world._grid_about``)."""
     from sensorispace_ros.core.world import grid_spacing, position_grid
 
     povs = np.asarray(povs, dtype=float)
     simulated = cfg.get("body", {}).get("kind", "simulated") == "simulated"
     # A MuJoCo body's chain is its model's (bodies.mujoco_model.planar_chain).
-    body_arm = Arm.from_config(cfg["arm"]) if simulated else run_world(cfg).arm
+    body_world = None if simulated else run_world(cfg)
+    body_arm = Arm.from_config(cfg["arm"]) if simulated else body_world.arm
     true_poses = body_arm.forward(povs[:, 0]).reshape(-1, 3)
     m0 = np.asarray(cfg["arm"]["initial_motor_state"], dtype=float)
     world = cfg["world"]
@@ -100,6 +103,8 @@ def ground_truth_from_motor(povs: np.ndarray, cfg: dict) -> dict:
     displacement = true_poses[:, :2] - body_arm.forward(m0)[:2]
     nearest = np.argmin(np.linalg.norm(displacement[:, None, :] - grid[None], axis=-1), axis=1)
     on_grid = np.linalg.norm(grid[nearest] - displacement, axis=1) < spacing / 4
+    if body_world is not None:
+        grid = body_world.grid
     return {"true_poses": true_poses, "true_positions": true_poses[:, :2].copy(),
             "motor_states": povs[:, 0], "grid": grid, "grid_spacing": np.float64(spacing),
             "grid_index": np.where(on_grid, nearest, -1), "initial_motor_state": m0}

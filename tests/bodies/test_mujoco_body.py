@@ -179,6 +179,18 @@ def test_a_graph_runs_truth_is_the_models_chain(other_world):
     np.testing.assert_allclose(truth["true_poses"], other_world.arm.forward(states[:, 0]))
 
 
+def test_a_graph_runs_grid_is_the_worlds(arm_world):
+    """The object grid written for a graph run is the one its world moves the
+    object over (laid about the object's start), as the offline run writes it."""
+    from sensorispace_ros.core.world import position_grid
+    from sensorispace_ros.evaluation.ground_truth import ground_truth_from_motor
+    cfg = config.load_config(ARM)
+    laid = position_grid(cfg["world"]["grid_half_width"], cfg["world"]["grid_count"])
+    assert not np.allclose(arm_world.grid, laid)       # the start's grid is not the centred one
+    truth = ground_truth_from_motor(arm_world.m0[None, None], cfg)
+    np.testing.assert_array_equal(truth["grid"], arm_world.grid)
+
+
 def test_two_bodies_of_one_world_keep_their_own_object(arm_world):
     first = arm_world.body(lights=arm_world.initial_lights)
     seen, _ = first.sense_at_rest()
