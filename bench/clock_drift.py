@@ -1,5 +1,5 @@
 """Which path of the clocked agent stores a POV whose samples drift off one
-eye pose (diagnostic; changes nothing the agent does unless asked).
+eye pose (diagnostic; changes nothing the agent does).
 
 Runs ``sensorispace reproduce --strategy naive`` (any of its arguments; the
 configuration must set ``world.clock: rows``) with wrappers that note, for
@@ -14,13 +14,12 @@ Writes beside the run's ``metrics.json``:
 * ``clock_drift_walks.npz``: the walk (start, target, each front's knots,
   Jacobians) of every POV whose spread exceeds 1e-3, and the lights of the
   world it was walked in, to replay it (``points_of_view.brief_loop_walks``);
-* ``clock_drift_steps.npy``: per brief walk, the largest projection step of
-  its samples and their pose spread.
+* ``clock_drift_steps.npy``: per brief walk's closed loop, the largest
+  distance its samples' projection moved them, their pose spread, and 1 if
+  the walk kept it (the agent drops a loop with a sample moved farther than
+  the walk's ``predictor_tol``: ``points_of_view.brief_loop_walks``), else 0.
 
-With ``CLOCKDRIFT_FIX=1`` a brief walk whose samples' projection step
-exceeds the walk's own ``predictor_tol`` is not a POV (its samples left the
-level set: the knots they were drawn from were corrected once, never
-checked)::
+Run as::
 
     nice -n 15 .venv/bin/python bench/clock_drift.py reproduce --strategy naive \\
         --config config/paper-clock.yaml --no-figures --quiet --out /tmp/clock_drift
@@ -29,7 +28,6 @@ from __future__ import annotations
 
 import atexit
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -63,7 +61,6 @@ def _dump(walk, samples, record) -> None:
 
 DUMPS: dict = {}
 STEPS: list = []
-FIX = bool(int(os.environ.get("CLOCKDRIFT_FIX", "0")))  # drop brief walks whose samples stray
 
 
 def instrument() -> None:
@@ -97,15 +94,15 @@ def instrument() -> None:
             super().__init__(body, start, **kwargs)
             STATE["walk"] = self
 
-        def project(self, samples, polish_iterations, sample_tol=np.inf):
+        def project(self, samples, polish_iterations, sample_tol=np.inf, step_tol=np.inf):
             before = samples.copy()
-            out = super().project(samples, polish_iterations, sample_tol)
-            if np.isinf(sample_tol) and polish_iterations:      # the brief walk
-                for p in np.flatnonzero([r == points_of_view.VALID for r in self.reason]):
+            closed = np.flatnonzero([r == points_of_view.VALID for r in self.reason])
+            out = super().project(samples, polish_iterations, sample_tol, step_tol)
+            if np.isfinite(step_tol) and polish_iterations:      # the brief walk
+                for p in closed:
                     step = float(np.max(np.linalg.norm(samples[p, 1:] - before[p, 1:], axis=1)))
-                    STEPS.append((step, _spread(samples[p])))
-                    if FIX and not step <= self.predictor_tol:
-                        self.reason[p] = points_of_view.NOT_CLOSED
+                    STEPS.append((step, _spread(samples[p]),
+                                  float(self.reason[p] == points_of_view.VALID)))
             return out
     points_of_view.LoopWalk = Recorded
 
@@ -145,7 +142,7 @@ def main() -> None:
         flat = {f"{k}.{n}": v for k, d in DUMPS.items() for n, v in d.items()}
         np.savez(out / "clock_drift_walks.npz", **flat,
                  **{f"lights{d['state']}": lights[d["state"]] for d in DUMPS.values()})
-        steps = np.asarray(STEPS).reshape(-1, 2)
+        steps = np.asarray(STEPS).reshape(-1, 3)
         np.save(out / "clock_drift_steps.npy", steps)
         worst = sorted(RECORDS, key=lambda r: -r["spread"])[:15]
         for r in worst:

@@ -5,6 +5,7 @@ import pytest
 
 from sensorispace_ros import config
 from sensorispace_ros.core.body import SensingOnly
+from sensorispace_ros.core.naive import points_of_view
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -63,6 +64,38 @@ def test_the_brief_walks_samples_lie_on_the_level_set(two_walks):
     sensed = body.sense(agent._phase.to_body(brief))
     scale = np.max(np.abs(sensed[0]))
     assert np.max(np.abs(sensed - sensed[0])) < 1e-5 * scale
+
+
+def _pushed_brief_walk(agent, monkeypatch, push):
+    """The clocked agent's brief walk of its start POV's third sample, every
+    knot but the start pushed ``push`` times the walk's ``predictor_tol`` off
+    the level set (along its Jacobian's strongest direction, one sign along
+    the loop) before the samples are drawn from the knots."""
+    class Pushed(points_of_view.LoopWalk):
+        def resample(self, n_samples, polish_knots=True):
+            for path, jacobians in zip(self.paths, self.jacobians_along):
+                along = None
+                for k in range(1, len(path)):
+                    away = np.linalg.svd(jacobians[k])[2][0]
+                    if along is not None and away @ along < 0:
+                        away = -away
+                    path[k], along = path[k] + push * self.predictor_tol * away, away
+            return super().resample(n_samples, polish_knots)
+    monkeypatch.setattr(points_of_view, "LoopWalk", Pushed)
+    state = agent.points_of_view[0, len(agent.points_of_view[0]) // 3][None]
+    with agent._body.fresh():
+        return agent._walk_povs(agent._phase.to_phase(state))
+
+
+@pytest.mark.parametrize("push, kept", [(0.0, True), (0.3, True), (3.0, False)])
+def test_a_brief_walk_whose_knots_left_the_level_set_is_no_pov(two_walks, monkeypatch,
+                                                                push, kept):
+    # The brief walk never senses its knots again: a sample its step moves
+    # farther than the walk's predictor_tol came from knots off the level set.
+    _, (_, (agent, _, _)) = two_walks
+    walked = _pushed_brief_walk(agent, monkeypatch, push)
+    assert bool(walked.valid[0]) is kept
+    assert walked.reason[0] == (points_of_view.VALID if kept else points_of_view.NOT_CLOSED)
 
 
 def test_the_lockstep_agent_keeps_its_walk(two_walks):

@@ -317,7 +317,7 @@ class LoopWalk:
         return samples
 
     def project(self, samples: np.ndarray, polish_iterations: int,
-                sample_tol: float = np.inf) -> float:
+                sample_tol: float = np.inf, step_tol: float = np.inf) -> float:
         """Project the valid POVs' samples (in place) back onto the level set
         with ``polish_iterations`` Gauss-Newton steps each; returns the
         largest sensory error before the last step (0 without steps).
@@ -328,7 +328,11 @@ class LoopWalk:
         it costs one row per sample instead of M + 1. Samples whose last
         correction is still above ``sample_tol`` (where the spline strays
         from a sharply bent loop) get steps with their own Jacobian
-        (``_repair``)."""
+        (``_repair``). A POV with a sample that its steps moved farther than
+        ``step_tol`` is not kept (``NOT_CLOSED``): that sample lay as far off
+        the level set as an uncorrected prediction, so the knots it was drawn
+        from were not on it, and one step does not bring it back
+        (``points_of_view.brief_loop_walks``)."""
         n_pov, n_samples, n_motors = samples.shape
         max_residual = 0.0
         good = np.flatnonzero([r == VALID for r in self.reason])
@@ -355,6 +359,12 @@ class LoopWalk:
             if stray.any():
                 self._repair(flat, flat_target, stray, np.repeat(good, n_samples - 1),
                              sample_tol)
+            if np.isfinite(step_tol):
+                with np.errstate(over="ignore", invalid="ignore"):
+                    moved = np.linalg.norm(flat - samples[good, 1:].reshape(-1, n_motors),
+                                           axis=1)
+                for p in np.unique(np.repeat(good, n_samples - 1)[~(moved <= step_tol)]):
+                    self.reason[p] = NOT_CLOSED
             samples[good, 1:] = flat.reshape(len(good), n_samples - 1, n_motors)
         return max_residual
 

@@ -187,23 +187,28 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
     the knots as the walk corrected them (``resample(polish_knots=False)``:
     that pass only evens the samples' spacing along the loop), and the
     samples given ``polish_iterations`` steps with their nearest knot's
-    Jacobian and no repair (``project`` with no ``sample_tol``). The caller
+    Jacobian and no repair (``project`` with no ``sample_tol``). Those knots
+    were corrected once and never sensed again: a POV with a sample the
+    steps moved farther than ``predictor_tol`` (what the walk aims a raw
+    prediction's correction at) is ``NOT_CLOSED`` (``project``'s
+    ``step_tol``), as its loop was not on the level set there. The caller
     may set ``predictor_tol`` larger than the full walk's: fewer knots.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
     pattern_ratio)``. Returns a ``SensoryPointsOfView``."""
     return _walk_loops(body, np.array(start, dtype=float, copy=True), rank=rank,
                        n_samples=n_samples, initial_step=initial_step, checks=checks,
-                       polish=(polish_iterations, np.inf), polish_knots=False, fd_step=fd_step,
-                       min_step=min_step, max_step=max_step, predictor_tol=predictor_tol,
-                       max_queries=max_queries, min_loop_length=min_loop_length,
-                       knots_per_step=knots_per_step, closure_tol=closure_tol)
+                       polish=(polish_iterations, np.inf, predictor_tol), polish_knots=False,
+                       fd_step=fd_step, min_step=min_step, max_step=max_step,
+                       predictor_tol=predictor_tol, max_queries=max_queries,
+                       min_loop_length=min_loop_length, knots_per_step=knots_per_step,
+                       closure_tol=closure_tol)
 
 
 def _walk_loops(body, start, *, rank, n_samples, initial_step, checks, polish,
                 polish_knots=True, **walk_parameters) -> SensoryPointsOfView:
     """1-D POVs: ``LoopWalk`` from every start, resampled and polished.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
-    pattern_ratio)``; ``polish``: ``(iterations, sample_tol)``;
+    pattern_ratio)``; ``polish``: ``(iterations, sample_tol[, step_tol])``;
     ``polish_knots``: see ``LoopWalk.resample``."""
     walk = LoopWalk(body, start, rank=rank, **walk_parameters)
     walk.begin(*checks, initial_step)
