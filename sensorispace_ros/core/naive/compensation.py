@@ -104,30 +104,14 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
     n_search, rows_per_state = len(point), stencil_rows(point.shape[1], fd_step)
-    queries, iterations = np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int)
+    iterations = np.zeros(n_search, dtype=int)
     if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
         return _none_accepted(point)
-    target_id = np.unique(targets, axis=0, return_inverse=True)[1].reshape(-1)
-    if in_turn and not isinstance(fd_step, (AveragedStep, CloudStep)):
-        # The starts alone first (their order is their error); a search's
-        # stencil only when its turn comes (``_Turns.stencils``).
-        sensation = np.asarray(body.sense(point), dtype=float).reshape(n_search, -1)
-        jac = np.zeros(sensation.shape + (point.shape[1],))
-        calls, queries = 1, queries + 1
-        residual = sensation - targets
-        error = np.linalg.norm(residual, axis=1)
-        turns = _Turns(target_id, error, max_turns, body=body, fd_step=fd_step)
-    else:
-        sensation, jac, _ = sensory_jacobian(body, point, fd_step)
-        calls, queries = 1, queries + rows_per_state
-        residual = sensation - targets
-        error = np.linalg.norm(residual, axis=1)
-        turns = _Turns(target_id, error, max_turns) if in_turn else None
+    target_id, sensation, jac, residual, error, queries, calls, turns = _first_call(
+        body, point, targets, fd_step, in_turn, max_turns)
     damping = np.full(n_search, float(initial_damping))
     history = [error.copy()]
     active = np.ones(n_search, dtype=bool) if turns is None else turns.turn == 0
-    if turns is not None:
-        calls += turns.stencils(active, point, sensation, jac, residual, error, targets, queries)
     for iteration in range(1, max_iterations * (1 if turns is None else turns.count) + 1):
         active &= ~_stopping(jac, residual + targets, residual, error, history,
                              iteration if turns is None else iterations + 1,
@@ -150,6 +134,31 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         history.append(error.copy())
     return _outcome(point, jac, residual + targets, residual, error, queries, iterations, calls,
                     **accept)
+
+
+def _first_call(body, point, targets, fd_step, in_turn, max_turns):
+    """``compensate``'s first call: every start's stencil; in turn (``_Turns``),
+    with a step whose stencil senses each state once, the starts alone, then the
+    stencils of the first turn's searches (``_Turns.stencils``). Returns
+    ``(target id of each search, sensations, Jacobians (0 where not sensed),
+    residuals, errors, rows of each search, calls, turns or None)``."""
+    n_search = len(point)
+    target_id = np.unique(targets, axis=0, return_inverse=True)[1].reshape(-1)
+    alone = in_turn and not isinstance(fd_step, (AveragedStep, CloudStep))
+    if alone:
+        sensation = np.asarray(body.sense(point), dtype=float).reshape(n_search, -1)
+        jac = np.zeros(sensation.shape + (point.shape[1],))
+        queries = np.ones(n_search, dtype=int)
+    else:
+        sensation, jac, _ = sensory_jacobian(body, point, fd_step)
+        queries = np.full(n_search, stencil_rows(point.shape[1], fd_step), dtype=int)
+    residual = sensation - targets
+    error = np.linalg.norm(residual, axis=1)
+    turns = _Turns(target_id, error, max_turns, body=body if alone else None,
+                   fd_step=fd_step) if in_turn else None
+    calls = 1 if turns is None else 1 + turns.stencils(
+        turns.turn == 0, point, sensation, jac, residual, error, targets, queries)
+    return target_id, sensation, jac, residual, error, queries, calls, turns
 
 
 def _none_accepted(point) -> CompensationSearch:
