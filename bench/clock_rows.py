@@ -20,7 +20,15 @@ clocked agent's methods, which change nothing it does, and writes
   rows of the LM searches toward each target (its starts together; the
   nearest known POVs sensed after it not included) by kind and outcome:
   ``new`` (a new POV), ``known`` (a known POV), ``fail``;
-* ``known_comp``: anchors a known POV matched (no search)::
+* ``search_turns.<kind>.<outcome>.<n>``: searches by the starts that took
+  a step (searched in turn: the turns taken);
+* ``known_comp``: anchors a known POV matched (no search);
+* ``reaction_rows.<outcome>`` / ``reactions.<outcome>``: the rows of the
+  exploring reactions (their final checks not included) by outcome:
+  ``new`` (kept, added a POV), ``compensated`` (kept, compensated toward
+  known POVs only), ``nothing`` (kept, neither), ``undone`` (a change cut
+  it; the POVs it salvaged not told apart);
+* ``clock_trace.json``: (motor states, POVs, clock row) after each kept reaction::
 
     nice -n 10 .venv/bin/python bench/clock_rows.py reproduce --strategy naive \\
         --config config/paper-clock.yaml --no-figures --quiet --out /tmp/clock_rows
@@ -36,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 COUNTS: collections.Counter = collections.Counter()
+TRACE: list = []        # (motor states, POVs, clock row) after each kept reaction
 
 
 def _kinds(agent, requests, matches) -> list:
@@ -83,6 +92,9 @@ def instrument() -> None:
             outcome = "fail" if i not in found else "new" if found[i][0] in new else "known"
             COUNTS[f"search_cost.{kind}.{outcome}"] += int(queries[owner == group[at]].sum())
             COUNTS[f"search_count.{kind}.{outcome}"] += 1
+            mine = np.flatnonzero(owner == group[at])
+            ran = int(np.count_nonzero(queries[mine] > queries.min()))
+            COUNTS[f"search_turns.{kind}.{outcome}.{ran}"] += 1
 
     def counted_search(self, requests, current, tree, split_now):
         kinds = getattr(self, "_bench_kinds", ["?"] * len(requests))
@@ -118,7 +130,48 @@ def instrument() -> None:
         COUNTS["rank_rows.equality_pass"] += self.rows - rows
         COUNTS["rank_tests.equality_pass"] += self.tested - tested
 
+    from sensorispace_ros.core.clocked_run import ClockedRun
+    react_agent, undo = Agent.react, ClockedRun._undo
+
+    def counted_react(self, passive):
+        before, stages = self.queries_total, self.queries_by_stage
+        self._bench_outcome = None
+        try:
+            reaction = react_agent(self, passive)
+        finally:
+            self._bench_rows = self.queries_total - before
+            self._bench_stages = {k: v - stages.get(k, 0) for k, v in self.queries_by_stage.items()}
+        if self.phase == "exploring" or len(reaction.new_pov_ids) or reaction.compensations:
+            self._bench_outcome = "new" if len(reaction.new_pov_ids) else \
+                "compensated" if reaction.compensated else "nothing"
+        return reaction
+
+    def counted_undo(self, saved, rows_before, *args):
+        if self.agent.phase == "exploring":
+            COUNTS["reaction_rows.undone"] += self.agent.queries_total - rows_before
+            COUNTS["reactions.undone"] += 1
+            for stage, rows in self.agent.queries_by_stage.items():
+                COUNTS[f"reaction_stage.undone.{stage}"] += rows - args[0].get(stage, 0)
+        self.agent._bench_outcome = None
+        undo(self, saved, rows_before, *args)
+
+    react_run = ClockedRun.react
+
+    def counted_run_react(self, sensed, reaction=None):
+        agent = self.agent
+        out = react_run(self, sensed, reaction)
+        outcome = getattr(agent, "_bench_outcome", None)
+        if outcome is not None:
+            COUNTS["reaction_rows." + outcome] += getattr(agent, "_bench_rows", 0)
+            COUNTS["reactions." + outcome] += 1
+            for stage, rows in getattr(agent, "_bench_stages", {}).items():
+                COUNTS[f"reaction_stage.{outcome}.{stage}"] += rows
+        agent._bench_outcome = None
+        TRACE.append((int(agent.queries_total), int(agent._store.count), int(self.body.row)))
+        return out
+
     AllPairsSweep._test = counted_test
+    Agent.react, ClockedRun._undo, ClockedRun.react = counted_react, counted_undo, counted_run_react
     Agent._anchor_requests, Agent._search = counted_requests, counted_search
     Agent._search_plan, Agent._compensate = planned, compensated
     Agent._test_ranks = rows_of(test_ranks, "rank", "rank_rows.test_ranks")
@@ -133,6 +186,7 @@ def main() -> None:
 
     def write():
         (out / "clock_rows.json").write_text(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
+        (out / "clock_trace.json").write_text(json.dumps(TRACE))
         print(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
 
     atexit.register(write)

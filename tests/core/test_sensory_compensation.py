@@ -140,6 +140,31 @@ def test_restarts_in_turn_run_only_after_those_before_failed(world):
     assert turns.calls > at_once.calls
 
 
+def test_in_turn_senses_a_stencil_only_for_the_starts_it_searches(world):
+    # Lights redistributed: every start fails. With one turn only the start
+    # sensing most like the target searches, exactly as it would alone; the
+    # others cost their own row, not their stencil.
+    target = _target(world)
+    lights = world.initial_center + draw_light_offsets(np.random.default_rng(0),
+                                                       len(world.initial_offsets))
+    sim = SimulatedBody(world.receptors, lights)
+    sensed_rows = []
+    body = types.SimpleNamespace(n_motors=4, n_sensors=6,
+                                 sense=lambda m: sensed_rows.append(len(m)) or sim.sense(m))
+    starts = np.vstack([world.m0 + [0.6, -0.4, 0.3, -0.2], world.m0,
+                        world.m0 + [-0.8, 0.5, 0.4, -0.3]])
+    targets = np.repeat(target[None], len(starts), axis=0)
+    one = compensate(body, targets, starts, in_turn=True, max_turns=1)
+    assert not one.accepted.any() and sum(sensed_rows) == one.queries.sum()
+    best = int(np.argmin(np.linalg.norm(sim.sense(starts) - target, axis=1)))
+    assert np.flatnonzero(one.iterations) == [best]
+    assert np.all(one.queries[np.arange(3) != best] == 1)
+    alone = compensate(sim, targets[best:best + 1], starts[best:best + 1], in_turn=True)
+    np.testing.assert_array_equal(one.motor_states[best], alone.motor_states[0])
+    assert one.iterations[best] == alone.iterations[0]
+    assert one.queries[best] == alone.queries[0]
+
+
 def test_searches_at_a_local_minimum_stop_early_with_the_same_error(world):
     # Lights redistributed: the old sensation exists nowhere, the searches
     # end in local minima with a nonzero residual.

@@ -260,10 +260,9 @@ class SnapshotMatching:
         unknown = np.unique(np.concatenate(needed).astype(int))
         unknown = unknown[rank_now[unknown] == RANK_UNKNOWN]
         if len(unknown):
-            # Which anchors are searched depends on these tests. The call also
-            # carries the stencils the search starts from if every tested state
-            # has full rank (the usual outcome): the search's first call is
-            # then answered from memory.
+            # Which anchors are searched depends on these tests. The call also carries
+            # what the search's first call senses (``_search_lookahead``) if every tested
+            # state has full rank (the usual outcome): that call is answered from memory.
             guess = rank_now.copy()
             guess[unknown] = RANK_FULL
             _, guessed = self._anchor_requests(full_rank_matches(matches, guess), rest_hits,
@@ -271,7 +270,7 @@ class SnapshotMatching:
             starts = self._search_plan(guessed, current)[-1] if guessed else np.zeros(
                 (0, self.n_motors))
             self._body.stage = "rank"
-            with self._body.lookahead(jacobian_stencil(starts, self._first_search_step())):
+            with self._body.lookahead(self._search_lookahead(starts)):
                 full, _ = check_pose_rank(self._body, self._store.samples[unknown, 0],
                                           rank=self.structure.pose_rank,
                                           fd_step=self._fd_step,
@@ -280,6 +279,10 @@ class SnapshotMatching:
                                           pattern_ratio=p.pattern_ratio)
             rank_now[unknown] = np.where(full, RANK_FULL, RANK_DEFICIENT)
         return full_rank_matches(matches, rank_now)
+
+    def _search_lookahead(self, starts: np.ndarray) -> np.ndarray:
+        """The rows a search from ``starts`` senses first: their stencils."""
+        return jacobian_stencil(starts, self._first_search_step())
 
     def _pooled_counts(self, rows: int) -> np.ndarray | None:
         """Sensings pooled per row of a snapshot taken now (None: not pooled)."""
@@ -490,9 +493,8 @@ class SnapshotMatching:
         return self.params
 
     def _frontier_budget(self) -> int:
-        """Frontier searches this event: ``frontier_attempts`` while they
-        find new POVs, down to one when they keep failing (the known POVs
-        already fill the reachable region; later translations may still
-        uncover a corner, so the agent keeps trying once per event)."""
+        """Frontier searches this event: ``frontier_attempts`` while they find new POVs,
+        down to one when they keep failing (the known POVs already fill the reachable
+        region; later translations may still uncover a corner: one try per event)."""
         share = min(1.0, self._frontier_success / 0.2)
         return max(1, int(np.ceil(self.params.frontier_attempts * share)))

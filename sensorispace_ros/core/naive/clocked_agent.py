@@ -37,6 +37,7 @@ from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
 from sensorispace_ros.core.naive.clock_known import KnownNearby
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
+from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
@@ -376,8 +377,20 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         return found, new_povs, sensations
 
     def _search_options(self) -> dict:
-        """A target's starts searched in turn (``clock_search_in_turn``): fewer rows, fewer cut."""
-        return {"in_turn": bool(self.params.clock_search_in_turn)}
+        """A target's starts searched in turn (``clock_search_in_turn``), ``clock_search_turns``
+        of them at most: fewer rows, fewer cut."""
+        return {"in_turn": bool(self.params.clock_search_in_turn),
+                "max_turns": int(self.params.clock_search_turns)}
+
+    def _search_lookahead(self, starts: np.ndarray) -> np.ndarray:
+        """Searching in turn, a search senses its starts first, and a start's
+        stencil only when its turn comes (``compensation.compensate``): the
+        starts not remembered since the change."""
+        if not self.params.clock_search_in_turn or \
+                isinstance(self._first_search_step(), (AveragedStep, CloudStep)):
+            return super()._search_lookahead(starts)
+        starts = np.asarray(starts, dtype=float).reshape(-1, self.n_motors)
+        return starts[[self._body._recall(row[None]) is None for row in starts]]
 
     def _run_searches(self, unique_targets, owner, starts):
         solution, others, gain = super()._run_searches(unique_targets, owner, starts)

@@ -46,7 +46,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensorispace_ros.core.naive.jacobians import (has_full_pose_rank, minimum_norm_correction,
+from sensorispace_ros.core.naive.jacobians import (AveragedStep, CloudStep, has_full_pose_rank,
+    minimum_norm_correction,
     sensory_jacobian, stencil_rows)
 
 
@@ -79,8 +80,8 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
                max_iterations: int = 40, error_tol: float = 1e-10, motor_tol: float = 1e-8,
                rank_ratio: float = 1e-3, max_step: float = 0.5, initial_damping: float = 1e-3,
                stall_iterations: int = 6, stall_factor: float = 0.5, stationary_ratio: float = 0.2,
-               stop_found_targets: bool = True, noise_step: float = 0.0, in_turn: bool = False
-               ) -> CompensationSearch:
+               stop_found_targets: bool = True, noise_step: float = 0.0, in_turn: bool = False,
+               max_turns: int = 0) -> CompensationSearch:
     """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
     from ``starts[k]`` for every search ``k`` at once.
 
@@ -92,7 +93,8 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     ``motor_residual <= _motor_tolerance``), after ``max_iterations``, when its
     error has not fallen below ``stall_factor`` times its value
     ``stall_iterations`` iterations earlier (a local minimum), or at the two
-    stops of the module docstring. ``in_turn``: a target's searches one at a time (``_Turns``).
+    stops of the module docstring. ``in_turn``: a target's searches one at a time (``_Turns``),
+    its ``max_turns`` best starts at most (0: every one; the others are sensed, not searched).
     """
     targets, point = _checked_searches(
         body, target_sensations, starts, rank=rank, fd_step=fd_step, max_iterations=max_iterations,
@@ -102,18 +104,14 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
     n_search, rows_per_state = len(point), stencil_rows(point.shape[1], fd_step)
-    queries, iterations = np.zeros(n_search, dtype=int), np.zeros(n_search, dtype=int)
+    iterations = np.zeros(n_search, dtype=int)
     if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
         return _none_accepted(point)
-    sensation, jac, _ = sensory_jacobian(body, point, fd_step)
-    calls, queries = 1, queries + rows_per_state
-    residual = sensation - targets
-    error = np.linalg.norm(residual, axis=1)
+    target_id, sensation, jac, residual, error, queries, calls, turns = _first_call(
+        body, point, targets, fd_step, in_turn, max_turns)
     damping = np.full(n_search, float(initial_damping))
     history = [error.copy()]
-    target_id = np.unique(targets, axis=0, return_inverse=True)[1].reshape(-1)
-    turns = _Turns(target_id, error) if in_turn else None
-    active = np.ones(n_search, dtype=bool) if turns is None else ~turns.waiting
+    active = np.ones(n_search, dtype=bool) if turns is None else turns.turn == 0
     for iteration in range(1, max_iterations * (1 if turns is None else turns.count) + 1):
         active &= ~_stopping(jac, residual + targets, residual, error, history,
                              iteration if turns is None else iterations + 1,
@@ -121,8 +119,10 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
                              stall_factor=stall_factor, stationary_ratio=stationary_ratio,
                              stop_found_targets=stop_found_targets)
         if turns is not None:
-            turns.next(active, iterations < max_iterations, _accepted(
+            started = turns.next(active, iterations < max_iterations, _accepted(
                 jac, residual + targets, residual, error, **accept)[0])
+            calls += turns.stencils(started, point, residual + targets, jac, residual, error,
+                                    targets, queries)
         if not active.any():
             break
         idx = np.flatnonzero(active)
@@ -134,6 +134,31 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         history.append(error.copy())
     return _outcome(point, jac, residual + targets, residual, error, queries, iterations, calls,
                     **accept)
+
+
+def _first_call(body, point, targets, fd_step, in_turn, max_turns):
+    """``compensate``'s first call: every start's stencil; in turn (``_Turns``),
+    with a step whose stencil senses each state once, the starts alone, then the
+    stencils of the first turn's searches (``_Turns.stencils``). Returns
+    ``(target id of each search, sensations, Jacobians (0 where not sensed),
+    residuals, errors, rows of each search, calls, turns or None)``."""
+    n_search = len(point)
+    target_id = np.unique(targets, axis=0, return_inverse=True)[1].reshape(-1)
+    alone = in_turn and not isinstance(fd_step, (AveragedStep, CloudStep))
+    if alone:
+        sensation = np.asarray(body.sense(point), dtype=float).reshape(n_search, -1)
+        jac = np.zeros(sensation.shape + (point.shape[1],))
+        queries = np.ones(n_search, dtype=int)
+    else:
+        sensation, jac, _ = sensory_jacobian(body, point, fd_step)
+        queries = np.full(n_search, stencil_rows(point.shape[1], fd_step), dtype=int)
+    residual = sensation - targets
+    error = np.linalg.norm(residual, axis=1)
+    turns = _Turns(target_id, error, max_turns, body=body if alone else None,
+                   fd_step=fd_step) if in_turn else None
+    calls = 1 if turns is None else 1 + turns.stencils(
+        turns.turn == 0, point, sensation, jac, residual, error, targets, queries)
+    return target_id, sensation, jac, residual, error, queries, calls, turns
 
 
 def _none_accepted(point) -> CompensationSearch:
@@ -178,28 +203,52 @@ class _Turns:
     """``compensate(in_turn=True)``: after the first call, which senses every
     start, only the search toward each target whose start sensed most like it
     goes on; the next (by that error) only when those before it stopped
-    unaccepted, each for ``max_iterations``."""
+    unaccepted, each for ``max_iterations``; ``max_turns`` turns at most (0: every start)."""
 
-    def __init__(self, target_id: np.ndarray, error: np.ndarray):
+    def __init__(self, target_id: np.ndarray, error: np.ndarray, max_turns: int = 0, *,
+                 body=None, fd_step=None):
         order = np.lexsort((error, target_id))
         first = np.r_[True, target_id[order][1:] != target_id[order][:-1]]
         self.turn = np.empty(len(order), dtype=int)
         self.turn[order] = np.arange(len(order)) - np.maximum.accumulate(
             np.where(first, np.arange(len(order)), 0))
+        if max_turns > 0:
+            self.turn = np.where(self.turn < max_turns, self.turn, -1)     # -1: never searched
         self.target_id, self.waiting = target_id, self.turn > 0
         self.count = 1 + int(self.turn.max())
+        self.body, self.fd_step = body, fd_step
 
-    def next(self, active: np.ndarray, budget_left: np.ndarray, accepted: np.ndarray) -> None:
+    def next(self, active: np.ndarray, budget_left: np.ndarray, accepted: np.ndarray
+             ) -> np.ndarray:
         """Stop (in ``active``, in place) the searches past their iterations and
-        start the next turn of every target whose searches all stopped unaccepted."""
+        start the next turn of every target whose searches all stopped unaccepted.
+        Returns the searches started."""
         active &= budget_left
         ids = self.target_id
         self.waiting &= ~np.isin(ids, ids[accepted])
         idle = np.flatnonzero(self.waiting & ~np.isin(ids, ids[active]))
+        started = np.zeros(len(active), dtype=bool)
         if len(idle):
             idle = idle[np.lexsort((self.turn[idle], ids[idle]))]
             first = idle[np.r_[True, ids[idle][1:] != ids[idle][:-1]]]
             active[first], self.waiting[first] = True, False
+            started[first] = True
+        return started
+
+    def stencils(self, started, point, sensation, jac, residual, error, targets, queries) -> int:
+        """Where only the starts were sensed (``body`` given), sense the
+        stencils of the searches ``started`` (their states already sensed:
+        ``sensation``), filling ``jac`` (and a lost row's sensation, residual
+        and error) in place. Returns the calls made (0 or 1)."""
+        idx = np.flatnonzero(started)
+        if self.body is None or not len(idx):
+            return 0
+        fresh, jac[idx], rows = sensory_jacobian(self.body, point[idx], self.fd_step,
+                                                 sensed=sensation[idx])
+        residual[idx] = fresh - targets[idx]
+        error[idx] = np.linalg.norm(residual[idx], axis=1)
+        queries[idx] += rows // len(idx)
+        return 1
 
 
 def _outcome(point, jac, sensation, residual, error, queries, iterations, calls, *, rank,
