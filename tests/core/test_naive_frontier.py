@@ -1,0 +1,81 @@
+"""Which frontier rows the naive agent searches (``frontier.FrontierChoice``):
+under noise, not a target a remembered split POV senses now, and the rows
+searched least often first; noiseless, the nearest in sensation first."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from sensorispace_ros.core.naive.anchors import Snapshot, frontier_requests
+from sensorispace_ros.core.naive.equality_sets import RANK_FULL
+from sensorispace_ros.core.naive.frontier import FrontierChoice
+from sensorispace_ros.core.naive.params import NaiveParams
+
+SD = 1e-3     # the noise the fake agent measured
+
+
+class _Agent(FrontierChoice):
+    """The parts of a NaiveAgent ``FrontierChoice`` reads."""
+
+    def __init__(self, n_povs, n_sensors, noisy=True, split_now=()):
+        self._noisy = noisy
+        self.structure = SimpleNamespace(noise=SD)
+        self.params = NaiveParams()
+        self._body = SimpleNamespace(n_sensors=n_sensors)
+        self._store = SimpleNamespace(count=n_povs)
+        self._split_now = np.asarray(split_now, dtype=float).reshape(-1, n_sensors)
+        self._frontier_success = 1.0
+
+
+def _world():
+    """A snapshot of 6 POVs of one sensor: rows 0 and 1 matched (POVs 6
+    and 7 now), rows 2-5 not, row 2 sensing most like a matched row."""
+    sensations = np.array([[0.10], [0.20], [0.22], [0.30], [0.50], [0.90]])
+    snap = Snapshot(0, sensations, np.full(6, RANK_FULL), np.zeros(1), np.zeros(2), 0)
+    samples = np.arange(8 * 4 * 2, dtype=float).reshape(8, 4, 2)
+    return [snap], [(np.array([0, 1]), np.array([6, 7]))], samples
+
+
+def _rows(agent, budget):
+    pool, matches, samples = _world()
+    requests = frontier_requests(pool, matches, pov_samples=samples, attempts=8, budget=budget,
+                                 order=agent._frontier_order)
+    return [r.row for r in requests]
+
+
+def test_noiseless_the_nearest_rows_in_sensation_come_first_however_often_tried():
+    agent = _Agent(8, 1, noisy=False, split_now=[[0.22]])
+    assert _rows(agent, 2) == [2, 3]
+    agent._count_tries([SimpleNamespace(row=2), SimpleNamespace(row=3)])
+    assert _rows(agent, 2) == [2, 3]
+
+
+def test_a_target_a_remembered_split_pov_senses_now_gives_its_turn_to_the_next_row():
+    # Row 2's target is sensed now, within the noise, by a split POV's
+    # state: a search would end on that loop, walked and found split.
+    agent = _Agent(8, 1, split_now=[[0.22 + SD], [5.0]])
+    assert _rows(agent, 2) == [3, 4]
+    # A split POV sensing something else leaves the rows as they were.
+    assert _rows(_Agent(8, 1, split_now=[[0.22 + 50 * SD]]), 2) == [2, 3]
+
+
+def test_rows_searched_least_often_come_first_under_noise():
+    agent = _Agent(8, 1)
+    assert _rows(agent, 2) == [2, 3]
+    pool, matches, samples = _world()
+    agent._count_tries(frontier_requests(pool, matches, pov_samples=samples, attempts=8,
+                                         budget=2, order=agent._frontier_order))
+    assert list(agent._frontier_tries()) == [0, 0, 1, 1, 0, 0, 0, 0]
+    # Rows 4 and 5 have not had their turn: they come before 2 and 3.
+    assert _rows(agent, 2) == [4, 5]
+    agent._count_tries([SimpleNamespace(row=4), SimpleNamespace(row=5)])
+    assert _rows(agent, 3) == [2, 3, 4]
+    # An anchor's request (row -1) is no frontier row's turn.
+    agent._count_tries([SimpleNamespace(row=-1)])
+    assert list(agent._frontier_tries()) == [0, 0, 1, 1, 1, 1, 0, 0]
+
+
+def test_the_tries_grow_with_the_povs_found():
+    agent = _Agent(3, 1)
+    agent._count_tries([SimpleNamespace(row=2)])
+    agent._store.count = 5
+    assert list(agent._frontier_tries()) == [0, 0, 1, 0, 0]
