@@ -1,9 +1,11 @@
 """Which frontier rows the naive agent searches (``frontier.FrontierChoice``):
 under noise, not a target a remembered split POV senses now, and the rows
-searched least often first; noiseless, the nearest in sensation first."""
+whose searches failed least often first; noiseless, the nearest in
+sensation first."""
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from sensorispace_ros.core.naive.anchors import Snapshot, frontier_requests
 from sensorispace_ros.core.naive.equality_sets import RANK_FULL
@@ -42,10 +44,18 @@ def _rows(agent, budget):
     return [r.row for r in requests]
 
 
-def test_noiseless_the_nearest_rows_in_sensation_come_first_however_often_tried():
+def _searched(agent, rows, new=()):
+    """``_track_frontier`` after searches of frontier ``rows`` (an anchor's
+    at row -1 too) that found POVs ``new`` (request ``i`` found POV 100 + i)."""
+    requests = [SimpleNamespace(row=-1)] + [SimpleNamespace(row=r) for r in rows]
+    found = {i: (100 + i, None) for i in range(len(requests))}
+    agent._track_frontier(requests, found, [100 + i for i in new])
+
+
+def test_noiseless_the_nearest_rows_in_sensation_come_first_however_often_they_failed():
     agent = _Agent(8, 1, noisy=False, split_now=[[0.22]])
     assert _rows(agent, 2) == [2, 3]
-    agent._count_tries([SimpleNamespace(row=2), SimpleNamespace(row=3)])
+    _searched(agent, [2, 3])
     assert _rows(agent, 2) == [2, 3]
 
 
@@ -58,24 +68,23 @@ def test_a_target_a_remembered_split_pov_senses_now_gives_its_turn_to_the_next_r
     assert _rows(_Agent(8, 1, split_now=[[0.22 + 50 * SD]]), 2) == [2, 3]
 
 
-def test_rows_searched_least_often_come_first_under_noise():
+def test_rows_whose_searches_failed_least_often_come_first_under_noise():
     agent = _Agent(8, 1)
     assert _rows(agent, 2) == [2, 3]
-    pool, matches, samples = _world()
-    agent._count_tries(frontier_requests(pool, matches, pov_samples=samples, attempts=8,
-                                         budget=2, order=agent._frontier_order))
-    assert list(agent._frontier_tries()) == [0, 0, 1, 1, 0, 0, 0, 0]
-    # Rows 4 and 5 have not had their turn: they come before 2 and 3.
-    assert _rows(agent, 2) == [4, 5]
-    agent._count_tries([SimpleNamespace(row=4), SimpleNamespace(row=5)])
-    assert _rows(agent, 3) == [2, 3, 4]
-    # An anchor's request (row -1) is no frontier row's turn.
-    agent._count_tries([SimpleNamespace(row=-1)])
-    assert list(agent._frontier_tries()) == [0, 0, 1, 1, 1, 1, 0, 0]
+    # Row 2's search found a new POV (request 1), row 3's found none; the
+    # anchor's request (row -1) is no frontier row's.
+    _searched(agent, [2, 3], new=[1])
+    assert list(agent._frontier_fails()) == [0, 0, 0, 1, 0, 0, 0, 0]
+    assert _rows(agent, 3) == [2, 4, 5]
+    assert agent._frontier_success == pytest.approx(0.9 + 0.1 * 0.5)
+    _searched(agent, [2, 4, 5])
+    assert _rows(agent, 4) == [2, 3, 4, 5]
+    _searched(agent, [2])
+    assert _rows(agent, 4) == [3, 4, 5, 2]
 
 
-def test_the_tries_grow_with_the_povs_found():
+def test_the_failures_grow_with_the_povs_found():
     agent = _Agent(3, 1)
-    agent._count_tries([SimpleNamespace(row=2)])
+    _searched(agent, [2])
     agent._store.count = 5
-    assert list(agent._frontier_tries()) == [0, 0, 1, 0, 0]
+    assert list(agent._frontier_fails()) == [0, 0, 1, 0, 0]

@@ -220,7 +220,7 @@ class SnapshotMatching:
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
     ``_body``, ``_store``, ``_pool``, ``_provisional``, ``_sets``, ``_rest_pov`` and
     ``_repeats``, ``_noisy``, ``_search_plan`` and ``_confirm`` (``searching``),
-    ``_frontier_order``, ``_count_tries`` and ``_frontier_budget`` (``frontier``)."""
+    ``_frontier_order`` and ``_frontier_budget`` (``frontier``)."""
 
     def _match_snapshots(self, current, tree):
         """Match every snapshot's sweep, and its anchor, with this sweep
@@ -479,7 +479,6 @@ class SnapshotMatching:
                                                by_motor=self._noisy,
                                                order=self._frontier_order)
         if current is not None:
-            self._count_tries(requests)
             requests = self._distinct_targets(requests, current)
         return known_comp, requests
 

@@ -13,12 +13,13 @@ the budget on targets that may still be new POVs (``_frontier_order``):
 * a row whose target a remembered split POV senses now, within what two
   sensings of one pose differ by, is not searched: a search would end on
   that loop, walked before and found split. The next rows fill the budget;
-* the rows searched least often come first (``frontier_tries``, counted
-  per POV whenever its row is chosen), then the nearest in sensation to a
-  matched row. A row whose targets keep failing (one at the edge of what
-  the arm reaches, whose displaced targets fall beyond it or into the
-  split poses) gives its turn to the others, so the POVs next to a region
-  not yet explored are tried as well, however often the budget is one.
+* the rows whose searches failed least often come first (``frontier_fails``,
+  counted per POV: its row searched and no new POV found), then the nearest
+  in sensation to a matched row. A row whose targets keep failing (one at
+  the edge of what the arm reaches, whose displaced targets fall beyond it
+  or into the split poses) gives its turn to the others, so the POVs next
+  to a region not yet explored are searched too, however often the budget
+  is one.
 
 Noiseless, the order is the nearest in sensation first, as before any of
 this; a search's end on a remembered split POV is found after the search
@@ -50,32 +51,28 @@ class FrontierChoice:
             sensed = _sensed_by_any(snapshot.sensations[rows], split,
                                     quantile * sd2 * (1.0 + 1.0 / counts))
             order = order[~sensed[order]]
-        tries = self._frontier_tries()
-        return order[np.argsort(tries[rows[order]], kind="stable")]
+        fails = self._frontier_fails()
+        return order[np.argsort(fails[rows[order]], kind="stable")]
 
-    def _frontier_tries(self) -> np.ndarray:
-        """``(P,)`` times each known POV's row was chosen as a frontier row."""
-        tries = getattr(self, "_tries", np.zeros(0, dtype=int))
-        if len(tries) < self._store.count:
-            tries = np.concatenate([tries, np.zeros(self._store.count - len(tries), dtype=int)])
-            self._tries = tries
-        return tries
-
-    def _count_tries(self, requests) -> None:
-        """The frontier rows of this event's ``requests`` had their turn."""
-        if self._noisy:
-            tries = self._frontier_tries()
-            for r in requests:
-                if r.row >= 0:
-                    tries[r.row] += 1
+    def _frontier_fails(self) -> np.ndarray:
+        """``(P,)`` frontier searches of each known POV's row that found no new POV."""
+        fails = getattr(self, "_fails", np.zeros(0, dtype=int))
+        if len(fails) < self._store.count:
+            fails = np.concatenate([fails, np.zeros(self._store.count - len(fails), dtype=int)])
+            self._fails = fails
+        return fails
 
     def _track_frontier(self, requests, found, new_povs) -> None:
-        """Moving average of the frontier searches that found a new POV."""
+        """Moving average of the frontier searches (``requests`` searched) that
+        found a new POV; under noise, each row's failures (``_frontier_fails``)."""
         frontier = [i for i, r in enumerate(requests) if r.row >= 0]
+        hit = [i in found and found[i][0] >= 0 and found[i][0] in new_povs for i in frontier]
+        if self._noisy:
+            fails = self._frontier_fails()
+            for i, new in zip(frontier, hit):
+                fails[requests[i].row] += not new
         if frontier:
-            hits = sum(1 for i in frontier if i in found and found[i][0] >= 0
-                       and found[i][0] in new_povs)
-            self._frontier_success = 0.9 * self._frontier_success + 0.1 * hits / len(frontier)
+            self._frontier_success = 0.9 * self._frontier_success + 0.1 * sum(hit) / len(frontier)
 
     def _frontier_budget(self) -> int:
         """Frontier searches this event: ``frontier_attempts`` while they
