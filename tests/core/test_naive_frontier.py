@@ -1,7 +1,7 @@
 """Which frontier rows the naive agent searches (``frontier.FrontierChoice``):
-under noise, not a target a remembered split POV senses now, and the rows
-whose searches failed least often first; noiseless, the nearest in
-sensation first."""
+with ``frontier_give_way`` under noise, not a target a remembered split
+POV senses now, and the rows whose searches failed least often first;
+otherwise the nearest in sensation first."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -18,10 +18,10 @@ SD = 1e-3     # the noise the fake agent measured
 class _Agent(FrontierChoice):
     """The parts of a NaiveAgent ``FrontierChoice`` reads."""
 
-    def __init__(self, n_povs, n_sensors, noisy=True, split_now=()):
+    def __init__(self, n_povs, n_sensors, noisy=True, split_now=(), give_way=True):
         self._noisy = noisy
         self.structure = SimpleNamespace(noise=SD)
-        self.params = NaiveParams()
+        self.params = NaiveParams(frontier_give_way=give_way)
         self._body = SimpleNamespace(n_sensors=n_sensors)
         self._store = SimpleNamespace(count=n_povs)
         self._split_now = np.asarray(split_now, dtype=float).reshape(-1, n_sensors)
@@ -54,6 +54,13 @@ def _searched(agent, rows, new=()):
 
 def test_noiseless_the_nearest_rows_in_sensation_come_first_however_often_they_failed():
     agent = _Agent(8, 1, noisy=False, split_now=[[0.22]])
+    assert _rows(agent, 2) == [2, 3]
+    _searched(agent, [2, 3])
+    assert _rows(agent, 2) == [2, 3]
+
+
+def test_without_frontier_give_way_the_noisy_order_is_the_nearest_first_too():
+    agent = _Agent(8, 1, split_now=[[0.22 + SD]], give_way=False)
     assert _rows(agent, 2) == [2, 3]
     _searched(agent, [2, 3])
     assert _rows(agent, 2) == [2, 3]

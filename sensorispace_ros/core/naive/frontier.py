@@ -7,8 +7,9 @@ may be a new POV, a pose whose POV splits, or a pose no motor state reaches.
 The agent searches ``_frontier_budget`` of them per event, fewer while they
 keep failing (``_track_frontier``).
 
-Where noise sized the tolerances, the rows are taken in an order that keeps
-the budget on targets that may still be new POVs (``_frontier_order``):
+With ``frontier_give_way``, where noise sized the tolerances, the rows are
+taken in an order meant to keep the budget on targets that may still be new
+POVs (``_frontier_order``):
 
 * a row whose target a remembered split POV senses now, within what two
   sensings of one pose differ by, is not searched: a search would end on
@@ -21,9 +22,10 @@ the budget on targets that may still be new POVs (``_frontier_order``):
   to a region not yet explored are searched too, however often the budget
   is one.
 
-Noiseless, the order is the nearest in sensation first, as before any of
-this; a search's end on a remembered split POV is found after the search
-(``searching._known_solutions``).
+Otherwise the order is the nearest in sensation first; a search's end on a
+remembered split POV is found after the search (``searching._known_solutions``).
+The order trades coverage between seeds (docs/mujoco.md, "Frontier rows
+that keep failing give way"), hence off by default.
 """
 from __future__ import annotations
 
@@ -41,7 +43,7 @@ class FrontierChoice:
         their sensory distance to the nearest matched row), in the order
         their requests are made (module docstring); the split ones left out."""
         order = np.argsort(distance, kind="stable")
-        if not self._noisy:
+        if not self._give_way():
             return order
         split = np.asarray(getattr(self, "_split_now", ()), dtype=float)
         if split.size:
@@ -53,6 +55,10 @@ class FrontierChoice:
             order = order[~sensed[order]]
         fails = self._frontier_fails()
         return order[np.argsort(fails[rows[order]], kind="stable")]
+
+    def _give_way(self) -> bool:
+        """Whether the order of ``frontier_give_way`` applies (noise sized the tolerances)."""
+        return bool(self._noisy and self.params.frontier_give_way)
 
     def _frontier_fails(self) -> np.ndarray:
         """``(P,)`` frontier searches of each known POV's row that found no new POV."""
@@ -67,7 +73,7 @@ class FrontierChoice:
         found a new POV; under noise, each row's failures (``_frontier_fails``)."""
         frontier = [i for i, r in enumerate(requests) if r.row >= 0]
         hit = [i in found and found[i][0] >= 0 and found[i][0] in new_povs for i in frontier]
-        if self._noisy:
+        if self._give_way():
             fails = self._frontier_fails()
             for i, new in zip(frontier, hit):
                 fails[requests[i].row] += not new
