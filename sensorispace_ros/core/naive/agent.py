@@ -57,6 +57,7 @@ from sensorispace_ros.core.body_description import BodyDescription
 from sensorispace_ros.core.naive.anchors import Snapshot, SnapshotMatching
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetCollection, EqualitySetSweep, check_pose_rank, finite_rows)
+from sensorispace_ros.core.naive.frontier import FrontierChoice
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import PovStore
 from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
@@ -72,7 +73,7 @@ from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 EXPLORING = "exploring"
 
 
-class NaiveAgent(SnapshotMatching, SearchAndSample):
+class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
     """Event-driven naive explorer (see the module docstring).
 
     ``body`` needs ``sense(motor_states (B, M)) -> (B, S)``, ``n_motors`` and
@@ -376,6 +377,7 @@ class NaiveAgent(SnapshotMatching, SearchAndSample):
         # This event's memory of (motor, sensation): the sweep of the known POVs.
         self._body.stage = "sweep"
         current, split_now = self._sweep_known()
+        self._split_now = split_now             # what frontier._frontier_order leaves out
         tree = cKDTree(finite_rows(current, -1.0)) if len(current) else None
         matches, rest_hits, rank_now = self._match_snapshots(current, tree)
         matches = self._test_ranks(matches, rest_hits, rank_now, current)

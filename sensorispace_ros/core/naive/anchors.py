@@ -77,7 +77,8 @@ class Snapshot:
 
 
 def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
-                    pov_samples: np.ndarray, frontier_budget: int, by_motor: bool = False):
+                    pov_samples: np.ndarray, frontier_budget: int, by_motor: bool = False,
+                    order=None):
     """Anchors: matched by a known POV, or searched for. A snapshot none
     of whose POVs matches is from before a redistribution or from before
     a long translation; its anchor is searched only while few POVs were
@@ -85,7 +86,7 @@ def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
     too, and the search would be wasted). ``matches`` of full rank only;
     ``rest_hits[k]`` the POV now sensing snapshot ``k``'s anchor (-1: none);
     ``by_motor``: the requests of a snapshot with matches carry their
-    ``Neighbours`` (frontier rows as ``frontier_requests``'s).
+    ``Neighbours`` (frontier rows as ``frontier_requests``'s, in ``order``).
     Returns ``({snapshot index: known POV}, [Request, ...])``."""
     known_comp: dict[int, int] = {}
     requests: list[Request] = []
@@ -110,12 +111,13 @@ def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
             unconfirmed_left -= 1
     requests.extend(frontier_requests(pool, matches, pov_samples=pov_samples,
                                       attempts=params.frontier_attempts,
-                                      budget=frontier_budget, by_motor=by_motor))
+                                      budget=frontier_budget, by_motor=by_motor,
+                                      order=order))
     return known_comp, requests
 
 
 def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts: int,
-                      budget: int, by_motor: bool = False) -> list:
+                      budget: int, by_motor: bool = False, order=None) -> list:
     """Anchors beyond the rest: rows of the most recent confirmed snapshot
     that no known POV matches, the ``budget`` nearest (in that snapshot's
     sensations) to a matched row (none if ``attempts`` is 0). Their targets
@@ -123,7 +125,8 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
     displacement; the matched neighbour's partner is a start a lattice step
     from the target. ``by_motor``: the neighbour is the matched row whose
     POV lies nearest the row's in motor space (a sensation alike may be a
-    far pose's), and the request carries its ``Neighbours``."""
+    far pose's), and the request carries its ``Neighbours``. ``order(distance,
+    rows, snapshot)``: the rows' indices in the order asked (default nearest first)."""
     for k, snap in enumerate(pool):
         before, after = matches[k]
         if len(before) == 0:
@@ -136,11 +139,12 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
             return []
         distance, nearest = cKDTree(snap.sensations[before]).query(
             snap.sensations[unmatched], k=1)
-        order = np.argsort(distance, kind="stable")[:budget]
+        chosen = np.argsort(distance, kind="stable") if order is None else \
+            order(distance, unmatched, snap)
         requests = [Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
                             pov_samples[unmatched[i], 0], pov_samples[after[nearest[i]], 0],
                             snap.count(int(unmatched[i])))
-                    for i in order]
+                    for i in chosen[:budget]]
         if by_motor:
             for r in requests:
                 r.neighbours = matched_neighbours(pov_samples, before, after,
@@ -215,8 +219,8 @@ _FRONTIER_REACH = 4.0
 class SnapshotMatching:
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
     ``_body``, ``_store``, ``_pool``, ``_provisional``, ``_sets``, ``_rest_pov`` and
-    ``_frontier_success``, ``_repeats``, ``_noisy``, and ``_search_plan`` and
-    ``_confirm`` (``searching``)."""
+    ``_repeats``, ``_noisy``, ``_search_plan`` and ``_confirm`` (``searching``),
+    ``_frontier_order`` and ``_frontier_budget`` (``frontier``)."""
 
     def _match_snapshots(self, current, tree):
         """Match every snapshot's sweep, and its anchor, with this sweep
@@ -433,14 +437,6 @@ class SnapshotMatching:
         self._provisional = pending
         return confirmed + kept
 
-    def _track_frontier(self, requests, found, new_povs) -> None:
-        """Moving average of the frontier searches that found a new POV."""
-        frontier = [i for i, r in enumerate(requests) if r.row >= 0]
-        if frontier:
-            hits = sum(1 for i in frontier if i in found and found[i][0] >= 0
-                       and found[i][0] in new_povs)
-            self._frontier_success = 0.9 * self._frontier_success + 0.1 * hits / len(frontier)
-
     def _add_equality_sets(self, matches, requests, found) -> None:
         """Equality sets: the changes matched for one snapshot (and the
         compensations of its anchors) all compensate one displacement."""
@@ -483,7 +479,8 @@ class SnapshotMatching:
                                                self._anchor_params(),
                                                pov_samples=self._store.samples,
                                                frontier_budget=self._frontier_budget(),
-                                               by_motor=self._noisy)
+                                               by_motor=self._noisy,
+                                               order=self._frontier_order)
         if current is not None:
             requests = self._distinct_targets(requests, current)
         return known_comp, requests
@@ -491,10 +488,3 @@ class SnapshotMatching:
     def _anchor_params(self):
         """The parameters ``anchor_requests`` works with: the agent's own."""
         return self.params
-
-    def _frontier_budget(self) -> int:
-        """Frontier searches this event: ``frontier_attempts`` while they find new POVs,
-        down to one when they keep failing (the known POVs already fill the reachable
-        region; later translations may still uncover a corner: one try per event)."""
-        share = min(1.0, self._frontier_success / 0.2)
-        return max(1, int(np.ceil(self.params.frontier_attempts * share)))

@@ -80,6 +80,7 @@ class NaiveParams:
     probe_grid: int = _default("probe_grid")
     probe_starts: int = _default("probe_starts")
     frontier_attempts: int = _default("frontier_attempts")
+    frontier_give_way: bool = _default("frontier_give_way")
     equality_snapshots: int = _default("equality_snapshots")
     confirm_checks: int = _default("confirm_checks")
     remember_sensations: bool = _default("remember_sensations")
