@@ -1,0 +1,96 @@
+"""Frontier targets of many sensings, averaged while their environment lasts.
+
+A frontier row is a snapshot's sensation of one POV, searched for after
+the environment changed: it can never be sensed again. Sensed once, its
+noise leaves the pose it asks for uncertain by the noise over the eye's
+weakest pose direction; where that exceeds the precision a compensation is
+held to (``SearchAndSample._max_pose_error``) no search toward it can be
+accepted, however well its end is averaged. Which rows will be frontier
+rows depends on the next displacement, which the agent cannot know; every
+row is as likely. So, only where one sensing cannot pin a pose, each
+snapshot senses ``averaged_targets`` of its rows again, as often as an
+anchor (``_repeats``), before the environment changes: the rows pooled
+least so far, in turn over the POVs. Their means and counts go into the
+snapshot (``Snapshot.counts``), so matches, the test of a target standing
+out and the averaged check of a search's end all see the target's own
+variance, and frontier requests take the rows of most sensings first
+(``anchors.frontier_requests``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def rows_to_average(counts: np.ndarray, wanted: int, event: int) -> np.ndarray:
+    """The ``wanted`` rows of fewest pooled sensings ``counts`` ``(K,)``,
+    ties taken in turn from row ``event * wanted`` (modulo ``K``) on, so
+    that successive events average other rows."""
+    counts = np.asarray(counts)
+    n_rows = len(counts)
+    if n_rows == 0 or wanted <= 0:
+        return np.zeros(0, dtype=int)
+    turn = (np.arange(n_rows) - event * wanted) % n_rows
+    return np.lexsort((turn, counts))[:min(wanted, n_rows)]
+
+
+def average_rows(body, motor_states: np.ndarray, sensations: np.ndarray, counts: np.ndarray,
+                 rows: np.ndarray, repeats: int):
+    """Sense ``motor_states[rows]`` ``repeats`` more times each (one call,
+    never answered from memory) and pool the finite sensings with the
+    ``counts`` already averaged in ``sensations``. Returns the new
+    ``(sensations (K, S), counts (K,))`` (copies)."""
+    sensations = np.array(sensations, dtype=float, copy=True)
+    counts = np.array(counts, dtype=int, copy=True)
+    rows = np.asarray(rows, dtype=int)
+    if not len(rows) or repeats <= 0:
+        return sensations, counts
+    asked = np.repeat(np.asarray(motor_states, dtype=float)[rows], repeats, axis=0)
+    with body.fresh():
+        sensed = np.asarray(body.sense(asked), dtype=float).reshape(len(rows), repeats, -1)
+    finite = np.all(np.isfinite(sensed), axis=2)
+    added = finite.sum(axis=1)
+    total = np.where(finite[:, :, None], sensed, 0.0).sum(axis=1)
+    before = np.where(np.all(np.isfinite(sensations[rows]), axis=1), counts[rows], 0)
+    previous = np.where(before[:, None] > 0, sensations[rows], 0.0) * before[:, None]
+    pooled = before + added
+    ok = pooled > 0
+    sensations[rows[ok]] = (previous[ok] + total[ok]) / pooled[ok, None]
+    counts[rows[ok]] = pooled[ok]
+    return sensations, counts
+
+
+def averaged_targets(agent, pooled: np.ndarray, counts: np.ndarray):
+    """``pooled``, ``counts`` (this event's snapshot rows, ``anchors.pooled_sweep``)
+    with some rows averaged more, only where noise that spreads sized the
+    tolerances and one sensing of a target leaves its pose, at the weakest
+    pose singular value measured at the start, more uncertain than
+    ``_max_pose_error``; else unchanged. ``averaged_targets`` rows while the
+    frontier searches find new POVs, fewer as their budget falls
+    (``_frontier_budget``): averaging pays only where a frontier target may
+    be searched. Each as often as lets a target where the weakest pose
+    singular value is ``target_singular`` times the start's pass the test
+    with its end averaged ``_repeats`` times (``target_repeats``)."""
+    structure, limit, p = agent.structure, agent._max_pose_error(), agent.params
+    if not agent._noisy or agent._repeats <= 1 or p.frontier_attempts == 0 or \
+            not np.isfinite(limit) or structure.weakest <= 0 or \
+            structure.noise / structure.weakest <= limit:
+        return pooled, counts
+    wanted = int(np.ceil(p.averaged_targets * agent._frontier_budget() / p.frontier_attempts))
+    rows = rows_to_average(counts, wanted, agent._event)
+    agent._body.stage = "sweep"
+    repeats = target_repeats(structure.noise, p.target_singular * structure.weakest, limit,
+                             agent._repeats)
+    return average_rows(agent._body, agent._store.samples[:len(pooled), 0], pooled, counts,
+                        rows, repeats)
+
+
+def target_repeats(noise: float, singular: float, limit: float, end_repeats: int) -> int:
+    """Sensings of a target that keep the predicted pose error of its
+    compensation, with the end averaged ``end_repeats`` times, within
+    ``limit`` where the weakest pose singular value is ``singular``:
+    ``noise^2 (1/k + 1/end_repeats) / singular^2 <= limit^2``; ``end_repeats``
+    where even an exact target would not pass."""
+    room = (limit * singular / noise) ** 2 - 1.0 / end_repeats
+    if room <= 0:
+        return int(end_repeats)
+    return int(np.clip(np.ceil(1.0 / room), 1, end_repeats))
