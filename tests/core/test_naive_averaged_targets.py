@@ -9,8 +9,8 @@ import numpy as np
 
 from sensorispace_ros.core.naive.anchors import Snapshot, frontier_requests
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.targets import (average_rows, averaged_targets, rows_to_average,
-    target_repeats)
+from sensorispace_ros.core.naive.targets import (average_rows, averaged_targets, averages_targets,
+    rows_to_average, target_repeats)
 
 
 class _NoisyBody:
@@ -103,8 +103,12 @@ def test_a_snapshot_averages_rows_where_one_sensing_cannot_pin_a_pose():
     agent, truth = _agent()
     sensations, counts = averaged_targets(agent, truth.copy(), np.ones(5, int))
     k = target_repeats(1e-3, 4.0 * 0.002, 0.03, 64)
-    assert 1 < k < 64 and sorted(counts) == [1, 1, 1, 1 + k, 1 + k]
-    assert agent._body.rows == 2 * k
+    assert 1 < k < 64 and sorted(counts) == [1, 1, 1, k, k]
+    assert agent._body.rows == 2 * (k - 1)
+    # Rows already pooled from that many sensings are not sensed again.
+    agent, truth = _agent()
+    _, counts = averaged_targets(agent, truth.copy(), np.array([1, k, k, k, k]))
+    assert list(counts) == [k] * 5 and agent._body.rows == k - 1
 
 
 def test_fewer_rows_are_averaged_as_the_frontier_budget_falls():
@@ -115,8 +119,11 @@ def test_fewer_rows_are_averaged_as_the_frontier_budget_falls():
 
 
 def test_no_row_is_sensed_again_where_one_sensing_pins_the_pose():
-    for agent, _ in (_agent(weakest=0.1), _agent(noisy=False), _agent(repeats=1),
-                     _agent(separation=np.inf)):
+    # weakest 0.02: one sensing fails at the start's weakest singular value
+    # (0.05 > 0.03) but passes at four times it.
+    for agent, _ in (_agent(weakest=0.1), _agent(weakest=0.02), _agent(noisy=False),
+                     _agent(repeats=1), _agent(separation=np.inf)):
+        assert not averages_targets(agent)
         sweep = np.full((5, 6), 0.5)
         sensations, counts = averaged_targets(agent, sweep, np.ones(5, int))
         assert agent._body.rows == 0
@@ -133,9 +140,10 @@ def test_frontier_requests_take_the_rows_of_most_sensings_first():
                     counts=np.array([1, 1, 1, 1, 257]))
     matches = [(np.array([0, 1]), np.array([5, 6]))]
     requests = frontier_requests([snap], matches, pov_samples=samples, attempts=8,
-                                 budget=2, by_motor=True)
+                                 budget=2, by_motor=True, precise_first=True)
     assert [r.row for r in requests] == [4, 2] and requests[0].count == 257
-    # Where sensings are not pooled (a noiseless agent) the nearest rows come first.
-    requests = frontier_requests([snap], matches, pov_samples=samples, attempts=8,
-                                 budget=2, by_motor=False)
-    assert [r.row for r in requests] == [2, 3]
+    # Where the agent does not average targets the nearest rows come first.
+    for by_motor in (True, False):
+        requests = frontier_requests([snap], matches, pov_samples=samples, attempts=8,
+                                     budget=2, by_motor=by_motor)
+        assert [r.row for r in requests] == [2, 3]

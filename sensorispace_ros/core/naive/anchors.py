@@ -26,7 +26,7 @@ from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
     matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
-from sensorispace_ros.core.naive.targets import averaged_targets
+from sensorispace_ros.core.naive.targets import averaged_targets, averages_targets
 
 
 @dataclass
@@ -77,16 +77,16 @@ class Snapshot:
         return 1 if self.counts is None else int(self.counts[row])
 
 
-def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
-                    pov_samples: np.ndarray, frontier_budget: int, by_motor: bool = False):
+def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *, pov_samples: np.ndarray,
+                    frontier_budget: int, by_motor: bool = False, precise_first: bool = False):
     """Anchors: matched by a known POV, or searched for. A snapshot none
     of whose POVs matches is from before a redistribution or from before
     a long translation; its anchor is searched only while few POVs were
     known (later a long translation puts the anchor's target out of reach
     too, and the search would be wasted). ``matches`` of full rank only;
     ``rest_hits[k]`` the POV now sensing snapshot ``k``'s anchor (-1: none);
-    ``by_motor``: the requests of a snapshot with matches carry their
-    ``Neighbours`` (frontier rows as ``frontier_requests``'s).
+    ``by_motor``, ``precise_first``: as ``frontier_requests``'s (anchors carry
+    their ``Neighbours`` too).
     Returns ``({snapshot index: known POV}, [Request, ...])``."""
     known_comp: dict[int, int] = {}
     requests: list[Request] = []
@@ -111,12 +111,13 @@ def anchor_requests(pool: list, matches, rest_hits, rank_now, params, *,
             unconfirmed_left -= 1
     requests.extend(frontier_requests(pool, matches, pov_samples=pov_samples,
                                       attempts=params.frontier_attempts,
-                                      budget=frontier_budget, by_motor=by_motor))
+                                      budget=frontier_budget, by_motor=by_motor,
+                                      precise_first=precise_first))
     return known_comp, requests
 
 
 def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts: int,
-                      budget: int, by_motor: bool = False) -> list:
+                      budget: int, by_motor: bool = False, precise_first: bool = False) -> list:
     """Anchors beyond the rest: rows of the most recent confirmed snapshot
     that no known POV matches, the ``budget`` nearest (in that snapshot's
     sensations) to a matched row (none if ``attempts`` is 0). Their targets
@@ -124,7 +125,8 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
     displacement; the matched neighbour's partner is a start a lattice step
     from the target. ``by_motor``: the neighbour is the matched row whose
     POV lies nearest the row's in motor space (a sensation alike may be a
-    far pose's), and the request carries its ``Neighbours``."""
+    far pose's), and the request carries its ``Neighbours``; ``precise_first``:
+    the rows of most sensings (``Snapshot.counts``, ``targets``) first."""
     for k, snap in enumerate(pool):
         before, after = matches[k]
         if len(before) == 0:
@@ -138,7 +140,7 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
         distance, nearest = cKDTree(snap.sensations[before]).query(
             snap.sensations[unmatched], k=1)
         order = np.argsort(distance, kind="stable")
-        if by_motor and snap.counts is not None:    # the most precise targets first
+        if precise_first and snap.counts is not None:
             order = order[np.argsort(-snap.counts[unmatched[order]], kind="stable")]
         order = order[:budget]
         requests = [Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
@@ -290,10 +292,8 @@ class SnapshotMatching:
     def _pool_sweep(self, matches, current):
         """``pooled_sweep`` of this sweep, some rows averaged (``targets``), where
         the agent pools sensings, else ``(current, None)``."""
-        if self._repeats <= 1:
-            return current, None
-        pooled = pooled_sweep(self._pool, matches, current, self.params.pool_sensings)
-        return averaged_targets(self, *pooled)
+        return (current, None) if self._repeats <= 1 else averaged_targets(
+            self, *pooled_sweep(self._pool, matches, current, self.params.pool_sensings))
 
     def _verify_rest_hits(self, rest_hits):
         """Where noise sized the tolerances, a known POV that matched an
@@ -479,11 +479,10 @@ class SnapshotMatching:
         """``anchors.anchor_requests`` on the pool, with this event's frontier
         budget; given this sweep's sensations ``current``, only the targets
         that stand out (``_distinct_targets``)."""
-        known_comp, requests = anchor_requests(self._pool, matches, rest_hits, rank_now,
-                                               self._anchor_params(),
-                                               pov_samples=self._store.samples,
-                                               frontier_budget=self._frontier_budget(),
-                                               by_motor=self._noisy)
+        known_comp, requests = anchor_requests(
+            self._pool, matches, rest_hits, rank_now, self._anchor_params(),
+            pov_samples=self._store.samples, frontier_budget=self._frontier_budget(),
+            by_motor=self._noisy, precise_first=averages_targets(self))
         if current is not None:
             requests = self._distinct_targets(requests, current)
         return known_comp, requests

@@ -59,29 +59,44 @@ def average_rows(body, motor_states: np.ndarray, sensations: np.ndarray, counts:
     return sensations, counts
 
 
+def averages_targets(agent) -> bool:
+    """Whether the agent averages sweep rows as targets: where noise that
+    spreads sized the tolerances, frontier rows are searched, and a target
+    sensed once leaves its pose, at the weakest pose singular value measured
+    at the start, more uncertain than ``_max_pose_error`` and, at
+    ``target_singular`` times it, too (``_target_repeats`` above one)."""
+    if not agent._noisy or agent._repeats <= 1 or agent.params.frontier_attempts == 0 or \
+            agent.structure.weakest <= 0:
+        return False
+    limit = agent._max_pose_error()
+    return bool(np.isfinite(limit)) and agent.structure.noise / agent.structure.weakest > limit \
+        and _target_repeats(agent) > 1
+
+
+def _target_repeats(agent) -> int:
+    structure = agent.structure
+    return target_repeats(structure.noise, agent.params.target_singular * structure.weakest,
+                          agent._max_pose_error(), agent._repeats)
+
+
 def averaged_targets(agent, pooled: np.ndarray, counts: np.ndarray):
     """``pooled``, ``counts`` (this event's snapshot rows, ``anchors.pooled_sweep``)
-    with some rows averaged more, only where noise that spreads sized the
-    tolerances and one sensing of a target leaves its pose, at the weakest
-    pose singular value measured at the start, more uncertain than
-    ``_max_pose_error``; else unchanged. ``averaged_targets`` rows while the
-    frontier searches find new POVs, fewer as their budget falls
-    (``_frontier_budget``): averaging pays only where a frontier target may
-    be searched. Each as often as lets a target where the weakest pose
-    singular value is ``target_singular`` times the start's pass the test
-    with its end averaged ``_repeats`` times (``target_repeats``)."""
-    structure, limit, p = agent.structure, agent._max_pose_error(), agent.params
-    if not agent._noisy or agent._repeats <= 1 or p.frontier_attempts == 0 or \
-            not np.isfinite(limit) or structure.weakest <= 0 or \
-            structure.noise / structure.weakest <= limit:
+    with some rows averaged more where the agent ``averages_targets``, else
+    unchanged: ``averaged_targets`` rows while the frontier searches find
+    new POVs, fewer as their budget falls (``_frontier_budget``): averaging
+    pays only where a frontier target may be searched. Each row pooled from
+    fewer sensings than lets a target where the weakest pose singular value
+    is ``target_singular`` times the start's pass the test with its end
+    averaged ``_repeats`` times (``target_repeats``) is sensed that many
+    times more but one."""
+    if not averages_targets(agent):
         return pooled, counts
-    wanted = int(np.ceil(p.averaged_targets * agent._frontier_budget() / p.frontier_attempts))
-    rows = rows_to_average(counts, wanted, agent._event)
+    p, wanted = agent.params, _target_repeats(agent)
+    share = int(np.ceil(p.averaged_targets * agent._frontier_budget() / p.frontier_attempts))
+    rows = rows_to_average(counts, share, agent._event)
     agent._body.stage = "sweep"
-    repeats = target_repeats(structure.noise, p.target_singular * structure.weakest, limit,
-                             agent._repeats)
     return average_rows(agent._body, agent._store.samples[:len(pooled), 0], pooled, counts,
-                        rows, repeats)
+                        rows[counts[rows] < wanted], wanted - 1)
 
 
 def target_repeats(noise: float, singular: float, limit: float, end_repeats: int) -> int:
