@@ -8,13 +8,15 @@ held to (``SearchAndSample._max_pose_error``) no search toward it can be
 accepted, however well its end is averaged. Which rows will be frontier
 rows depends on the next displacement, which the agent cannot know; every
 row is as likely. So, only where one sensing cannot pin a pose, each
-snapshot senses ``averaged_targets`` of its rows again, as often as an
-anchor (``_repeats``), before the environment changes: the rows pooled
-least so far, in turn over the POVs. Their means and counts go into the
-snapshot (``Snapshot.counts``), so matches, the test of a target standing
-out and the averaged check of a search's end all see the target's own
-variance, and frontier requests take the rows of most sensings first
-(``anchors.frontier_requests``).
+snapshot senses up to ``averaged_targets`` of its rows again before the
+environment changes (the rows pooled least so far, in turn over the POVs),
+as often as lets a target pass where the weakest pose direction is
+``target_singular`` times the start's: a few sensings on many rows, for
+only where that direction is strong can any target pass. Their means and
+counts go into the snapshot (``Snapshot.counts``), so matches, the test of
+a target standing out and the averaged check of a search's end all see
+the target's own variance, and frontier requests take the rows of most
+sensings first (``anchors.frontier_requests``).
 """
 from __future__ import annotations
 
