@@ -9,8 +9,8 @@ rows next to its matched ones (the frontier), are worth searching for.
 ``SnapshotMatching`` (a mixin of ``NaiveAgent``) does the matching, the rank
 tests it needs, the equality sets it gives and keeps the pool. Where noise
 sized the tolerances, every match passes an averaged test (``confirm``),
-matched rows pool their chains' sensings (``pooled_sweep``), and a row is
-searched only where it stands out (``_distinct_targets``).
+matched rows pool their chains' sensings (``pooled_sweep``), some rows are
+averaged (``targets``), and a row is searched only where it stands out.
 """
 from __future__ import annotations
 
@@ -26,6 +26,7 @@ from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
     matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
+from sensorispace_ros.core.naive.targets import averaged_targets
 
 
 @dataclass
@@ -203,9 +204,7 @@ def _far_from_matched(request, agent) -> bool:
     return bool(request.neighbours.reach[0] > _FRONTIER_REACH * agent._store.separation())
 
 
-# A known POV matching an anchor may lie this many predicted pose errors
-# (``searching._max_pose_error``) from it: its own error and the anchor's.
-_HIT_SHARE = 4.0
+_HIT_SHARE = 4.0    # predicted pose errors (_max_pose_error) a known POV may lie from an anchor
 # A frontier compensation's motor distance to a neighbour's partner may be
 # this many times its row's distance to the neighbour, plus this many
 # separations of the POVs (``SnapshotMatching._held_by_neighbours``).
@@ -293,11 +292,10 @@ class SnapshotMatching:
         return np.ones(rows, dtype=int) if self._repeats > 1 else None
 
     def _pool_sweep(self, matches, current):
-        """``anchors.pooled_sweep`` of this sweep where the agent pools
-        sensings, else ``(current, None)``."""
-        if self._repeats <= 1:
-            return current, None
-        return pooled_sweep(self._pool, matches, current, self.params.pool_sensings)
+        """``pooled_sweep`` of this sweep, some rows averaged (``targets``), where
+        the agent pools sensings, else ``(current, None)``."""
+        return (current, None) if self._repeats <= 1 else averaged_targets(
+            self, *pooled_sweep(self._pool, matches, current, self.params.pool_sensings))
 
     def _verify_rest_hits(self, rest_hits):
         """Where noise sized the tolerances, a known POV that matched an

@@ -22,7 +22,9 @@ POVs (``_frontier_order``):
   to a region not yet explored are searched too, however often the budget
   is one.
 
-Otherwise the order is the nearest in sensation first; a search's end on a
+Where the agent averages its targets (``targets.averages_targets``), the rows
+of most sensings come first, then the nearest. Otherwise the order is the
+nearest in sensation first; a search's end on a
 remembered split POV is found after the search (``searching._known_solutions``).
 The order trades coverage between seeds (docs/mujoco.md, "Frontier rows
 that keep failing give way"), hence off by default.
@@ -31,6 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.stats import chi2
+
+from .targets import averages_targets
 
 
 class FrontierChoice:
@@ -43,6 +47,8 @@ class FrontierChoice:
         their sensory distance to the nearest matched row), in the order
         their requests are made (module docstring); the split ones left out."""
         order = np.argsort(distance, kind="stable")
+        if snapshot.counts is not None and averages_targets(self):
+            order = order[np.argsort(-snapshot.counts[rows[order]], kind="stable")]
         if not self._give_way():
             return order
         split = np.asarray(getattr(self, "_split_now", ()), dtype=float)

@@ -45,6 +45,8 @@ class NaiveParams:
     pose_precision: float = _default("pose_precision")
     pose_precision_povs: int = _default("pose_precision_povs")
     pool_sensings: int = _default("pool_sensings")
+    averaged_targets: int = _default("averaged_targets")
+    target_singular: float = _default("target_singular")
     lost_row_retries: int = _default("lost_row_retries")
     structure_probes: int = _default("structure_probes")
     structure_radius: float = _default("structure_radius")
