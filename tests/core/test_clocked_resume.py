@@ -41,6 +41,7 @@ def test_a_run_saved_at_a_reaction_end_resumes_bit_for_bit():
     np.testing.assert_array_equal(resumed.agent.points_of_view, run.agent.points_of_view)
     assert resumed.event_states == run.event_states
     assert resumed.log.flagged == run.log.flagged
+    assert resumed.log.reference_row == run.log.reference_row
     assert (resumed.agent.queries_total, resumed.lost_rows, resumed.undone) == \
         (run.agent.queries_total, run.lost_rows, run.undone)
     assert resumed.body.row == run.body.row and len(run.agent.points_of_view) > 3

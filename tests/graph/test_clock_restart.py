@@ -10,7 +10,8 @@ fresh start), number its commands after the dead agent's, and the run must end
 by itself with metrics a graph run has: POVs found after the restart, nothing
 non-finite, nothing accepted across a change, the restart and the rows it lost
 counted. The world kept its clock while the agent was dead: the run is not the
-uninterrupted one bit for bit.
+uninterrupted one bit for bit. A snapshot that is not a clocked run, or is one
+of another body, stops the agent naming ``graph.checkpoint_dir``.
 """
 import os
 import re
@@ -29,7 +30,7 @@ from sensorispace_ros.state.agent_journal import read_snapshot
 
 from shared import SMOKE, stop_by_pid
 
-pytestmark = [pytest.mark.graph, pytest.mark.slow]
+pytestmark = [pytest.mark.graph]
 
 # As tests/graph/test_clock_graph.py: simulation 2 until the world ends the run.
 ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
@@ -70,6 +71,7 @@ def _spin(graph, seconds: float) -> None:
                 step()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("overrides", [ROWS, WALL], ids=["rows", "wall"])
 def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, tmp_path,
                                                                      domain_id, monkeypatch):
@@ -192,3 +194,55 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
                "naive.clock.rows_lost_to_restart", "naive.clock.restarts",
                "naive.accepted_across_change", "naive.clock.recall")
         if k in metrics}})
+
+
+def _clocked_agent(context, tmp_path, checkpoints):
+    from sensorispace_ros.graph.nodes.agent import AgentNode
+
+    path = tmp_path / "clock.yaml"
+    path.write_text(config.to_parameter_file(config.load_config(SMOKE, overrides=ROWS)))
+    return AgentNode(context=context, parameter_overrides=in_process.parameter_overrides(
+        path, {"graph.results_dir": str(tmp_path), "graph.checkpoint_dir": str(checkpoints)}))
+
+
+def test_a_snapshot_without_a_clocked_run_stops_the_agent_at_start_up(context, tmp_path):
+    from sensorispace_ros.state.agent_journal import write_snapshot
+
+    checkpoints = tmp_path / "checkpoints"
+    first = _clocked_agent(context, tmp_path, checkpoints)       # nothing there: a fresh start
+    cfg = first.cfg
+    first.destroy_node()
+    write_snapshot(checkpoints / SNAPSHOT_FILE, {"config": cfg, "agent": {}})   # lockstep's
+    with pytest.raises(config.ConfigError,
+                       match=r"graph\.checkpoint_dir: .*agent\.snapshot: no clocked run"):
+        _clocked_agent(context, tmp_path, checkpoints)
+
+
+def test_a_clocked_snapshot_of_another_body_stops_the_agent_naming_the_file(context, tmp_path):
+    from sensorispace_ros import messages
+    from sensorispace_ros.core.body_description import BodyDescription
+    from sensorispace_ros.core.clocked_run import ClockedRun
+    from sensorispace_ros.graph.clocked_exploration import ClockOverTopics
+    from sensorispace_ros.state.agent_journal import write_snapshot
+
+    checkpoints = tmp_path / "checkpoints"
+    first = _clocked_agent(context, tmp_path, checkpoints)
+    cfg = first.cfg
+    first.destroy_node()
+
+    class Other:
+        n_motors, n_sensors = 4, 7
+        description = BodyDescription.revolute(4, 7)
+    write_snapshot(checkpoints / SNAPSHOT_FILE, {
+        "config": cfg, "description": Other.description, "requests": 5, "over": False,
+        "run": ClockedRun(None, ClockOverTopics(Other()))})
+    second = _clocked_agent(context, tmp_path, checkpoints)
+    try:
+        errors = []
+        second.get_logger().error = errors.append
+        second.on_description(messages.description_to_msg(BodyDescription.revolute(4, 6)))
+        assert second.finished and second.exit_code == 2
+        assert len(errors) == 1 and "graph.checkpoint_dir" in errors[0] \
+            and "agent.snapshot: unusable clocked run" in errors[0]
+    finally:
+        second.destroy_node()

@@ -23,6 +23,21 @@ body's and the environment's subscriptions have matched. Until the first
 new passive sensation arrives, whenever it is idle on a settled change it
 re-publishes that settle every ``graph.resend_period_s``. The snapshot is a
 pickle: the checkpoint directory must be as trusted as the code.
+
+In a world on its own clock (``world.clock`` rows or wall) the world does
+not wait for a dead agent: nothing is replayed and there is no journal. At
+a reaction's end (the agent idle, ``graph.clocked_exploration``), as often
+as above, the snapshot is the whole driver (``core.clocked_run.ClockedRun``:
+the agent, its tests, its loop); once more when the run is over. Before
+every command or hold the node writes ``<dir>/agent.clock``
+(``state.resting_state``, one ``os.pwrite``): the command's number, the rows
+its commands sent so far and the restarts. A restarted agent loads the
+snapshot and goes on live from it: its commands number on after the dead
+agent's last (the body answers a number sent again with its first answer),
+and the rows sent between the snapshot and the death are lost work
+(``rows_lost_to_restart``; the world kept its clock meanwhile, and the agent
+holds at rest as after any reaction and tells a change as ever). A snapshot
+of a run over re-publishes its results.
 """
 from __future__ import annotations
 
