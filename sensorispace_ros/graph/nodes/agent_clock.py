@@ -143,4 +143,7 @@ class AgentClock:
         return (f"{len(run.event_states) - 1} reactions kept, {run.undone} undone "
                 f"({run.lost_rows} motor states lost, {run.salvaged} POVs salvaged), "
                 f"{sum(run.log.flagged)} changes flagged in {len(run.log.flagged)} tests, "
-                f"{run.restarts} restarts ({run.rows_lost_to_restart} rows lost to them)")
+                f"{run.restarts} restarts ({run.rows_lost_to_restart} rows lost to them), "
+                f"{self.checkpoint_stats['snapshots']} snapshots "
+                f"({self.checkpoint_stats['snapshot_s']:.3f} s, last "
+                f"{self.checkpoint_stats['snapshot_bytes']} bytes)")

@@ -182,6 +182,10 @@ class AgentRestart:
             "config": self.cfg, "description": self.description, "agent": self.agent.state(),
             "node": node_snapshot(self, self.body)})
         self.journal.truncate()
+        self.snapshot_taken(started, size)
+
+    def snapshot_taken(self, started: float, size: int) -> None:
+        """Count a snapshot of ``size`` bytes begun at ``started`` (perf_counter)."""
         stats = self.checkpoint_stats
         stats["snapshots"] += 1
         stats["snapshot_bytes"] = size
@@ -257,9 +261,4 @@ class AgentRestart:
         size = write_snapshot(self.clock_state.path.with_name(SNAPSHOT_FILE), {
             "config": self.cfg, "description": self.description, "run": run,
             "requests": self.body.requests, "over": over})
-        stats = self.checkpoint_stats
-        stats["snapshots"] += 1
-        stats["snapshot_bytes"] = size
-        stats["last_snapshot_s"] = time.perf_counter() - started
-        stats["snapshot_s"] += stats["last_snapshot_s"]
-        self._last_snapshot = time.monotonic()
+        self.snapshot_taken(started, size)
