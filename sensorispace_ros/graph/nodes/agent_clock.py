@@ -94,6 +94,8 @@ class AgentClock:
             self.spin_once(0.05)
         naive = self.cfg["naive"]
         run, over = self.clock_resumed or (None, False)
+        # A snapshot at the first reaction's end (the start it keeps is costly), then as due.
+        self._last_snapshot = float("-inf")
         if not over:
             run = explore_over_topics(
                 self.clock_view, self.initial_motor_state, self.cfg["seed"],

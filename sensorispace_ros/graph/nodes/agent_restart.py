@@ -26,9 +26,10 @@ pickle: the checkpoint directory must be as trusted as the code.
 
 In a world on its own clock (``world.clock`` rows or wall) the world does
 not wait for a dead agent: nothing is replayed and there is no journal. At
-a reaction's end (the agent idle, ``graph.clocked_exploration``), as often
-as above, the snapshot is the whole driver (``core.clocked_run.ClockedRun``:
-the agent, its tests, its loop); once more when the run is over. Before
+a reaction's end (the agent idle, ``graph.clocked_exploration``): the first,
+then as often as above, the snapshot is the whole driver
+(``core.clocked_run.ClockedRun``: the agent, its tests, its loop); once more
+when the run is over. Before
 every command or hold the node writes ``<dir>/agent.clock``
 (``state.resting_state``, one ``os.pwrite``): the command's number, the rows
 its commands sent so far and the restarts. A restarted agent loads the
