@@ -10,7 +10,8 @@ fresh start), number its commands after the dead agent's, and the run must end
 by itself with metrics a graph run has: POVs found after the restart, nothing
 non-finite, nothing accepted across a change, the restart and the rows it lost
 counted. The world kept its clock while the agent was dead: the run is not the
-uninterrupted one bit for bit. A snapshot that is not a clocked run, or is one
+uninterrupted one bit for bit. Started once more on the run over, the agent
+publishes its results again and ends. A snapshot that is not a clocked run, or is one
 of another body, stops the agent naming ``graph.checkpoint_dir``.
 """
 import os
@@ -137,6 +138,12 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
         agent.process.wait(timeout=30)
         body = graph.nodes["body"]
         wall_s = time.monotonic() - started
+        assert agent.process.returncode == 0
+        # Started once more on the run over: it publishes its results again, and ends.
+        agent.start()
+        while agent.process.poll() is None:
+            assert time.monotonic() - started < TIMEOUT_S, f"no end; logs {agent.logs}"
+            _spin(graph, 0.1)
     finally:
         stop_by_pid(agent.process)
         graph.close()
@@ -162,6 +169,11 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
     final = read_snapshot(snapshot_path)
     assert final["over"]
     run = final["run"]
+    again = agent.logs[2].read_text()
+    assert "resuming on the clock (restart 2): snapshot of " \
+        f"{len(run.event_states) - 1} reactions kept, {len(run.agent.points_of_view)} POVs, " \
+        "the run over" in again, again[-2000:]
+    assert f"run over: found {len(run.agent.points_of_view)} points of view" in again
     # What the dead agent sent after its snapshot is counted as lost.
     assert run.restarts == 1
     assert run.rows_lost_to_restart == rows_at_kill - at_kill.body.rows_sent >= 0
@@ -246,3 +258,30 @@ def test_a_clocked_snapshot_of_another_body_stops_the_agent_naming_the_file(cont
             and "agent.snapshot: unusable clocked run" in errors[0]
     finally:
         second.destroy_node()
+
+
+def test_the_body_says_simulation_2_again_before_each_hold_answer(context, tmp_path):
+    # A restarted agent may have missed the first equality/<k>: it hears it at its next hold.
+    from types import SimpleNamespace
+
+    from sensorispace_ros.graph.nodes.body import BodyNode
+
+    path = tmp_path / "clock.yaml"
+    path.write_text(config.to_parameter_file(config.load_config(SMOKE, overrides=ROWS)))
+    node = BodyNode(context=context, parameter_overrides=in_process.parameter_overrides(
+        path, {"graph.results_dir": str(tmp_path)}))
+    try:
+        said = []
+        node.sensation_packer = SimpleNamespace(pack=lambda rows, frame_id, stamp: frame_id)
+        node.sensation_pub = SimpleNamespace(publish=said.append)
+        motor, sensed = np.zeros((1, node.description.n_motors)), \
+            np.zeros((1, node.description.receptors))
+        node.clock_answer(sensed, motor, "cmd/1")
+        assert said == ["cmd/1"]                     # simulation 1: nothing said
+        node.n_events = -1                           # the world now replays its schedule
+        for frame_id in ("cmd/2", "cmd/3", "hold/4", "cmd/5", "hold/6"):
+            node.clock_answer(sensed, motor, frame_id)
+        assert said[1:] == ["equality/0", "cmd/2", "cmd/3", "equality/0", "hold/4", "cmd/5",
+                            "equality/0", "hold/6"]
+    finally:
+        node.destroy_node()
