@@ -51,7 +51,9 @@ class ClockTruth:
     ``cuts_by_stage`` the stage each change that cut a reaction or a
     pending walk fell in (``check``: the checks after a reaction),
     ``pending_povs`` the POVs added by walks of pending solutions,
-    ``crossed`` the reactions kept whose walk went on through a change."""
+    ``crossed`` the reactions kept whose walk went on through a change;
+    ``restarts`` the times the agent resumed from a snapshot (graph only),
+    ``rows_lost_to_restart`` the rows it sent between the snapshot and its death."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -68,6 +70,8 @@ class ClockTruth:
     crossed: int = 0
     state_of: object = field(repr=False, default=None)
     lights: list = field(repr=False, default_factory=list)   # of each world state
+    restarts: int = 0
+    rows_lost_to_restart: int = 0
 
 
 def run_on_clock(world, params: NaiveParams, clock: str, *, interval: float,
@@ -120,32 +124,35 @@ def begin_run(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_budget
     return run
 
 
-def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_reaction=None
-          ) -> None:
+def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_reaction=None,
+          resume: bool = False) -> None:
     """The agent's life on the clock: it holds still at rest, walks the
     solutions a change cut, reacts to each change it detects; once
     ``second_round()`` says the world replays its schedule, it spends
     ``equality_changes`` reactions on simulation 2 (``begin_equality_pass``).
-    Ends when the body has no change left (a hold answers None)."""
+    Ends when the body has no change left (a hold answers None). The loop's
+    state is the run's (``reference``, ``reference_row``, ``equality_left``),
+    so that a run saved by ``after_reaction`` goes on with ``resume``."""
     agent = run.agent
-    reference, reference_row = agent.anchor_sensation, run.body.row - 1
-    equality_left = int(equality_changes)
+    if not resume:
+        run.reference, run.reference_row = agent.anchor_sensation, run.body.row - 1
+        run.equality_left = int(equality_changes)
     while True:
-        sensed = run.walk_pending(reference, reference_row) if agent.phase == EXPLORING \
-            else None
+        sensed = run.walk_pending(run.reference, run.reference_row) \
+            if agent.phase == EXPLORING else None
         if sensed is None:
-            sensed = run.hold(reference, reference_row)
+            sensed = run.hold(run.reference, run.reference_row)
             if sensed is None:
                 break
             if sensed is False:
                 continue
-        if agent.phase == EXPLORING and second_round() and equality_left:
-            reference, reference_row = run.react(sensed, agent.begin_equality_pass)
+        if agent.phase == EXPLORING and second_round() and run.equality_left:
+            run.reference, run.reference_row = run.react(sensed, agent.begin_equality_pass)
             continue
-        reference, reference_row = run.react(sensed)
+        run.reference, run.reference_row = run.react(sensed)
         if agent.phase != EXPLORING:
-            equality_left -= 1
-            if equality_left <= 0:
+            run.equality_left -= 1
+            if run.equality_left <= 0:
                 break
         if after_reaction is not None:
             after_reaction()
@@ -185,6 +192,13 @@ class ClockedRun:
         self.crossed = 0
         self.lost_by_stage: dict[str, int] = {}
         self.cut_in: dict[str, int] = {}
+        # ``drive``'s loop: the sensation at rest held, the row it was sensed
+        # at, the reactions of simulation 2 left.
+        self.reference, self.reference_row, self.equality_left = None, -1, 0
+        # Resumptions after the agent's process died (graph.nodes.agent_restart),
+        # and the rows its commands sent between its last snapshot and its death.
+        self.restarts = 0
+        self.rows_lost_to_restart = 0
 
     def hold(self, reference: np.ndarray, reference_row: int):
         """Hold still until the sensation at rest leaves its band; confirm by
@@ -324,4 +338,6 @@ class ClockedRun:
                           lost_by_stage=dict(self.lost_by_stage),
                           cuts_by_stage=dict(self.cut_in), pending_povs=int(self.pending_povs),
                           crossed=int(self.crossed),
-                          state_of=self.body.state_at, lights=self.body.lights)
+                          state_of=self.body.state_at, lights=self.body.lights,
+                          restarts=int(self.restarts),
+                          rows_lost_to_restart=int(self.rows_lost_to_restart))

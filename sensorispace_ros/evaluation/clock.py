@@ -48,6 +48,8 @@ def clock_metrics(run, world) -> dict:
         "naive.clock.pending_povs": int(truth.pending_povs),
         "naive.clock.crossed_reactions": int(truth.crossed),
         "naive.clock.walks_restarted": int(getattr(run.agent, "crossings", 0)),
+        "naive.clock.restarts": int(truth.restarts),
+        "naive.clock.rows_lost_to_restart": int(truth.rows_lost_to_restart),
         **{f"naive.clock.lost_rows_by_stage.{stage}": int(rows)
            for stage, rows in sorted(truth.lost_by_stage.items())},
         **{f"naive.clock.cuts_by_stage.{stage}": int(n)

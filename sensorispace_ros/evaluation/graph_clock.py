@@ -31,9 +31,16 @@ def graph_clocked_run(run, world, events: list, *, clocked_body=None, rows_after
     and ``rows_after``; ``wall``: its ``state_after``. ``run``'s positions are
     turned into rows (rows) or world states (wall) in place."""
     if clocked_body is not None:
+        numbers = np.asarray(sorted(rows_after))
+
+        def after(number):
+            # A number the body never executed (a killed agent's last, not
+            # sent): the clock stood where the command before left it.
+            return rows_after[int(numbers[np.searchsorted(numbers, number, side="right") - 1])]
+
         def row_of(value):
             number, first = position(value)
-            return rows_after[number - 1] if first else rows_after[number] - 1
+            return after(number - 1) if first else after(number) - 1
 
         def state_of(value):
             return clocked_body.state_at(row_of(value))
@@ -66,5 +73,6 @@ def graph_clocked_run(run, world, events: list, *, clocked_body=None, rows_after
                        salvaged=int(run.salvaged), rows=rows, held_rows=held,
                        lost_by_stage=dict(run.lost_by_stage), cuts_by_stage=dict(run.cut_in),
                        pending_povs=int(run.pending_povs), crossed=int(run.crossed),
-                       state_of=truth_state_of, lights=lights)
+                       state_of=truth_state_of, lights=lights, restarts=int(run.restarts),
+                       rows_lost_to_restart=int(run.rows_lost_to_restart))
     return summarize_naive(run.exploration(world, events, 0.0), truth)

@@ -283,6 +283,7 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
         self.await_peers()
         data = self.command_packer.pack(motor_states, frame_id, self.now_ns())
         traced = frame_id.startswith("cmd")       # not a presend (answered after a change)
+        self.note_sent()                          # a world on its own clock: agent_restart
         if traced:
             tracing.stamp("agent.publish")
         self.command_pub.publish(data)

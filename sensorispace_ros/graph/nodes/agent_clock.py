@@ -12,8 +12,8 @@ one ``/body/hold`` message, and ends when the body answers a hold with
 taken ``naive.clock_equality_changes`` changes (it then sends ``end/<n>``).
 What it found goes out at the end, all at once, under ``change/<k>`` (k the
 reactions it kept), then ``/agent/done`` and the settle of ``end/<k>``: the
-environment ends there. No restart from a checkpoint in this mode
-(``graph.checkpoint_dir`` is not read).
+environment ends there. With ``graph.checkpoint_dir`` it resumes after a
+kill -9 from its last snapshot, live (``graph.nodes.agent_restart``).
 """
 from __future__ import annotations
 
@@ -29,6 +29,7 @@ from sensorispace_ros.graph import agent_outputs
 from sensorispace_ros.graph.clocked_exploration import ClockOverTopics, explore_over_topics
 from sensorispace_ros.graph.framework import frame
 from sensorispace_ros.protocol import AGENT_RECORDS_FILE, run_directory
+from sensorispace_ros.state.agent_journal import CheckpointError
 
 PEERS_TIMEOUT_S = 30.0
 
@@ -41,25 +42,33 @@ class AgentClock:
         self.clock_view: ClockOverTopics | None = None
         self.clock_run = None          # the driver, kept for the evaluator (tests)
         self.clock_started = False
+        self.clock_resumed = None      # (run, over) of a snapshot to go on with
         self.hold_pub = self.hold_packer = None
         # The frame ids of /body/sensation this protocol reads.
         self.sensation_kinds = ("cmd", "next", "change", "end") if not self.clocked else (
             "cmd", "hold", "end", "equality", "change")
         if not self.clocked:
             return
-        if self.graph["checkpoint_dir"]:
-            self.get_logger().info(f"world.clock {self.cfg['world']['clock']}: no restart from "
-                                   "graph.checkpoint_dir in this mode (docs/clock.md)")
         self.hold_pub = contracts.create_publisher(self, "/body/hold")
 
     def start_clock(self) -> None:
         """Sized by the description: the hold's packer and the driver's view of the body."""
         self.hold_packer = messages.CloudCdrPacker(self.columns_of("/body/hold"))
         self.clock_view = ClockOverTopics(self.body)
+        if self.checkpoint is None:
+            return
+        try:
+            self.clock_resumed = self.resume_clock(self.clock_view)
+        except CheckpointError as exc:
+            self.get_logger().error(f"graph.checkpoint_dir: {exc}")
+            self.exit_code = 2
+            self.finished = True
+            return
 
     def publish_hold(self, motor_state: np.ndarray, low: np.ndarray, high: np.ndarray,
                      frame_id: str) -> None:
         row = np.concatenate([np.reshape(motor_state, -1), low, high])[None]
+        self.note_sent()
         self.hold_pub.publish(self.hold_packer.pack(row, frame_id, self.now_ns()))
 
     def on_clock_sensation(self, kind: str, number: int, cloud) -> None:
@@ -84,14 +93,22 @@ class AgentClock:
         while not self.clock_peers_ready() and time.monotonic() < deadline:
             self.spin_once(0.05)
         naive = self.cfg["naive"]
-        self.clock_run = run = explore_over_topics(
-            self.clock_view, self.initial_motor_state, self.cfg["seed"], NaiveParams(**naive),
-            sweep_budget=naive["clock_sweep_budget"],
-            equality_changes=naive["clock_equality_changes"])
-        self.agent = agent = run.agent
-        self.get_logger().info(agent_outputs.body_measure(agent))
-        if not self.clock_view.ended:
-            self.body.end_run(agent.rest_motor_state)
+        run, over = self.clock_resumed or (None, False)
+        # A snapshot at the first reaction's end (the start it keeps is costly), then as due.
+        self._last_snapshot = float("-inf")
+        if not over:
+            run = explore_over_topics(
+                self.clock_view, self.initial_motor_state, self.cfg["seed"],
+                NaiveParams(**naive), sweep_budget=naive["clock_sweep_budget"],
+                equality_changes=naive["clock_equality_changes"],
+                after_reaction=self.clock_boundary, run=run)
+            if not self.clock_view.ended:
+                self.body.end_run(run.agent.rest_motor_state)
+        self.clock_run, self.agent = run, run.agent
+        self.get_logger().info(agent_outputs.body_measure(run.agent))
+        run.restarts, run.rows_lost_to_restart = self.clock_restarts, self.clock_rows_lost
+        if self.clock_state is not None and not over:
+            self.take_clock_snapshot(run, over=True)    # a kill now re-publishes the results
         self.end_clocked(len(run.event_states))
 
     def end_clocked(self, changes: int) -> None:
@@ -127,4 +144,8 @@ class AgentClock:
         run = self.clock_run
         return (f"{len(run.event_states) - 1} reactions kept, {run.undone} undone "
                 f"({run.lost_rows} motor states lost, {run.salvaged} POVs salvaged), "
-                f"{sum(run.log.flagged)} changes flagged in {len(run.log.flagged)} tests")
+                f"{sum(run.log.flagged)} changes flagged in {len(run.log.flagged)} tests, "
+                f"{run.restarts} restarts ({run.rows_lost_to_restart} rows lost to them), "
+                f"{self.checkpoint_stats['snapshots']} snapshots "
+                f"({self.checkpoint_stats['snapshot_s']:.3f} s, last "
+                f"{self.checkpoint_stats['snapshot_bytes']} bytes)")

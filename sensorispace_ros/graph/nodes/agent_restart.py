@@ -23,6 +23,22 @@ body's and the environment's subscriptions have matched. Until the first
 new passive sensation arrives, whenever it is idle on a settled change it
 re-publishes that settle every ``graph.resend_period_s``. The snapshot is a
 pickle: the checkpoint directory must be as trusted as the code.
+
+In a world on its own clock (``world.clock`` rows or wall) the world does
+not wait for a dead agent: nothing is replayed and there is no journal. At
+a reaction's end (the agent idle, ``graph.clocked_exploration``): the first,
+then as often as above, the snapshot is the whole driver
+(``core.clocked_run.ClockedRun``: the agent, its tests, its loop); once more
+when the run is over. Before
+every command or hold the node writes ``<dir>/agent.clock``
+(``state.resting_state``, one ``os.pwrite``): the command's number, the rows
+its commands sent so far and the restarts. A restarted agent loads the
+snapshot and goes on live from it: its commands number on after the dead
+agent's last (the body answers a number sent again with its first answer),
+and the rows sent between the snapshot and the death are lost work
+(``rows_lost_to_restart``; the world kept its clock meanwhile, and the agent
+holds at rest as after any reaction and tells a change as ever). A snapshot
+of a run over re-publishes its results.
 """
 from __future__ import annotations
 
@@ -32,10 +48,15 @@ from pathlib import Path
 from rclpy.duration import Duration
 from std_msgs.msg import UInt64
 
+from sensorispace_ros.core.clocked_run import ClockedRun
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.state.agent_journal import (JOURNAL_FILE, SNAPSHOT_FILE, AgentJournal,
     CheckpointError, node_snapshot, read_journal, read_snapshot, restore_node,
     write_snapshot)
+from sensorispace_ros.state.resting_state import RestingStateFile
+
+# A world on its own clock: the last command's number, the rows sent, the restarts.
+CLOCK_STATE_FILE = "agent.clock"
 
 
 # What a reaction publishes (``graph.agent_outputs.reaction_tables``).
@@ -60,6 +81,8 @@ class AgentRestart:
         self._resume_timer = None
         self._await_peers = False
         self.checkpoint = None
+        self.clock_state: RestingStateFile | None = None
+        self.clock_restarts = self.clock_rows_lost = 0
 
     def read_checkpoint(self, directory: Path) -> tuple:
         """The snapshot and the journal of ``directory`` (none: a fresh start),
@@ -69,6 +92,11 @@ class AgentRestart:
         if snapshot is not None and snapshot.get("config") != self.cfg:
             raise CheckpointError(f"{snapshot_path}: written by a run with another "
                                   "configuration; remove it to start afresh")
+        if self.clocked:
+            if snapshot is not None and not isinstance(snapshot.get("run"), ClockedRun):
+                raise CheckpointError(f"{snapshot_path}: no clocked run in the agent snapshot")
+            self.clock_state = RestingStateFile(directory / CLOCK_STATE_FILE, 3)
+            return directory, snapshot, None
         return directory, snapshot, read_journal(directory / JOURNAL_FILE)
 
     def restore(self, directory: Path, snapshot, journal) -> None:
@@ -155,6 +183,10 @@ class AgentRestart:
             "config": self.cfg, "description": self.description, "agent": self.agent.state(),
             "node": node_snapshot(self, self.body)})
         self.journal.truncate()
+        self.snapshot_taken(started, size)
+
+    def snapshot_taken(self, started: float, size: int) -> None:
+        """Count a snapshot of ``size`` bytes begun at ``started`` (perf_counter)."""
         stats = self.checkpoint_stats
         stats["snapshots"] += 1
         stats["snapshot_bytes"] = size
@@ -170,3 +202,64 @@ class AgentRestart:
     def close(self) -> None:
         if self.journal is not None:
             self.journal.close()
+
+    # ------------------------------------------------ a world on its own clock
+
+    def resume_clock(self, view):
+        """Before the run (the body described): the run to go on with, if the
+        checkpoint holds one (its view bound to this node's body), else None;
+        the commands number on after the dead agent's last."""
+        directory, snapshot, _ = self.checkpoint
+        self.checkpoint = None
+        saved = self.clock_state.load()
+        if snapshot is None and saved is None:
+            return None                 # a fresh start
+        run, requests, rows = None, 0, 0
+        if snapshot is not None:
+            run = snapshot["run"]
+            try:
+                run.body.bind(self.body)
+                requests = int(snapshot["requests"])
+            except (AttributeError, KeyError, TypeError, ValueError) as exc:
+                raise CheckpointError(f"{directory / SNAPSHOT_FILE}: unusable clocked run "
+                                      f"({type(exc).__name__}: {exc})") from exc
+            view, rows = run.body, run.body.rows_sent
+            self.clock_restarts, self.clock_rows_lost = run.restarts, run.rows_lost_to_restart
+        if saved is not None:
+            sent, sent_rows, restarts = (int(x) for x in saved)
+            requests = max(requests, sent)
+            self.clock_rows_lost += max(sent_rows - rows, 0)
+            self.clock_restarts = max(self.clock_restarts, restarts)
+            view.rows_sent = max(rows, sent_rows)
+        self.clock_restarts += 1
+        self.clock_view = view
+        # The dead agent's last commands: a late answer to one is dropped quietly.
+        self.body.requests = self.predecessor_sent = requests
+        self.note_sent()
+        over = snapshot is not None and bool(snapshot.get("over"))
+        self.get_logger().warning(
+            f"resuming on the clock (restart {self.clock_restarts}): "
+            + (f"snapshot of {len(run.event_states) - 1} reactions kept, "
+               f"{len(run.agent.points_of_view)} POVs{', the run over' if over else ''}"
+               if run is not None else "no snapshot, a fresh start")
+            + f"; commands from {requests + 1}, {self.clock_rows_lost} rows lost to restarts")
+        return run, over
+
+    def note_sent(self) -> None:
+        """Before a command or hold goes out: its number, the rows sent, the restarts."""
+        if self.clock_state is not None:
+            self.clock_state.save((self.body.requests, self.clock_view.rows_sent,
+                                   self.clock_restarts))
+
+    def clock_boundary(self, run) -> None:
+        """A reaction's end (the agent idle): a snapshot when one is due."""
+        if self.clock_state is not None and self.snapshot_due():
+            self.take_clock_snapshot(run)
+
+    def take_clock_snapshot(self, run, over: bool = False) -> None:
+        started = time.perf_counter()
+        run.restarts, run.rows_lost_to_restart = self.clock_restarts, self.clock_rows_lost
+        size = write_snapshot(self.clock_state.path.with_name(SNAPSHOT_FILE), {
+            "config": self.cfg, "description": self.description, "run": run,
+            "requests": self.body.requests, "over": over})
+        self.snapshot_taken(started, size)

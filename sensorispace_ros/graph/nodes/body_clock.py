@@ -11,7 +11,8 @@ they hold the arm at the motor state until a receptor leaves the band
 (``rows``: the rows pass in the simulation; ``wall``: the body looks again
 at every change of its world), or say ``end/<n>`` when the world has no
 change left. When the world replays its schedule for simulation 2 the body
-says ``equality/<k>`` once, before its next answer. A command sent again
+says ``equality/<k>`` before its next answer, and again before each answer
+to a hold (an agent restarted from a snapshot may have missed it). A command sent again
 is answered with its first answer (the clock does not run twice).
 
 Ground truth for the evaluator, never published to the agent: the rows
@@ -134,8 +135,10 @@ class BodyClock:
         self.state_after[number] = int(self.world_state)
 
     def clock_answer(self, sensations: np.ndarray, motor: np.ndarray, frame_id: str) -> None:
-        """Say simulation 2 once the world replays its schedule, then answer."""
-        if not self.announced and self.world_state > self.n_events:
+        """Say simulation 2 once the world replays its schedule (again before a
+        hold's answer), then answer."""
+        if self.world_state > self.n_events and (
+                not self.announced or frame_id.startswith("hold/")):
             self.announced = True
             self.sensation_pub.publish(self.sensation_packer.pack(
                 np.zeros((1, self.description.receptors)),
