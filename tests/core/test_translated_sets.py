@@ -27,7 +27,8 @@ def _change_sets(shifts):
 
 def test_each_set_of_segments_is_one_vector_and_covers_more_pairs_of_povs():
     pairs, ids = _change_sets([(1, 0), (0, 2), (2, 1)])
-    more, more_ids = translated_sets(pairs, ids, len(GRID), per_set=1000)
+    more, more_ids = translated_sets(pairs, ids, len(GRID), per_set=1000,
+                                     stream=CounterStream(0, "naive.clock_translated"))
     vectors = GRID[more[:, 1]] - GRID[more[:, 0]]
     for set_id in np.unique(more_ids):
         members = vectors[more_ids == set_id]
@@ -39,13 +40,19 @@ def test_each_set_of_segments_is_one_vector_and_covers_more_pairs_of_povs():
 
 def test_a_set_of_changes_links_at_most_per_set_of_its_changes():
     pairs, ids = _change_sets([(1, 0)])
-    few, _ = translated_sets(pairs, ids, len(GRID), per_set=2)
+    few, _ = translated_sets(pairs, ids, len(GRID), per_set=2,
+                             stream=CounterStream(0, "naive.clock_translated"))
     assert len(few) == 2            # one segment and its image
     again, _ = translated_sets(pairs, ids, len(GRID), per_set=2,
                                stream=CounterStream(3, "naive.clock_translated"))
     same, _ = translated_sets(pairs, ids, len(GRID), per_set=2,
                               stream=CounterStream(3, "naive.clock_translated"))
     assert np.array_equal(again, same)
+    # The draw follows the seed: another seed links other changes.
+    others = [translated_sets(pairs, ids, len(GRID), per_set=2,
+                              stream=CounterStream(seed, "naive.clock_translated"))[0]
+              for seed in range(4, 8)]
+    assert any(not np.array_equal(again, o) for o in others)
 
 
 def test_the_clocked_agent_adds_the_segment_sets_after_its_own():

@@ -104,8 +104,8 @@ def swept_rank(sweep, states: np.ndarray, sensed: np.ndarray):
                            pattern_ratio=sweep.pattern_ratio, sensed=base)
 
 
-def translated_sets(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int, per_set: int,
-                    stream=None):
+def translated_sets(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int, per_set: int, *,
+                    stream):
     """Equality sets of segments between POVs, inferred from the sets of changes.
 
     The changes ``j_k -> j_k'`` of one set all compensate one displacement
@@ -126,8 +126,7 @@ def translated_sets(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int, per_set
     for set_id in np.unique(set_ids):
         changes = pairs[set_ids == set_id]
         if len(changes) > per_set:
-            draw = np.random.default_rng(int(set_id)) if stream is None else \
-                stream.at(int(set_id))
+            draw = stream.at(int(set_id))
             changes = changes[np.sort(draw.choice(len(changes), size=per_set, replace=False))]
         k, l = np.triu_indices(len(changes), 1)
         keep = (changes[k, 0] != changes[l, 0]) & (changes[k, 1] != changes[l, 1])

@@ -206,8 +206,9 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         per_set = self.params.clock_translated_pairs
         if per_set < 2 or not len(pairs):
             return pairs, set_ids
-        more, more_ids = translated_sets(pairs, set_ids, self._store.count, per_set, CounterStream(
-            getattr(self, "_seed", 0), "naive.clock_translated"))
+        more, more_ids = translated_sets(pairs, set_ids, self._store.count, per_set,
+                                         stream=CounterStream(getattr(self, "_seed", 0),
+                                                              "naive.clock_translated"))
         return np.concatenate([pairs, more]), np.concatenate([set_ids, more_ids + self._sets.n_sets])
 
     def checkpoint(self) -> dict:
