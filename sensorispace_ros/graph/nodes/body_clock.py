@@ -41,9 +41,8 @@ from rclpy.duration import Duration
 from sensorispace_ros import contracts
 from sensorispace_ros.core.world_clock import ClockedBody, change_rows
 from sensorispace_ros.graph.framework import frame
+from sensorispace_ros.protocol import BODY_CLOCK_FILE
 from sensorispace_ros.state.resting_state import RestingStateFile
-
-CLOCK_FILE = "body.clock"
 
 
 def clock_events(world, cfg: dict) -> list:
@@ -84,7 +83,8 @@ class BodyClock:
         """Open ``<checkpoint_dir>/body.clock``; after a restart, stand where the
         last command executed left the clock (module docstring)."""
         size = 1 + 2 * (3 + self.description.n_motors)
-        self.clock_file = RestingStateFile(Path(self.graph["checkpoint_dir"]) / CLOCK_FILE, size)
+        self.clock_file = RestingStateFile(Path(self.graph["checkpoint_dir"]) / BODY_CLOCK_FILE,
+                                           size)
         saved = self.clock_file.load()
         if saved is None:
             return
