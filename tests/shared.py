@@ -1,12 +1,14 @@
 """Helpers every test folder shares (``tests/conftest.py`` puts this folder on
 ``sys.path`` and turns them into fixtures): the repository root, a free TCP
-port, stopping a process by its PID, and a node run as a process of its own."""
+port, stopping a process by its PID, a node run as a process of its own, and
+spinning an in-process graph whose agent runs in its ``step``."""
 from __future__ import annotations
 
 import os
 import signal
 import socket
 import subprocess
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,3 +78,15 @@ class NodeProcess:
     def kill9(self) -> None:
         os.kill(self.process.pid, signal.SIGKILL)
         self.process.wait()
+
+
+def spin_graph(graph, seconds: float) -> None:
+    """Spin ``graph`` (``in_process._InProcessGraph``) for ``seconds``, calling
+    each node's ``step`` between callbacks (the agent's driver runs there)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        graph.executor.spin_once(timeout_sec=0.05)
+        for node in graph.nodes.values():
+            step = getattr(node, "step", None)
+            if step is not None:
+                step()

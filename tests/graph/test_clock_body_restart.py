@@ -24,7 +24,7 @@ from sensorispace_ros.graph import in_process, launcher
 from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.messages.clouds import FloatCloud
 
-from shared import SMOKE, NodeProcess, stop_by_pid
+from shared import SMOKE, NodeProcess, spin_graph, stop_by_pid
 
 pytestmark = [pytest.mark.graph]
 
@@ -146,16 +146,6 @@ KILL_AT_COMMAND = 300
 TIMEOUT_S = 400.0
 
 
-def _spin(graph, seconds: float) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        graph.executor.spin_once(timeout_sec=0.05)
-        for node in graph.nodes.values():
-            step = getattr(node, "step", None)
-            if step is not None:
-                step()
-
-
 @pytest.mark.slow
 def test_the_body_killed_on_the_row_clock_changes_nothing_the_agent_finds(
         tmp_path, domain_id, monkeypatch):
@@ -215,7 +205,7 @@ def test_the_body_killed_on_the_row_clock_changes_nothing_the_agent_finds(
         started = time.monotonic()
         while representation.result is None:
             assert time.monotonic() - started < TIMEOUT_S, f"no end; logs {body.logs}"
-            _spin(graph, 0.1)
+            spin_graph(graph, 0.1)
         watcher.join(timeout=10)
         retransmits = agent.body.retransmits
         run = agent.clock_run

@@ -26,7 +26,7 @@ from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.protocol import SNAPSHOT_FILE
 from sensorispace_ros.state.agent_journal import read_snapshot
 
-from shared import SMOKE, NodeProcess, stop_by_pid
+from shared import SMOKE, NodeProcess, spin_graph, stop_by_pid
 
 pytestmark = [pytest.mark.graph]
 
@@ -37,16 +37,6 @@ WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equal
 # The dead agent works on this long after its snapshot (its rows are lost).
 KILL_AFTER_SNAPSHOT_S = 0.5
 TIMEOUT_S = 400.0
-
-
-def _spin(graph, seconds: float) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        graph.executor.spin_once(timeout_sec=0.05)
-        for node in graph.nodes.values():
-            step = getattr(node, "step", None)
-            if step is not None:
-                step()
 
 
 @pytest.mark.slow
@@ -101,7 +91,7 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
         representation = graph.nodes["representation"]
         while representation.result is None:
             assert time.monotonic() - started < TIMEOUT_S, f"no end; logs {agent.logs}"
-            _spin(graph, 0.1)
+            spin_graph(graph, 0.1)
             if snapshot_seen is None and snapshot_path.exists():
                 snapshot_seen = time.monotonic()
             if killed is None and snapshot_seen is not None \
@@ -120,7 +110,7 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
         agent.start()
         while agent.process.poll() is None:
             assert time.monotonic() - started < TIMEOUT_S, f"no end; logs {agent.logs}"
-            _spin(graph, 0.1)
+            spin_graph(graph, 0.1)
     finally:
         stop_by_pid(agent.process)
         graph.close()
