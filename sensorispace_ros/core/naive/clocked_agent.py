@@ -46,6 +46,10 @@ from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
 WITNESSES = 8        # swept POVs sensed again after a reaction
+# Lists a reaction only extends (their records never change): a checkpoint
+# keeps their lengths, not copies, and an undo cuts them back.
+APPENDED = ("compensations",)
+LENGTHS = "_appended_lengths"
 
 
 class _CurrentTree:
@@ -212,13 +216,16 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         return np.concatenate([pairs, more]), np.concatenate([set_ids, more_ids + self._sets.n_sets])
 
     def checkpoint(self) -> dict:
-        """What the agent knows (its counters excluded), to undo a reaction."""
+        """What the agent knows (its counters excluded), to undo a reaction;
+        of the lists a reaction only extends (``APPENDED``), their lengths."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire")}
+                if name not in ("_body", "_tripwire", *APPENDED)}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
                               if name != "body"}
-        return copy.deepcopy(kept)
+        saved = copy.deepcopy(kept)
+        saved[LENGTHS] = {name: len(getattr(self, name)) for name in APPENDED}
+        return saved
 
     def restore(self, saved: dict, salvage: bool = True) -> int:
         """Back to ``saved``; the rows spent since stay counted. With
@@ -231,7 +238,10 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         cut = self._cut_walk if salvage else None
         restored = copy.deepcopy(saved)
         sweep = restored.pop("_sweep", None)
+        lengths = restored.pop(LENGTHS)
         vars(self).update(restored)
+        for name, length in lengths.items():
+            setattr(self, name, getattr(self, name)[:length])
         self._body.phase = self._phase
         if sweep is not None:
             self._sweep = AllPairsSweep.__new__(AllPairsSweep)
