@@ -30,10 +30,12 @@ AGENT_RECORDS_FILE = "agent_records.npz"
 # representation both have), so that a second run does not overwrite a first.
 RUN_PLACEHOLDER = "{run}"
 # Files in graph.checkpoint_dir (state/): the agent's snapshot and journal, the
-# environment's progress record (the launcher polls it).
+# environment's progress record (the launcher polls it), the body's row clock
+# (the launcher polls it on that clock).
 SNAPSHOT_FILE = "agent.snapshot"
 JOURNAL_FILE = "agent.journal"
 PROGRESS_FILE = "environment.json"
+BODY_CLOCK_FILE = "body.clock"
 
 
 def frame(kind: str, number: int) -> str:

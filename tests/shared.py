@@ -1,11 +1,14 @@
 """Helpers every test folder shares (``tests/conftest.py`` puts this folder on
 ``sys.path`` and turns them into fixtures): the repository root, a free TCP
-port, and stopping a process by its PID."""
+port, stopping a process by its PID, a node run as a process of its own, and
+spinning an in-process graph whose agent runs in its ``step``."""
 from __future__ import annotations
 
+import os
 import signal
 import socket
 import subprocess
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -53,3 +56,37 @@ def count_world_builds(monkeypatch) -> dict:
             return _original(*args, **kwargs)
         monkeypatch.setattr(exploration, name, counted)
     return counts
+
+
+class NodeProcess:
+    """A graph node as a child process (``command``: ``launcher.node_command``),
+    killed with SIGKILL by its PID and started again with the same command
+    line; each start logs to ``<log_dir>/<name>-<k>.log`` (``logs``)."""
+
+    def __init__(self, name: str, command: list, env: dict, log_dir: Path):
+        self.name, self.command, self.env, self.log_dir = name, command, env, Path(log_dir)
+        self.logs: list = []
+        self.process: subprocess.Popen | None = None
+
+    def start(self) -> None:
+        log = self.log_dir / f"{self.name}-{len(self.logs)}.log"
+        self.logs.append(log)
+        with open(log, "wb") as out:
+            self.process = subprocess.Popen(self.command, env=self.env, stdout=out,
+                                            stderr=subprocess.STDOUT, start_new_session=True)
+
+    def kill9(self) -> None:
+        os.kill(self.process.pid, signal.SIGKILL)
+        self.process.wait()
+
+
+def spin_graph(graph, seconds: float) -> None:
+    """Spin ``graph`` (``in_process._InProcessGraph``) for ``seconds``, calling
+    each node's ``step`` between callbacks (the agent's driver runs there)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        graph.executor.spin_once(timeout_sec=0.05)
+        for node in graph.nodes.values():
+            step = getattr(node, "step", None)
+            if step is not None:
+                step()

@@ -103,6 +103,38 @@ class ClockedBody:
         code = getattr(self._body, "code", None)
         return (raw if code is None else code.apply(raw))[0]
 
+    def position(self) -> np.ndarray:
+        """Where the clock and the arm stand: ``[row, held_rows, calls,
+        motor state...]`` (``calls``: the body's commands, which number its
+        noise draws; the motor state NaN before the first command). What a
+        restarted body node goes on from (``resume``)."""
+        motor = getattr(self._body, "motor_state", None)
+        motor = np.full(self.n_motors, np.nan) if motor is None else np.asarray(motor, float)
+        calls = getattr(self._body, "calls", 0)
+        return np.concatenate([[self.row, self.held_rows, calls], motor.reshape(-1)])
+
+    def resume(self, position) -> None:
+        """Stand where ``position`` (``position()``'s vector) says: the world in
+        the state of that row, the body's command count and arm as they were.
+        The same commands from there are answered bit for bit as the first
+        time. The changes skipped over are not seen again: their
+        ``rest_jumps`` stay unknown (NaN)."""
+        position = np.asarray(position, dtype=float).reshape(-1)
+        if len(position) != 3 + self.n_motors or not np.all(np.isfinite(position[:3])):
+            raise ValueError(f"position: need row, held rows, calls and {self.n_motors} joints, "
+                             f"got {position.tolist()}")
+        row, held, calls = (int(x) for x in position[:3])
+        if not 0 <= held <= row:
+            raise ValueError(f"position: held rows {held} outside [0, row {row}]")
+        self.row, self.held_rows = row, held
+        self.state = int(self.state_at(row))
+        self._body.set_lights(self._lights[self.state], change=self.state)
+        if hasattr(self._body, "calls"):
+            self._body.calls = calls
+        motor = position[3:]
+        if hasattr(self._body, "motor_state"):
+            self._body.motor_state = motor.copy() if np.all(np.isfinite(motor)) else None
+
     # ------------------------------------------------------------- body
 
     def _segments(self, n: int):

@@ -65,7 +65,7 @@ class BodyOverTopics:
 
     def __init__(self, publish_command, spin_once, n_motors: int, n_sensors: int,
                  command_timeout_s: float = 2.0, on_retransmit=None, description=None,
-                 publish_hold=None):
+                 publish_hold=None, resend_holds: bool = False):
         if not command_timeout_s > 0:
             raise ValueError(f"command_timeout_s: must be > 0, got {command_timeout_s!r}")
         if description is not None and (description.n_motors, description.receptors) != (
@@ -75,6 +75,9 @@ class BodyOverTopics:
         self._publish_command = publish_command
         # (motor_state (1, N), low (R,), high (R,), frame_id): a world on its own clock
         self._publish_hold = publish_hold
+        # A hold on the row clock is answered at once: sent again when unanswered
+        # (a restarted body node), as a command is. On the wall clock it lasts.
+        self.resend_holds = bool(resend_holds)
         self._pending_end: str | None = None   # end/<n>: also answers hold/<n> or end/<n>
         self.reply_frame = ""                  # frame id of the last answer taken
         self._spin_once = spin_once
@@ -120,7 +123,8 @@ class BodyOverTopics:
         (``core.world_clock.ClockedBody.hold`` over the topics): one ``/body/hold``
         message, numbered with the commands, answered once. Returns that
         sensation, or None when the body answers ``end/<n>`` (its world has no
-        change left). Not re-sent: a hold lasts as long as the world stays."""
+        change left). Re-sent only with ``resend_holds`` (the row clock): on the
+        wall clock a hold lasts as long as the world stays."""
         motor_state = self._checked(np.reshape(motor_state, (1, -1)))
         self.await_move()
         self.await_ahead()
@@ -132,8 +136,10 @@ class BodyOverTopics:
         self._reply = None
         started = time.perf_counter()
         self._publish_hold(motor_state, band[0], band[1], frame_id)
-        reply = self._receive(_Sent(self.requests, 0, motor_state, frame_id, started, None),
-                              started, resend=False)
+        reply = self._receive(
+            _Sent(self.requests, 0, motor_state, frame_id, started, None), started,
+            resend=self.resend_holds,
+            publish=lambda *_: self._publish_hold(motor_state, band[0], band[1], frame_id))
         return None if self.reply_frame.startswith("end/") else reply[0]
 
     def end_run(self, motor_state: np.ndarray) -> None:
@@ -213,9 +219,12 @@ class BodyOverTopics:
         self._publish_command(motor_states, frame_id)
         return _Sent(number, check, motor_states, frame_id, started, None)
 
-    def _receive(self, sent: "_Sent", since: float, resend: bool = True) -> np.ndarray:
-        """Spin until ``sent`` is answered (re-sent every ``command_timeout_s``);
+    def _receive(self, sent: "_Sent", since: float, resend: bool = True,
+                 publish=None) -> np.ndarray:
+        """Spin until ``sent`` is answered (re-sent every ``command_timeout_s``
+        by ``publish(motor_states, frame_id)``, default the command's);
         ``since``: when the agent began to wait (``round_trip_s``)."""
+        publish = self._publish_command if publish is None else publish
         if sent.replayed is not None:
             return sent.replayed
         last_sent = sent.started
@@ -232,7 +241,7 @@ class BodyOverTopics:
                 self.retransmits += 1
                 if self._on_retransmit is not None:
                     self._on_retransmit(sent.frame_id, now - sent.started)
-                self._publish_command(sent.motor_states, sent.frame_id)
+                publish(sent.motor_states, sent.frame_id)
                 last_sent = now
         if since == sent.started:        # waited from the publication on (not a move's)
             tracing.stamp("agent.resume")

@@ -26,11 +26,15 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
 from sensorispace_ros.evaluation.graph_run import evaluate_run
 from sensorispace_ros.evaluation.run_files import metric
+from sensorispace_ros.protocol import BODY_CLOCK_FILE
 from sensorispace_ros.recording.completeness import wait_for_complete_recording
 from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progress
+from sensorispace_ros.state.resting_state import peek
 
 GRAPH_NODES = ("environment", "body", "agent", "representation")
 RECORDER = "recorder"
@@ -145,6 +149,45 @@ class Monitor:
             done = min(self.settled, self.total)
             print(f"[launch] change {done}/{self.total} ({100.0 * done / max(self.total, 1):.0f} %)"
                   f" after {now - self.started:.1f} s", file=self.stream, flush=True)
+
+
+class ClockMonitor(Monitor):
+    """The progress of a run on the row clock, where no change is settled: the
+    row the body's clock stands at (``body.clock``, read without writing,
+    ``graph.nodes.body_clock``) and the world state of that row on the
+    schedule (``change_row``: ``core.world_clock.change_rows``); past the
+    first ``total`` changes, the world replays them for simulation 2."""
+
+    def __init__(self, clock_path: Path, change_row, total_changes: int, stream,
+                 interval_s: float = 2.0):
+        super().__init__(clock_path, total_changes, stream, interval_s)
+        self.change_row = change_row
+
+    def poll(self) -> None:
+        saved = peek(self.progress_path)
+        now = time.monotonic()
+        if saved is None or now - self._last_print < self.interval_s:
+            return
+        self._last_print = now
+        row = int(saved[(len(saved) - 1) // 2 + 1])       # after the last command
+        state = int(np.searchsorted(self.change_row, row, side="right"))
+        where = f"change {state}/{self.total} ({100.0 * state / max(self.total, 1):.0f} %)" \
+            if state <= self.total else f"simulation 2, change {state - self.total}"
+        print(f"[launch] row {row:,}: {where} after {now - self.started:.1f} s",
+              file=self.stream, flush=True)
+
+
+def make_monitor(plan: "RunPlan", stream) -> Monitor:
+    """The progress shown while ``plan`` runs: the changes settled, or on the
+    row clock the row the body's clock stands at."""
+    world = plan.cfg["world"]
+    if world["clock"] != "rows":
+        return Monitor(plan.checkpoint_dir / PROGRESS_FILE, plan.total_changes, stream)
+    from sensorispace_ros.core.world_clock import change_rows
+    n_events = plan.total_changes - 1
+    twice = plan.cfg["naive"]["clock_equality_changes"] > 0
+    rows = change_rows(n_events * (2 if twice else 1), world["change_interval"], plan.cfg["seed"])
+    return ClockMonitor(plan.checkpoint_dir / BODY_CLOCK_FILE, rows, n_events, stream)
 
 
 @dataclass(frozen=True)
@@ -382,7 +425,7 @@ def launch_graph(config_path: str | Path | None = None, run: str | None = None,
               "Open connection > Foxglove WebSocket (layout: docs/foxglove-layout.json)",
               file=stream, flush=True)
     graph = Graph(plan.env, plan.log_dir)
-    monitor = Monitor(plan.checkpoint_dir / PROGRESS_FILE, plan.total_changes, stream)
+    monitor = make_monitor(plan, stream)
     result = LaunchResult(1, plan.run, plan.results_dir, plan.domain_id)
     with stop_requests() as stop_requested:
         started = time.monotonic()

@@ -1,6 +1,8 @@
 """What the body node persists to survive a restart: its resting motor state and
 the number of the last lights applied, in ``<checkpoint_dir>/body.state``
-(``RestingStateFile``). Pure Python + numpy, no rclpy."""
+(``RestingStateFile``), and on the row clock where the clock stood
+(``body.clock``); ``peek`` reads one without writing (the launcher's progress).
+Pure Python + numpy, no rclpy."""
 from __future__ import annotations
 
 import os
@@ -10,6 +12,25 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+
+
+def newest(slots: np.ndarray) -> np.ndarray | None:
+    """The values of the newest slot whose two sequence numbers agree, or None."""
+    valid = [row for row in slots if row[0] > 0 and row[0] == row[-1]]
+    return np.array(max(valid, key=lambda row: row[0])[1:-1]) if valid else None
+
+
+def peek(path: Path) -> np.ndarray | None:
+    """The last vector a ``RestingStateFile`` wrote at ``path``, read without
+    opening it for writing (its size from the file's); None while it is
+    missing or holds nothing valid."""
+    try:
+        data = np.fromfile(path, dtype=np.float64)
+    except (OSError, ValueError):
+        return None
+    if len(data) < 6 or len(data) % 2:
+        return None
+    return newest(data.reshape(2, -1))
 
 
 class RestingStateFile:
@@ -42,10 +63,7 @@ class RestingStateFile:
 
     def load(self) -> np.ndarray | None:
         """The last vector written, or None (no file, nothing valid)."""
-        valid = self._valid_slots()
-        if not valid:
-            return None
-        return np.array(max(valid, key=lambda row: row[0])[1:-1])
+        return newest(self.slots)
 
     def save(self, values: Sequence[float]) -> None:
         """Write ``values`` (``size`` numbers) over the older slot."""

@@ -224,3 +224,32 @@ def test_a_frontier_target_a_known_unswept_pov_senses_is_not_searched(clocked_sm
     assert agent._unswept_targets(requests, current) == [1, 2]
     assert 0 < agent._body.total_rows - rows <= 2 * NEAR_POVS
     np.testing.assert_array_equal(current[k], sensed[k])
+
+
+def test_an_undone_reaction_loses_its_compensations_and_sets_and_keeps_the_earlier_ones(
+        clocked_smoke):
+    from sensorispace_ros.core.naive.clocked_agent import APPENDED
+    from sensorispace_ros.core.naive.records import CompensationRecord
+
+    _, run, _ = clocked_smoke
+    agent = run.agent
+    before = list(agent.compensations)
+    pairs, set_ids = (x.copy() for x in agent.equality_sets())
+    assert before and len(set_ids) and "compensations" in APPENDED
+    saved = agent.checkpoint()
+    assert "compensations" not in saved and "_sets" not in saved   # kept by length
+    extra = CompensationRecord(event=-1, anchor_event=-1, anchor_motor_state=np.zeros(4),
+                               motor_state=np.zeros(4), pov=-1, searched=True)
+    agent.compensations.append(extra)
+    assert agent._sets.add([0, 1], [2, 3]) >= 0
+    agent.restore(saved, salvage=False)
+    assert agent.compensations == before and extra not in agent.compensations
+    for now, then in zip(agent.equality_sets(), (pairs, set_ids)):
+        np.testing.assert_array_equal(now, then)
+    assert all(a is b for a, b in zip(agent.compensations, before))
+    # The lists a reaction only extends: no record of them changes later.
+    agent.compensations.extend([extra])
+    agent.restore(agent.checkpoint(), salvage=False)
+    assert agent.compensations[-1] is extra
+    agent.restore(saved, salvage=False)
+    assert agent.compensations == before

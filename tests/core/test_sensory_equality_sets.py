@@ -99,6 +99,14 @@ def test_collection_drops_zero_displacements_and_lonely_changes():
     np.testing.assert_array_equal(sets.pairs, [[0, 3], [2, 4], [7, 9], [8, 10]])
     np.testing.assert_array_equal(sets.set_ids, [0, 0, 1, 1])
     assert sets.n_pairs == 4 and sets.n_sets == 2
+    # An undone reaction's sets are forgotten; the next set takes their ids.
+    sets.add([11, 12, 13], [14, 15, 16])
+    sets.truncate(1)
+    np.testing.assert_array_equal(sets.pairs, [[0, 3], [2, 4]])
+    assert sets.n_pairs == 2 and sets.n_sets == 1
+    assert sets.add([7, 8], [9, 10]) == 1
+    with pytest.raises(ValueError, match=r"n_sets: must lie in \[0, 2\], got 3"):
+        sets.truncate(3)
 
 
 @pytest.fixture(scope="module")

@@ -61,6 +61,25 @@ def test_hold_returns_the_first_sensation_out_of_band():
     assert clocked.ended
 
 
+def test_a_clock_resumed_at_its_position_answers_as_it_did():
+    clocked = ClockedBody(SimulatedBody(RECEPTORS), LIGHTS, np.array([3, 5]))
+    states = _states()
+    first = clocked.sense(states[:2])
+    at = clocked.position()
+    assert at[:3].tolist() == [2, 0, 1]
+    np.testing.assert_array_equal(at[3:], states[1])
+    then = clocked.sense(states[2:])
+    clocked.resume(at)                      # back before the change at row 3
+    assert (clocked.row, clocked.state) == (2, 0)
+    np.testing.assert_array_equal(clocked.sense(states[2:]), then)
+    assert clocked.ended and clocked.row == 7
+    np.testing.assert_array_equal(first, SimulatedBody(RECEPTORS, LIGHTS[0]).sense(states[:2]))
+    with pytest.raises(ValueError, match="position: need row, held rows, calls and 4 joints"):
+        clocked.resume(at[:3])
+    with pytest.raises(ValueError, match="held rows 9 outside"):
+        clocked.resume(np.concatenate([[2, 9, 1], states[1]]))
+
+
 def test_the_change_test_is_the_noise_band():
     reference = np.array([1.0, 2.0, np.nan])
     sd = 1e-3

@@ -56,3 +56,39 @@ def test_a_non_finite_motor_state_is_never_sent():
     with pytest.raises(ValueError, match=r"non-finite motor values in rows \[1\]"):
         proxy.sense(np.array([[0.0, 0.0], [np.nan, 0.0]]))
     assert not body.sent
+
+
+class SlowBody(FakeBody):
+    """Answers a hold only at its ``answer_at``-th spin (a body node that died
+    with the first one), each spin taking ``spin_s``."""
+
+    def __init__(self, answer, answer_at: int, spin_s: float):
+        super().__init__(answer)
+        self.spins, self.answer_at, self.spin_s = 0, answer_at, spin_s
+
+    def spin_once(self, timeout_s):
+        import time
+        time.sleep(self.spin_s)
+        self.spins += 1
+        if self.spins >= self.answer_at:
+            super().spin_once(timeout_s)
+
+
+@pytest.mark.parametrize("resend", [True, False])
+def test_an_unanswered_hold_is_sent_again_only_on_the_row_clock(resend):
+    left = np.array([[0.5, 0.2, 0.1]])
+    body = SlowBody(lambda frame_id: (frame_id, left), answer_at=12, spin_s=0.005)
+    body.proxy = BodyOverTopics(body.publish_command, body.spin_once, n_motors=2, n_sensors=3,
+                                command_timeout_s=0.02, publish_hold=body.publish_hold,
+                                resend_holds=resend)
+    low, high = np.zeros(3), np.ones(3)
+    sensed = body.proxy.hold(np.array([1.0, 2.0]), low, high)
+    np.testing.assert_array_equal(sensed, left[0])
+    # 12 spins of 5 ms against a timeout of 20 ms: sent again at least once.
+    assert len(body.holds) > 1 if resend else len(body.holds) == 1
+    assert body.proxy.retransmits == len(body.holds) - 1 and not body.sent
+    for frame_id, motor, sent_low, sent_high in body.holds:    # the same hold each time
+        assert frame_id == "hold/1"
+        np.testing.assert_array_equal(motor, [[1.0, 2.0]])
+        np.testing.assert_array_equal(sent_low, low)
+        np.testing.assert_array_equal(sent_high, high)

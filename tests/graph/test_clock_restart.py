@@ -14,10 +14,7 @@ uninterrupted one bit for bit. Started once more on the run over, the agent
 publishes its results again and ends. A snapshot that is not a clocked run, or is one
 of another body, stops the agent naming ``graph.checkpoint_dir``.
 """
-import os
 import re
-import signal
-import subprocess
 import time
 
 import numpy as np
@@ -29,7 +26,7 @@ from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.protocol import SNAPSHOT_FILE
 from sensorispace_ros.state.agent_journal import read_snapshot
 
-from shared import SMOKE, stop_by_pid
+from shared import SMOKE, NodeProcess, spin_graph, stop_by_pid
 
 pytestmark = [pytest.mark.graph]
 
@@ -40,36 +37,6 @@ WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equal
 # The dead agent works on this long after its snapshot (its rows are lost).
 KILL_AFTER_SNAPSHOT_S = 0.5
 TIMEOUT_S = 400.0
-
-
-class AgentProcess:
-    """The agent node as a child process, killed and started again by PID."""
-
-    def __init__(self, command, env, log_dir):
-        self.command, self.env, self.log_dir = command, env, log_dir
-        self.logs: list = []
-        self.process: subprocess.Popen | None = None
-
-    def start(self) -> None:
-        log = self.log_dir / f"agent-{len(self.logs)}.log"
-        self.logs.append(log)
-        with open(log, "wb") as out:
-            self.process = subprocess.Popen(self.command, env=self.env, stdout=out,
-                                            stderr=subprocess.STDOUT, start_new_session=True)
-
-    def kill9(self) -> None:
-        os.kill(self.process.pid, signal.SIGKILL)
-        self.process.wait()
-
-
-def _spin(graph, seconds: float) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        graph.executor.spin_once(timeout_sec=0.05)
-        for node in graph.nodes.values():
-            step = getattr(node, "step", None)
-            if step is not None:
-                step()
 
 
 @pytest.mark.slow
@@ -102,7 +69,7 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
     env = graph_environment(domain_id)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_STATIC_PEERS", None)
-    agent = AgentProcess(launcher.node_command("agent", path, {
+    agent = NodeProcess("agent", launcher.node_command("agent", path, {
         "graph.results_dir": str(results), "graph.checkpoint_dir": str(checkpoints),
         "graph.exit_when_done": True}), env, tmp_path)
 
@@ -124,7 +91,7 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
         representation = graph.nodes["representation"]
         while representation.result is None:
             assert time.monotonic() - started < TIMEOUT_S, f"no end; logs {agent.logs}"
-            _spin(graph, 0.1)
+            spin_graph(graph, 0.1)
             if snapshot_seen is None and snapshot_path.exists():
                 snapshot_seen = time.monotonic()
             if killed is None and snapshot_seen is not None \
@@ -143,7 +110,7 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
         agent.start()
         while agent.process.poll() is None:
             assert time.monotonic() - started < TIMEOUT_S, f"no end; logs {agent.logs}"
-            _spin(graph, 0.1)
+            spin_graph(graph, 0.1)
     finally:
         stop_by_pid(agent.process)
         graph.close()

@@ -72,3 +72,30 @@ def test_the_launchers_progress_line_follows_the_record_and_never_goes_back(tmp_
     lines = stream.getvalue().splitlines()
     assert [re.match(r"\[launch\] change (\d+)/40 \((\d+) %\) after [\d.]+ s$", line).groups()
             for line in lines] == [("10", "25"), ("10", "25"), ("40", "100")], lines
+
+
+def test_on_the_row_clock_the_progress_line_is_the_row_the_bodys_clock_stands_at(tmp_path):
+    import numpy as np
+
+    from sensorispace_ros.graph.launcher import ClockMonitor
+    from sensorispace_ros.state.resting_state import RestingStateFile, peek
+
+    path = tmp_path / "body.clock"
+    stream = io.StringIO()
+    # Changes before rows 10, 20, 30, 40; the first two are the schedule, the
+    # last two its replay for simulation 2.
+    monitor = ClockMonitor(path, np.array([10, 20, 30, 40]), total_changes=2, stream=stream,
+                           interval_s=0.0)
+    monitor.poll()                                  # no file yet: nothing to show
+    assert stream.getvalue() == "" and peek(path) is None
+    joints = 2
+    clock = RestingStateFile(path, 1 + 2 * (3 + joints))
+    for number, (before, after) in enumerate(((0, 15), (15, 20), (20, 35)), start=1):
+        clock.save((number, before, 0, 0, 0.1, 0.2, after, 0, 0, 0.3, 0.4))
+        monitor.poll()
+    lines = stream.getvalue().splitlines()
+    assert [re.match(r"\[launch\] row ([\d,]+): (.*) after [\d.]+ s$", line).groups()
+            for line in lines] == [("15", "change 1/2 (50 %)"), ("20", "change 2/2 (100 %)"),
+                                   ("35", "simulation 2, change 1")], lines
+    # Read without writing: the body's file is as it wrote it.
+    np.testing.assert_array_equal(peek(path), clock.load())

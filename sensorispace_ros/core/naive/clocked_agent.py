@@ -46,6 +46,12 @@ from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
 WITNESSES = 8        # swept POVs sensed again after a reaction
+# What a reaction only adds to (its records never change): a checkpoint keeps
+# their lengths, not copies, and an undo cuts them back. The equality sets
+# (``_sets``, simulation 2's sweep adds to them too) by their count.
+APPENDED = ("compensations",)
+LENGTHS = "_appended_lengths"
+SETS = "_sets"
 
 
 class _CurrentTree:
@@ -212,13 +218,17 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         return np.concatenate([pairs, more]), np.concatenate([set_ids, more_ids + self._sets.n_sets])
 
     def checkpoint(self) -> dict:
-        """What the agent knows (its counters excluded), to undo a reaction."""
+        """What the agent knows (its counters excluded), to undo a reaction;
+        of the lists a reaction only extends (``APPENDED``), their lengths."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire")}
+                if name not in ("_body", "_tripwire", SETS, *APPENDED)}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
-                              if name != "body"}
-        return copy.deepcopy(kept)
+                              if name not in ("body", "sets")}
+        saved = copy.deepcopy(kept)
+        saved[LENGTHS] = {name: len(getattr(self, name)) for name in APPENDED}
+        saved[LENGTHS][SETS] = self._sets.n_sets
+        return saved
 
     def restore(self, saved: dict, salvage: bool = True) -> int:
         """Back to ``saved``; the rows spent since stay counted. With
@@ -231,11 +241,15 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         cut = self._cut_walk if salvage else None
         restored = copy.deepcopy(saved)
         sweep = restored.pop("_sweep", None)
+        lengths = restored.pop(LENGTHS)
+        self._sets.truncate(lengths.pop(SETS))
         vars(self).update(restored)
+        for name, length in lengths.items():
+            setattr(self, name, getattr(self, name)[:length])
         self._body.phase = self._phase
         if sweep is not None:
             self._sweep = AllPairsSweep.__new__(AllPairsSweep)
-            vars(self._sweep).update(sweep, body=self._body)
+            vars(self._sweep).update(sweep, body=self._body, sets=self._sets)
         else:
             self._sweep = None
         for pov, walked in zip(samples, queries):

@@ -242,6 +242,14 @@ class EqualitySetCollection:
         self.n_pairs += len(pairs)
         return set_id
 
+    def truncate(self, n_sets: int) -> None:
+        """Forget the sets added after the first ``n_sets`` (an undone reaction's)."""
+        if not 0 <= n_sets <= self.n_sets:
+            raise ValueError(f"n_sets: must lie in [0, {self.n_sets}], got {n_sets}")
+        self.n_pairs -= sum(len(pairs) for pairs in self._pairs[n_sets:])
+        del self._pairs[n_sets:], self._ids[n_sets:]
+        self.n_sets = n_sets
+
     @property
     def pairs(self) -> np.ndarray:
         return np.concatenate(self._pairs) if self._pairs else np.zeros((0, 2), dtype=int)

@@ -203,8 +203,11 @@ class LoopWalk:
         accepted = kept > 0
         last = np.maximum(kept - 1, 0)
         front_of = (np.arange(len(active))[:, None], np.arange(2)[None, :])
-        links = np.linalg.norm(np.diff(np.concatenate([point[:, :, None, :], knots], axis=2),
-                                       axis=2), axis=-1)                     # (A, 2, K)
+        # Probes past the first rejected one may have infinite corrections:
+        # their links are never used (``kept``).
+        with np.errstate(over="ignore", invalid="ignore"):
+            links = np.linalg.norm(np.diff(np.concatenate([point[:, :, None, :], knots], axis=2),
+                                           axis=2), axis=-1)                 # (A, 2, K)
         travelled = np.sum(np.where(np.arange(self.n_knots) < kept[..., None], links, 0.0),
                            axis=-1)
         previous_null = np.where((last > 0)[..., None], null[front_of + (last - 1,)],

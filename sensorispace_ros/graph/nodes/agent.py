@@ -109,7 +109,7 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
                                    .warning(f"no answer to {frame_id} after {waited_s:.1f} s: "
                                             f"sent again ({self.body.retransmits} so far)"),
                                    description=description,
-                                   publish_hold=self.publish_hold)
+                                   publish_hold=self.publish_hold, resend_holds=self.clock == "rows")
         self.body.aborted = self.aborted
         self.initial_motor_state, said = agent_outputs.initial_posture(
             self.cfg["arm"]["initial_motor_state"], description.n_motors)

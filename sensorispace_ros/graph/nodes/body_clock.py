@@ -15,11 +15,25 @@ says ``equality/<k>`` before its next answer, and again before each answer
 to a hold (an agent restarted from a snapshot may have missed it). A command sent again
 is answered with its first answer (the clock does not run twice).
 
+Restart on the row clock: with ``graph.checkpoint_dir`` the body writes, after
+each command or hold it executes, the command's number and where the clock
+and the arm stood before and after it (``<dir>/body.clock``, one ``os.pwrite``
+as ``body.state``: ``ClockedBody.position``). A restarted body goes on from
+there: the command sent again (the dead body may have executed it without its
+answer getting out) is executed again from where it began, bit for bit, a later
+one from where the last ended; an older one is dropped. The world's clock is
+the rows executed, so a kill -9 of the body changes nothing the agent does.
+What the dead body knew only in memory (``rows_after``, ``state_after``,
+``rest_jumps``) is not restored: the evaluator's ground truth of time covers
+the restarted body's commands. The ``wall`` clock's body has no restart.
+
 Ground truth for the evaluator, never published to the agent: the rows
 executed after each command (``rows_after``, rows) and the world state each
 command was answered in (``state_after``); ``evaluation.graph_clock``.
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 from rclpy.duration import Duration
@@ -27,6 +41,8 @@ from rclpy.duration import Duration
 from sensorispace_ros import contracts
 from sensorispace_ros.core.world_clock import ClockedBody, change_rows
 from sensorispace_ros.graph.framework import frame
+from sensorispace_ros.protocol import BODY_CLOCK_FILE
+from sensorispace_ros.state.resting_state import RestingStateFile
 
 
 def clock_events(world, cfg: dict) -> list:
@@ -45,7 +61,9 @@ class BodyClock:
         self.clocked_body = None
         self.rows_after = {0: 0}          # command number -> rows executed after it
         self.state_after: dict[int, int] = {}
-        self.last_answer: tuple[str, bytes] | None = None
+        self.last_answer: tuple[int, bytes] | None = None    # (command number, answer)
+        self.clock_file = None
+        self.resumed: tuple[int, np.ndarray] | None = None   # (number, position before it)
         self.holding = None               # wall: (number, motor (1, N), low, high)
         self.world_ended = False
         self.announced = False
@@ -55,9 +73,47 @@ class BodyClock:
             self.clocked_body = ClockedBody(
                 self.body, [world.initial_lights] + [e.lights for e in events],
                 change_rows(len(events), self.cfg["world"]["change_interval"], self.cfg["seed"]))
+            if self.graph["checkpoint_dir"]:
+                self.resume_clock()
         elif self.clock == "wall":
             self.body.set_lights(world.initial_lights, change=0)
             self.lights_number = 0
+
+    def resume_clock(self) -> None:
+        """Open ``<checkpoint_dir>/body.clock``; after a restart, stand where the
+        last command executed left the clock (module docstring)."""
+        size = 1 + 2 * (3 + self.description.n_motors)
+        self.clock_file = RestingStateFile(Path(self.graph["checkpoint_dir"]) / BODY_CLOCK_FILE,
+                                           size)
+        saved = self.clock_file.load()
+        if saved is None:
+            return
+        number, (before, after) = int(saved[0]), np.split(saved[1:], 2)
+        self.clocked_body.resume(after)
+        self.resumed = (number, before)
+        self.get_logger().warning(
+            f"restarted on the row clock: resumed after command {number} at row "
+            f"{self.clocked_body.row} (world state {self.clocked_body.state}), from "
+            f"{self.clock_file.path}")
+
+    def on_the_clock(self, number: int, topic: str = "/body/motor_command") -> bool:
+        """Before executing command or hold ``number``: after a restart, the
+        last one executed is executed again from where it began, an older one
+        is dropped (False)."""
+        if self.resumed is None:
+            return True
+        last, before = self.resumed
+        if number < last:
+            self.drop(topic, f"command {number} was answered before the restart")
+            return False
+        if number == last:
+            self.clocked_body.resume(before)
+        self.resumed = None
+        return True
+
+    def executed(self, number: int, before: np.ndarray) -> None:
+        if self.clock_file is not None:
+            self.clock_file.save((number, *before, *self.clocked_body.position()))
 
     @property
     def world_state(self) -> int:
@@ -74,11 +130,14 @@ class BodyClock:
 
     def clock_command(self, kind: str, number: int, command) -> None:
         """A command (``cmd/<n>``) or the agent's end of the run (``end/<n>``)."""
-        if self.last_answer is not None and self.last_answer[0] == command.frame_id:
-            self.sensation_pub.publish(self.last_answer[1])
+        if self.answered_before(number):
             return
         if self.clocked_body is not None:
+            if not self.on_the_clock(number):
+                return
+            before = self.clocked_body.position()
             sensations = self.clocked_body.sense(command.matrix)
+            self.executed(number, before)
         else:
             sensations = self.body.sense(command.matrix)
         self.record(number)
@@ -97,12 +156,23 @@ class BodyClock:
         row = cloud.matrix[0]
         motor, (low, high) = row[None, :n], np.split(row[n:], 2)
         if self.clocked_body is not None:
+            if self.answered_before(number) or not self.on_the_clock(number, "/body/hold"):
+                return
+            before = self.clocked_body.position()
             sensed = None if self.clocked_body.ended else self.clocked_body.hold(motor, low, high)
+            self.executed(number, before)
             self.record(number)
             self.hold_answered(number, motor, sensed)
         else:
             self.holding = (number, motor, low, high)
             self.watch_hold()
+
+    def answered_before(self, number: int) -> bool:
+        """Command or hold ``number`` sent again: its first answer again."""
+        if self.last_answer is None or self.last_answer[0] != number:
+            return False
+        self.sensation_pub.publish(self.last_answer[1])
+        return True
 
     def watch_hold(self) -> None:
         """wall: look at the held state in the world as it is now."""
@@ -144,7 +214,7 @@ class BodyClock:
                 np.zeros((1, self.description.receptors)),
                 frame("equality", self.world_state), self.now_ns()))
         data = self.sensation_packer.pack(sensations, frame_id, self.now_ns())
-        self.last_answer = (frame_id, data)
+        self.last_answer = (int(frame_id.rsplit("/", 1)[1]), data)
         self.sensation_pub.publish(data)
         stamp = self.now_ns()
         self.pose_pub.publish(self.pose_packer.pack(self.body.sensor_pose(motor), frame_id,
