@@ -29,7 +29,9 @@ the restarted body's commands. The ``wall`` clock's body has no restart.
 
 Ground truth for the evaluator, never published to the agent: the rows
 executed after each command (``rows_after``, rows) and the world state each
-command was answered in (``state_after``); ``evaluation.graph_clock``.
+command was answered in (``state_after``); ``evaluation.graph_clock``. With
+``graph.checkpoint_dir`` they are written there when the run is over
+(``state.clock_truth``), for the evaluation of a launched run.
 """
 from __future__ import annotations
 
@@ -39,18 +41,11 @@ import numpy as np
 from rclpy.duration import Duration
 
 from sensorispace_ros import contracts
-from sensorispace_ros.core.world_clock import ClockedBody, change_rows
+from sensorispace_ros.core.world_clock import ClockedBody, change_rows, clock_events
 from sensorispace_ros.graph.framework import frame
-from sensorispace_ros.protocol import BODY_CLOCK_FILE
+from sensorispace_ros.protocol import BODY_CLOCK_FILE, BODY_TRUTH_FILE
+from sensorispace_ros.state.clock_truth import write_clock_truth
 from sensorispace_ros.state.resting_state import RestingStateFile
-
-
-def clock_events(world, cfg: dict) -> list:
-    """The changes a world on its own clock plays: the schedule, twice when the
-    agent has an equality pass (``naive.clock_equality_changes``), as
-    ``core.clocked_run.explore_clocked`` plays it."""
-    twice = cfg["naive"]["clock_equality_changes"] > 0
-    return list(world.events) * (2 if twice else 1)
 
 
 class BodyClock:
@@ -224,6 +219,9 @@ class BodyClock:
     def clock_over(self) -> None:
         self.get_logger().info(f"run over: world state {self.world_state} of "
                                f"{len(self.clock_events_played())} changes")
+        if self.graph["checkpoint_dir"]:
+            write_clock_truth(Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_FILE,
+                              self.rows_after, self.state_after, self.clocked_body)
         if self.graph["exit_when_done"]:
             self.sensation_pub.wait_for_all_acked(Duration(seconds=2.0))
             self.finished = True
