@@ -103,6 +103,10 @@ def clocked_numbers(cfg: dict, checkpoint_dir: Path) -> dict:
         return {"analysis.naive_records": (
             f"world.clock {cfg['world']['clock']}: naive.* not evaluated (no "
             f"{BODY_TRUTH_FILE} or no {SNAPSHOT_FILE} of the run over in {checkpoint_dir})")}
+    if not truth["whole"]:
+        return {"analysis.naive_records": (
+            f"world.clock {cfg['world']['clock']}: naive.* not evaluated (the body restarted: "
+            f"its {BODY_TRUTH_FILE} holds only the commands since)")}
     world = run_world(cfg)
     events = clock_events(world, cfg)
     if cfg["world"]["clock"] == "rows":

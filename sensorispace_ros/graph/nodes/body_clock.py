@@ -58,6 +58,7 @@ class BodyClock:
         self.state_after: dict[int, int] = {}
         self.last_answer: tuple[int, bytes] | None = None    # (command number, answer)
         self.clock_file = None
+        self.clock_resumed = False        # restarted: rows_after, state_after since then only
         self.resumed: tuple[int, np.ndarray] | None = None   # (number, position before it)
         self.holding = None               # wall: (number, motor (1, N), low, high)
         self.world_ended = False
@@ -85,7 +86,7 @@ class BodyClock:
             return
         number, (before, after) = int(saved[0]), np.split(saved[1:], 2)
         self.clocked_body.resume(after)
-        self.resumed = (number, before)
+        self.resumed, self.clock_resumed = (number, before), True
         self.get_logger().warning(
             f"restarted on the row clock: resumed after command {number} at row "
             f"{self.clocked_body.row} (world state {self.clocked_body.state}), from "
@@ -221,7 +222,8 @@ class BodyClock:
                                f"{len(self.clock_events_played())} changes")
         if self.graph["checkpoint_dir"]:
             write_clock_truth(Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_FILE,
-                              self.rows_after, self.state_after, self.clocked_body)
+                              self.rows_after, self.state_after, self.clocked_body,
+                              whole=not self.clock_resumed)
         if self.graph["exit_when_done"]:
             self.sensation_pub.wait_for_all_acked(Duration(seconds=2.0))
             self.finished = True
