@@ -38,6 +38,14 @@ def change_rows(n_changes: int, interval: float, seed: int) -> np.ndarray:
     return np.cumsum(np.maximum(1, np.ceil(gaps))).astype(np.int64)
 
 
+def clock_events(world, cfg: dict) -> list:
+    """The changes a world on its own clock plays: the schedule, twice when the
+    agent has an equality pass (``naive.clock_equality_changes``), as
+    ``core.clocked_run.explore_clocked`` plays it."""
+    twice = cfg["naive"]["clock_equality_changes"] > 0
+    return list(world.events) * (2 if twice else 1)
+
+
 class ClockedBody:
     """``body`` (a ``SimulatedBody``) in a world that changes on a row clock.
 

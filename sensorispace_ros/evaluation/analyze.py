@@ -52,6 +52,7 @@ from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.arm import Arm
 from sensorispace_ros.core.naive.records import STAGES, STRUCTURE_FIELDS, NaiveAgentRecords
 from sensorispace_ros.core.world import REDISTRIBUTION
+from sensorispace_ros.evaluation.graph_clock import clocked_numbers
 from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from_motor
 from sensorispace_ros.evaluation.naive import naive_metrics
 from sensorispace_ros.evaluation.run_files import run_arrays
@@ -59,7 +60,7 @@ from sensorispace_ros.evaluation.runs import evaluate_graph_run
 from sensorispace_ros.offline.pov_assembly import MIN_POVS, assemble_points_of_view, equality_pairs
 from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
-from sensorispace_ros.protocol import KIND_OF_CODE, parse_frame
+from sensorispace_ros.protocol import CHECKPOINTS, KIND_OF_CODE, parse_frame
 from sensorispace_ros.recording.bag_format import SESSION_CONFIG_TOPIC, BagError
 from sensorispace_ros.recording.bag_reader import (
     bag_info,
@@ -305,6 +306,8 @@ def _analyze_bag(bag_dir: Path, out_dir: Path, cfg: dict | None, progress, start
     truth = RunTruth(cfg)
     counters.update(_naive_numbers(bag_dir, data, totals, description, truth, poses,
                                    change_events, arrays))
+    if cfg["world"]["clock"] != "agent":
+        counters.update(clocked_numbers(cfg, out_dir / CHECKPOINTS))
     counters["timings_s.total"] = time.perf_counter() - started
     return evaluate_graph_run(arrays, cfg, out_dir, metrics=counters, strategy="naive",
                               progress=progress, truth=truth)

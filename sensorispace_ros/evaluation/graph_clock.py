@@ -6,14 +6,23 @@ joined here into the offline driver's ``ClockTruth`` so that a graph run is
 evaluated as an offline one (``evaluation.naive``, ``evaluation.clock``).
 
 A driver position ``2n + 1`` is the first row of command ``n + 1``, ``2n``
-the last row of command ``n``.
+the last row of command ``n``. A launched run (``clocked_numbers``) is read
+from its checkpoint directory: the agent's snapshot of the run over and the
+body's record (``state.clock_truth``).
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
 from sensorispace_ros.core.clocked_run import ClockTruth
 from sensorispace_ros.core.naive.run import summarize_naive
+from sensorispace_ros.core.run_world import run_world
+from sensorispace_ros.core.world_clock import ClockedBody, change_rows, clock_events
+from sensorispace_ros.protocol import BODY_TRUTH_FILE, SNAPSHOT_FILE
+from sensorispace_ros.state.agent_journal import read_snapshot
+from sensorispace_ros.state.clock_truth import read_clock_truth
 
 
 def position(value) -> tuple[int, bool]:
@@ -76,3 +85,43 @@ def graph_clocked_run(run, world, events: list, *, clocked_body=None, rows_after
                        state_of=truth_state_of, lights=lights, restarts=int(run.restarts),
                        rows_lost_to_restart=int(run.rows_lost_to_restart))
     return summarize_naive(run.exploration(world, events, 0.0), truth)
+
+
+def clocked_numbers(cfg: dict, checkpoint_dir: Path) -> dict:
+    """``naive.*`` (``naive.clock.*`` too) of a launched run on its own clock, as
+    an offline run's: the agent's run from its snapshot of the run over
+    (``agent.snapshot``) joined with the body's record (``body.truth.npz``);
+    else only ``analysis.naive_records`` saying what is missing."""
+    from sensorispace_ros.evaluation.clock import clock_metrics
+    from sensorispace_ros.evaluation.naive import evaluate_naive_run
+
+    checkpoint_dir = Path(checkpoint_dir)
+    truth = read_clock_truth(checkpoint_dir / BODY_TRUTH_FILE)
+    snapshot_path = checkpoint_dir / SNAPSHOT_FILE
+    snapshot = read_snapshot(snapshot_path) if snapshot_path.is_file() else None
+    if truth is None or snapshot is None or not snapshot.get("over"):
+        return {"analysis.naive_records": (
+            f"world.clock {cfg['world']['clock']}: naive.* not evaluated (no "
+            f"{BODY_TRUTH_FILE} or no {SNAPSHOT_FILE} of the run over in {checkpoint_dir})")}
+    if not truth["whole"]:
+        return {"analysis.naive_records": (
+            f"world.clock {cfg['world']['clock']}: naive.* not evaluated (the body restarted: "
+            f"its {BODY_TRUTH_FILE} holds only the commands since)")}
+    world = run_world(cfg)
+    events = clock_events(world, cfg)
+    if cfg["world"]["clock"] == "rows":
+        body = ClockedBody(world.body(lights=world.initial_lights),
+                           [world.initial_lights] + [e.lights for e in events],
+                           change_rows(len(events), cfg["world"]["change_interval"], cfg["seed"]))
+        body.row, body.held_rows, body.rest_jumps = (truth["rows"], truth["held_rows"],
+                                                     truth["rest_jumps"])
+        result = graph_clocked_run(snapshot["run"], world, events, clocked_body=body,
+                                   rows_after=truth["rows_after"])
+    else:
+        result = graph_clocked_run(snapshot["run"], world, events,
+                                   state_after=truth["state_after"])
+    metrics = {**evaluate_naive_run(result, world).metrics, **clock_metrics(result, world)}
+    numbers = {key: value for key, value in metrics.items() if key.startswith("naive.")}
+    numbers["analysis.naive_records"] = ("world.clock: the agent's snapshot of the run over "
+                                         "joined with the body's record (evaluation.graph_clock)")
+    return numbers

@@ -17,7 +17,8 @@ from sensorispace_ros.evaluation import analyze
 from sensorispace_ros.evaluation.ground_truth import RunTruth
 from sensorispace_ros.evaluation.naive import naive_metrics
 from sensorispace_ros.evaluation.runs import evaluate_graph_run
-from sensorispace_ros.protocol import AGENT_RECORDS_FILE, RESULT_FILE
+from sensorispace_ros.evaluation.graph_clock import clocked_numbers
+from sensorispace_ros.protocol import AGENT_RECORDS_FILE, CHECKPOINTS, RESULT_FILE
 
 
 def evaluate_run(cfg: dict, results_dir: Path, bag_dir: Path | None) -> dict:
@@ -53,7 +54,9 @@ def evaluate_representation(results_dir: Path, cfg: dict) -> dict:
     arrays = {key: value for key, value in arrays.items() if not key.startswith("agent_")}
     records_file = Path(results_dir) / AGENT_RECORDS_FILE
     truth = RunTruth(cfg)
-    if records_file.is_file() and "changes" in totals:
+    if cfg["world"]["clock"] != "agent":
+        counters.update(clocked_numbers(cfg, Path(results_dir) / CHECKPOINTS))
+    elif records_file.is_file() and "changes" in totals:
         counters.update(_evaluate_agent_records(records_file, arrays, truth, totals["changes"]))
     else:
         counters["analysis.naive_records"] = (f"absent (no {AGENT_RECORDS_FILE}): "

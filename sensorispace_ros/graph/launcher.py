@@ -31,7 +31,7 @@ import numpy as np
 from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
 from sensorispace_ros.evaluation.graph_run import evaluate_run
 from sensorispace_ros.evaluation.run_files import metric
-from sensorispace_ros.protocol import BODY_CLOCK_FILE
+from sensorispace_ros.protocol import BODY_CLOCK_FILE, CHECKPOINTS
 from sensorispace_ros.recording.completeness import wait_for_complete_recording
 from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progress
 from sensorispace_ros.state.resting_state import peek
@@ -275,7 +275,7 @@ class RunPlan:
 
     @property
     def checkpoint_dir(self) -> Path:
-        return self.results_dir / "checkpoints"
+        return self.results_dir / CHECKPOINTS
 
     @property
     def nodes(self) -> list[str]:

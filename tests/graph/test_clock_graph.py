@@ -57,7 +57,7 @@ def test_the_graph_on_the_row_clock_gives_the_offline_metrics(tmp_path, domain_i
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.evaluation.graph_clock import graph_clocked_run
-    from sensorispace_ros.graph.nodes.body_clock import clock_events
+    from sensorispace_ros.core.world_clock import clock_events
 
     cfg, path = _config(tmp_path, ROWS)
     world = run_world(cfg)
@@ -103,7 +103,7 @@ WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equal
 def test_the_graph_on_the_wall_clock_ends_by_itself_and_is_evaluated(tmp_path, domain_id):
     from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.evaluation.graph_clock import graph_clocked_run
-    from sensorispace_ros.graph.nodes.body_clock import clock_events
+    from sensorispace_ros.core.world_clock import clock_events
 
     cfg, path = _config(tmp_path, WALL)
     world = run_world(cfg)

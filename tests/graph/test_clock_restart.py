@@ -52,7 +52,7 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
     from sensorispace_ros.evaluation.graph_clock import graph_clocked_run
     from sensorispace_ros.evaluation.naive import evaluate_naive_run
     from sensorispace_ros.graph.nodes.body import BodyNode
-    from sensorispace_ros.graph.nodes.body_clock import clock_events
+    from sensorispace_ros.core.world_clock import clock_events
     from sensorispace_ros.graph.nodes.environment import EnvironmentNode
     from sensorispace_ros.graph.nodes.agent_restart import CLOCK_STATE_FILE
     from sensorispace_ros.graph.nodes.representation import RepresentationNode

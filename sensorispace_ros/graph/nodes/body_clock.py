@@ -29,7 +29,9 @@ the restarted body's commands. The ``wall`` clock's body has no restart.
 
 Ground truth for the evaluator, never published to the agent: the rows
 executed after each command (``rows_after``, rows) and the world state each
-command was answered in (``state_after``); ``evaluation.graph_clock``.
+command was answered in (``state_after``); ``evaluation.graph_clock``. With
+``graph.checkpoint_dir`` they are written there when the run is over
+(``state.clock_truth``), for the evaluation of a launched run.
 """
 from __future__ import annotations
 
@@ -39,18 +41,11 @@ import numpy as np
 from rclpy.duration import Duration
 
 from sensorispace_ros import contracts
-from sensorispace_ros.core.world_clock import ClockedBody, change_rows
+from sensorispace_ros.core.world_clock import ClockedBody, change_rows, clock_events
 from sensorispace_ros.graph.framework import frame
-from sensorispace_ros.protocol import BODY_CLOCK_FILE
+from sensorispace_ros.protocol import BODY_CLOCK_FILE, BODY_TRUTH_FILE
+from sensorispace_ros.state.clock_truth import write_clock_truth
 from sensorispace_ros.state.resting_state import RestingStateFile
-
-
-def clock_events(world, cfg: dict) -> list:
-    """The changes a world on its own clock plays: the schedule, twice when the
-    agent has an equality pass (``naive.clock_equality_changes``), as
-    ``core.clocked_run.explore_clocked`` plays it."""
-    twice = cfg["naive"]["clock_equality_changes"] > 0
-    return list(world.events) * (2 if twice else 1)
 
 
 class BodyClock:
@@ -63,6 +58,7 @@ class BodyClock:
         self.state_after: dict[int, int] = {}
         self.last_answer: tuple[int, bytes] | None = None    # (command number, answer)
         self.clock_file = None
+        self.clock_resumed = False        # restarted: rows_after, state_after since then only
         self.resumed: tuple[int, np.ndarray] | None = None   # (number, position before it)
         self.holding = None               # wall: (number, motor (1, N), low, high)
         self.world_ended = False
@@ -90,7 +86,7 @@ class BodyClock:
             return
         number, (before, after) = int(saved[0]), np.split(saved[1:], 2)
         self.clocked_body.resume(after)
-        self.resumed = (number, before)
+        self.resumed, self.clock_resumed = (number, before), True
         self.get_logger().warning(
             f"restarted on the row clock: resumed after command {number} at row "
             f"{self.clocked_body.row} (world state {self.clocked_body.state}), from "
@@ -224,6 +220,10 @@ class BodyClock:
     def clock_over(self) -> None:
         self.get_logger().info(f"run over: world state {self.world_state} of "
                                f"{len(self.clock_events_played())} changes")
+        if self.graph["checkpoint_dir"]:
+            write_clock_truth(Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_FILE,
+                              self.rows_after, self.state_after, self.clocked_body,
+                              whole=not self.clock_resumed)
         if self.graph["exit_when_done"]:
             self.sensation_pub.wait_for_all_acked(Duration(seconds=2.0))
             self.finished = True

@@ -27,7 +27,7 @@ In a world on its own clock nothing waits for the agent: with
 ``world.clock: wall`` the changes come on a ROS timer, seeded exponential
 gaps of mean ``world.change_period_s`` (stream ``world.clock``), the
 schedule played twice when the agent has an equality pass
-(``graph.nodes.body_clock.clock_events``), then ``end/<k>``; with ``rows``
+(``core.world_clock.clock_events``), then ``end/<k>``; with ``rows``
 the body keeps the clock and this node publishes no lights. Either way the
 agent's settle (of its end) ends the run; no restart in these modes.
 """
@@ -43,9 +43,8 @@ from sensorispace_ros.graph import tracing
 from sensorispace_ros.state.environment_record import (PROGRESS_FILE, ProgressWriter,
     decode_progress)
 from sensorispace_ros.core.seeding import rng_for
-from sensorispace_ros.core.world_clock import CLOCK_STREAM
+from sensorispace_ros.core.world_clock import CLOCK_STREAM, clock_events
 from sensorispace_ros.graph.framework import GraphNode, build_world, frame, run_node
-from sensorispace_ros.graph.nodes.body_clock import clock_events
 from sensorispace_ros.protocol import KIND_CODES
 
 # One participant announcement period of the graph's Fast DDS profile

@@ -1,0 +1,96 @@
+"""`sensorispace launch` in a world on its own clock reports what the agent
+found, as an offline run does: the agent's snapshot of the run over and the
+body's record of time (``graph.checkpoint_dir``, which the launcher sets)
+are joined by ``evaluation.graph_clock.clocked_numbers``. On the row clock
+every ``naive.*`` number of the recorded run equals the offline run's
+(``core.clocked_run.run_on_clock``); on the wall clock the run ends by itself
+and reports its coverage and its detections.
+"""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from sensorispace_ros import config
+
+from shared import REPO, SMOKE, stop_by_pid
+
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
+
+# As tests/graph/test_clock_graph.py: simulation 2 until the world ends the run (an agent
+# that ends it itself tells the body with one row more, which the offline driver does not play).
+ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
+        "naive.clock_equality_changes": 400}
+WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
+# Metrics that time the run, not what it did.
+TIMED = ("timings", "seconds", "_s")
+
+
+def _flat(nested: dict, prefix: str = "") -> dict:
+    flat = {}
+    for key, value in nested.items():
+        if isinstance(value, dict):
+            flat.update(_flat(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
+
+
+def _launched(tmp_path, domain_id, overrides, record):
+    cfg = config.load_config(SMOKE, overrides=overrides)
+    path = tmp_path / "clock.yaml"
+    path.write_text(config.to_parameter_file(cfg))
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               PYTHONPATH=os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH"))
+                                          if p))
+    command = [sys.executable, "-m", "sensorispace_ros.cli", "launch", "--config", str(path),
+               "--run", "clock", "--domain-id", str(domain_id),
+               "--results", str(tmp_path / "results"), "--timeout", "400"]
+    proc = subprocess.Popen(command + ([] if record else ["--no-record"]), cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        output, _ = proc.communicate(timeout=450)
+    finally:
+        stop_by_pid(proc)
+    assert proc.returncode == 0, output[-3000:]
+    metrics = _flat(json.loads((tmp_path / "results" / "clock" / "metrics.json").read_text()))
+    return cfg, metrics, output
+
+
+def test_a_launched_run_on_the_row_clock_reports_the_offline_naive_numbers(tmp_path, domain_id):
+    from sensorispace_ros.core.clocked_run import run_on_clock
+    from sensorispace_ros.core.naive.params import NaiveParams
+    from sensorispace_ros.core.run_world import run_world
+    from sensorispace_ros.evaluation.clock import clock_metrics
+    from sensorispace_ros.evaluation.naive import evaluate_naive_run
+
+    cfg, launched, output = _launched(tmp_path, domain_id, ROWS, record=True)
+    assert (tmp_path / "bags" / "clock" / "metadata.yaml").is_file()    # evaluated from its bag
+    assert "[launch] row " in output                                    # progress on this clock
+    world = run_world(cfg)
+    offline = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows",
+                           interval=cfg["world"]["change_interval"])
+    from sensorispace_ros.evaluation.run_files import _jsonable    # as metrics.json writes them
+    expected = {key: _jsonable(value) for key, value in {
+        **evaluate_naive_run(offline, world).metrics, **clock_metrics(offline, world)}.items()
+        if key.startswith("naive.") and not any(t in key for t in TIMED)}
+    assert len(expected) > 40 and "naive.clock.recall" in expected
+    assert {key: launched.get(key) for key in expected} == expected
+    assert launched["analysis.naive_records"].startswith("world.clock: the agent's snapshot")
+
+
+def test_a_launched_run_on_the_wall_clock_ends_and_reports_coverage_and_detections(
+        tmp_path, domain_id):
+    _, launched, _ = _launched(tmp_path, domain_id, WALL, record=False)
+    # Measured, not reproducible: how much the agent finds between changes every 0.15 s
+    # depends on the machine's load (none at all on a loaded one); it reports it.
+    assert 0.0 <= launched["naive.coverage"] <= 1.0
+    assert launched["naive.distinct_positions"] <= launched["pov.count"]
+    assert launched["naive.clock.detections"] > 0 and launched["naive.clock.tests"] > 0
+    assert 0.0 <= launched["naive.clock.recall"] <= 1.0
+    assert launched["naive.accepted_across_change"] == 0
+    print({key: launched[key] for key in ("pov.count", "naive.coverage", "naive.clock.recall",
+                                          "naive.clock.false_detection_rate",
+                                          "naive.clock.detections")})
