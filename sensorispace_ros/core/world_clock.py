@@ -42,8 +42,17 @@ def clock_events(world, cfg: dict) -> list:
     """The changes a world on its own clock plays: the schedule, twice when the
     agent has an equality pass (``naive.clock_equality_changes``), as
     ``core.clocked_run.explore_clocked`` plays it."""
-    twice = cfg["naive"]["clock_equality_changes"] > 0
-    return list(world.events) * (2 if twice else 1)
+    return list(world.events) * _plays(cfg)
+
+
+def clock_change_rows(cfg: dict, n_events: int) -> np.ndarray:
+    """``change_rows`` of the changes ``clock_events`` plays for a schedule of
+    ``n_events`` changes (``world.change_interval``, ``seed``)."""
+    return change_rows(n_events * _plays(cfg), cfg["world"]["change_interval"], cfg["seed"])
+
+
+def _plays(cfg: dict) -> int:
+    return 2 if cfg["naive"]["clock_equality_changes"] > 0 else 1
 
 
 class ClockedBody:

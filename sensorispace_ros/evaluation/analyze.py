@@ -201,12 +201,6 @@ def _concatenated(bag_dir, topic: str, description=None) -> np.ndarray:
     return np.concatenate(tables) if tables else np.zeros(0, dtype=messages.record_dtype(columns))
 
 
-# A run on its own clock: the agent's events are its reactions, not the schedule's changes.
-CLOCKED_RECORDS = ("world.clock rows or wall: the agent's events are its reactions, not the "
-                   "schedule's changes; naive.* not evaluated from the records "
-                   "(evaluation.graph_clock joins them with the body's record)")
-
-
 def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
     """The agent's records of the run (``core.naive.records.NaiveAgentRecords``),
     or None when the bag lacks them (recorded before they were published, or the
@@ -350,7 +344,8 @@ def _naive_numbers(bag_dir, data: dict, totals: dict | None, description, truth:
                                               f"naive.* not evaluated")
         return counters
     if truth.cfg["world"]["clock"] != "agent":
-        return {"analysis.naive_records": CLOCKED_RECORDS}
+        # Its events are its reactions, not the schedule's changes: ``clocked_numbers``.
+        return {}
     try:
         evaluated = naive_metrics(records, truth, totals["changes"], poses,
                                   recorded_changes(change_events))

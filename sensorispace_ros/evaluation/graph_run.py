@@ -70,9 +70,8 @@ def _evaluate_agent_records(records_file: Path, arrays: dict, truth: RunTruth,
     """``naive.*`` of a run without a bag, as ``analyze`` computes them from one:
     the agent's records (its own file) joined with ground truth from the seeded
     schedule (the environment plays exactly that schedule) and the body's
-    forward model. Sets ``arrays["grid_index"]``."""
-    if truth.cfg["world"]["clock"] != "agent":
-        return {"analysis.naive_records": analyze.CLOCKED_RECORDS}
+    forward model; a world that waits for the agent only (``clocked_numbers``
+    otherwise). Sets ``arrays["grid_index"]``."""
     with np.load(records_file) as stored:
         records = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
     found = arrays["povs"]

@@ -34,6 +34,7 @@ from sensorispace_ros.evaluation.run_files import metric
 from sensorispace_ros.protocol import BODY_CLOCK_FILE, CHECKPOINTS
 from sensorispace_ros.recording.completeness import wait_for_complete_recording
 from sensorispace_ros.state.environment_record import PROGRESS_FILE, read_progress
+from sensorispace_ros.state.clock_truth import split_clock_record
 from sensorispace_ros.state.resting_state import peek
 
 GRAPH_NODES = ("environment", "body", "agent", "representation")
@@ -169,7 +170,7 @@ class ClockMonitor(Monitor):
         if saved is None or now - self._last_print < self.interval_s:
             return
         self._last_print = now
-        row = int(saved[(len(saved) - 1) // 2 + 1])       # after the last command
+        row = int(split_clock_record(saved)[2][0])         # after the last command
         state = int(np.searchsorted(self.change_row, row, side="right"))
         where = f"change {state}/{self.total} ({100.0 * state / max(self.total, 1):.0f} %)" \
             if state <= self.total else f"simulation 2, change {state - self.total}"
@@ -180,14 +181,12 @@ class ClockMonitor(Monitor):
 def make_monitor(plan: "RunPlan", stream) -> Monitor:
     """The progress shown while ``plan`` runs: the changes settled, or on the
     row clock the row the body's clock stands at."""
-    world = plan.cfg["world"]
-    if world["clock"] != "rows":
+    if plan.cfg["world"]["clock"] != "rows":
         return Monitor(plan.checkpoint_dir / PROGRESS_FILE, plan.total_changes, stream)
-    from sensorispace_ros.core.world_clock import change_rows
+    from sensorispace_ros.core.world_clock import clock_change_rows
     n_events = plan.total_changes - 1
-    twice = plan.cfg["naive"]["clock_equality_changes"] > 0
-    rows = change_rows(n_events * (2 if twice else 1), world["change_interval"], plan.cfg["seed"])
-    return ClockMonitor(plan.checkpoint_dir / BODY_CLOCK_FILE, rows, n_events, stream)
+    return ClockMonitor(plan.checkpoint_dir / BODY_CLOCK_FILE,
+                        clock_change_rows(plan.cfg, n_events), n_events, stream)
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,9 @@ after each command (row clock) and the world state each was answered in; on
 the row clock also the clock's end, its held rows and how far each change
 moved the sensation at the resting arm. Never read by the agent. A body
 restarted on the row clock knows only its own commands (``graph.nodes.body_clock``):
-its record says it is not ``whole``.
+its record says it is not ``whole``. Also the layout of ``body.clock`` (a
+``RestingStateFile``): the last command's number and where the clock stood
+before and after it (``clock_record``, ``split_clock_record``).
 Pure numpy, no rclpy."""
 from __future__ import annotations
 
@@ -13,6 +15,18 @@ import os
 from pathlib import Path
 
 import numpy as np
+
+
+def clock_record(number: int, before: np.ndarray, after: np.ndarray) -> tuple:
+    """``body.clock``'s vector: command ``number`` and the clock's positions
+    (``core.world_clock.ClockedBody.position``) before and after it."""
+    return (number, *before, *after)
+
+
+def split_clock_record(values: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """``(number, before, after)`` of a ``clock_record`` vector."""
+    before, after = np.split(np.asarray(values, dtype=float)[1:], 2)
+    return int(values[0]), before, after
 
 
 def write_clock_truth(path: Path, rows_after: dict, state_after: dict, clocked_body=None,

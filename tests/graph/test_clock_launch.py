@@ -14,6 +14,7 @@ import sys
 import pytest
 
 from sensorispace_ros import config
+from sensorispace_ros.evaluation import run_files
 
 from shared import REPO, SMOKE, stop_by_pid
 
@@ -26,16 +27,6 @@ ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
 WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
 # Metrics that time the run, not what it did.
 TIMED = ("timings", "seconds", "_s")
-
-
-def _flat(nested: dict, prefix: str = "") -> dict:
-    flat = {}
-    for key, value in nested.items():
-        if isinstance(value, dict):
-            flat.update(_flat(value, f"{prefix}{key}."))
-        else:
-            flat[f"{prefix}{key}"] = value
-    return flat
 
 
 def _launched(tmp_path, domain_id, overrides, record):
@@ -55,7 +46,8 @@ def _launched(tmp_path, domain_id, overrides, record):
     finally:
         stop_by_pid(proc)
     assert proc.returncode == 0, output[-3000:]
-    metrics = _flat(json.loads((tmp_path / "results" / "clock" / "metrics.json").read_text()))
+    metrics = run_files.flatten_metrics(json.loads(
+        (tmp_path / "results" / "clock" / "metrics.json").read_text()))
     return cfg, metrics, output
 
 
@@ -72,8 +64,8 @@ def test_a_launched_run_on_the_row_clock_reports_the_offline_naive_numbers(tmp_p
     world = run_world(cfg)
     offline = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows",
                            interval=cfg["world"]["change_interval"])
-    from sensorispace_ros.evaluation.run_files import _jsonable    # as metrics.json writes them
-    expected = {key: _jsonable(value) for key, value in {
+    # Rounded as metrics.json writes them.
+    expected = {key: run_files._jsonable(value) for key, value in {
         **evaluate_naive_run(offline, world).metrics, **clock_metrics(offline, world)}.items()
         if key.startswith("naive.") and not any(t in key for t in TIMED)}
     assert len(expected) > 40 and "naive.clock.recall" in expected

@@ -46,12 +46,10 @@ from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
 WITNESSES = 8        # swept POVs sensed again after a reaction
-# What a reaction only adds to (its records never change): a checkpoint keeps
-# their lengths, not copies, and an undo cuts them back. The equality sets
-# (``_sets``, simulation 2's sweep adds to them too) by their count.
-APPENDED = ("compensations",)
-LENGTHS = "_appended_lengths"
-SETS = "_sets"
+# A reaction only adds to the compensations and the equality sets (their
+# records never change): a checkpoint keeps their counts, not copies, and an
+# undo cuts them back (simulation 2's sweep adds to the same sets).
+COUNTS = "_compensations_and_sets"
 
 
 class _CurrentTree:
@@ -219,15 +217,14 @@ class ClockedAgent(KnownNearby, NaiveAgent):
 
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction;
-        of the lists a reaction only extends (``APPENDED``), their lengths."""
+        of its compensations and equality sets, their counts (``COUNTS``)."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire", SETS, *APPENDED)}
+                if name not in ("_body", "_tripwire", "_sets", "compensations")}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
                               if name not in ("body", "sets")}
         saved = copy.deepcopy(kept)
-        saved[LENGTHS] = {name: len(getattr(self, name)) for name in APPENDED}
-        saved[LENGTHS][SETS] = self._sets.n_sets
+        saved[COUNTS] = (len(self.compensations), self._sets.n_sets)
         return saved
 
     def restore(self, saved: dict, salvage: bool = True) -> int:
@@ -241,11 +238,10 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         cut = self._cut_walk if salvage else None
         restored = copy.deepcopy(saved)
         sweep = restored.pop("_sweep", None)
-        lengths = restored.pop(LENGTHS)
-        self._sets.truncate(lengths.pop(SETS))
+        n_compensations, n_sets = restored.pop(COUNTS)
+        self._sets.truncate(n_sets)
+        self.compensations = self.compensations[:n_compensations]
         vars(self).update(restored)
-        for name, length in lengths.items():
-            setattr(self, name, getattr(self, name)[:length])
         self._body.phase = self._phase
         if sweep is not None:
             self._sweep = AllPairsSweep.__new__(AllPairsSweep)

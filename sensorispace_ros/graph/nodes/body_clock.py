@@ -41,10 +41,11 @@ import numpy as np
 from rclpy.duration import Duration
 
 from sensorispace_ros import contracts
-from sensorispace_ros.core.world_clock import ClockedBody, change_rows, clock_events
+from sensorispace_ros.core.world_clock import ClockedBody, clock_change_rows, clock_events
 from sensorispace_ros.graph.framework import frame
 from sensorispace_ros.protocol import BODY_CLOCK_FILE, BODY_TRUTH_FILE
-from sensorispace_ros.state.clock_truth import write_clock_truth
+from sensorispace_ros.state.clock_truth import (clock_record, split_clock_record,
+                                                write_clock_truth)
 from sensorispace_ros.state.resting_state import RestingStateFile
 
 
@@ -68,7 +69,7 @@ class BodyClock:
             events = clock_events(world, self.cfg)
             self.clocked_body = ClockedBody(
                 self.body, [world.initial_lights] + [e.lights for e in events],
-                change_rows(len(events), self.cfg["world"]["change_interval"], self.cfg["seed"]))
+                clock_change_rows(self.cfg, len(world.events)))
             if self.graph["checkpoint_dir"]:
                 self.resume_clock()
         elif self.clock == "wall":
@@ -84,7 +85,7 @@ class BodyClock:
         saved = self.clock_file.load()
         if saved is None:
             return
-        number, (before, after) = int(saved[0]), np.split(saved[1:], 2)
+        number, before, after = split_clock_record(saved)
         self.clocked_body.resume(after)
         self.resumed, self.clock_resumed = (number, before), True
         self.get_logger().warning(
@@ -109,7 +110,7 @@ class BodyClock:
 
     def executed(self, number: int, before: np.ndarray) -> None:
         if self.clock_file is not None:
-            self.clock_file.save((number, *before, *self.clocked_body.position()))
+            self.clock_file.save(clock_record(number, before, self.clocked_body.position()))
 
     @property
     def world_state(self) -> int:
