@@ -31,14 +31,16 @@ AGENT_RECORDS_FILE = "agent_records.npz"
 RUN_PLACEHOLDER = "{run}"
 # Files in graph.checkpoint_dir (state/): the agent's snapshot and journal, the
 # environment's progress record (the launcher polls it), the body's row clock
-# (the launcher polls it on that clock) and its ground truth of time, written
-# when a run on its own clock is over (the evaluator reads it). The launcher's
+# (the launcher polls it on that clock) and its ground truth of time, appended
+# as it answers (a restarted body reads it back) and written whole when a run
+# on its own clock is over (the evaluator reads it). The launcher's
 # checkpoint directory is CHECKPOINTS in the run's directory.
 SNAPSHOT_FILE = "agent.snapshot"
 JOURNAL_FILE = "agent.journal"
 PROGRESS_FILE = "environment.json"
 BODY_CLOCK_FILE = "body.clock"
 BODY_TRUTH_FILE = "body.truth.npz"
+BODY_TRUTH_LOG_FILE = "body.truth.log"
 CHECKPOINTS = "checkpoints"
 
 

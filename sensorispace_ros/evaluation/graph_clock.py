@@ -20,7 +20,7 @@ from sensorispace_ros.core.clocked_run import ClockTruth
 from sensorispace_ros.core.naive.run import summarize_naive
 from sensorispace_ros.core.run_world import run_world
 from sensorispace_ros.core.world_clock import ClockedBody, clock_change_rows, clock_events
-from sensorispace_ros.protocol import BODY_TRUTH_FILE, SNAPSHOT_FILE
+from sensorispace_ros.protocol import BODY_TRUTH_FILE, BODY_TRUTH_LOG_FILE, SNAPSHOT_FILE
 from sensorispace_ros.state.agent_journal import read_snapshot
 from sensorispace_ros.state.clock_truth import read_clock_truth
 
@@ -105,8 +105,9 @@ def clocked_numbers(cfg: dict, checkpoint_dir: Path) -> dict:
             f"{BODY_TRUTH_FILE} or no {SNAPSHOT_FILE} of the run over in {checkpoint_dir})")}
     if not truth["whole"]:
         return {"analysis.naive_records": (
-            f"world.clock {cfg['world']['clock']}: naive.* not evaluated (the body restarted: "
-            f"its {BODY_TRUTH_FILE} holds only the commands since)")}
+            f"world.clock {cfg['world']['clock']}: naive.* not evaluated (the body restarted "
+            f"without its {BODY_TRUTH_LOG_FILE}: its {BODY_TRUTH_FILE} holds only the commands "
+            "since)")}
     world = run_world(cfg)
     events = clock_events(world, cfg)
     if cfg["world"]["clock"] == "rows":

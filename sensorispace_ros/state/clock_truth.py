@@ -3,15 +3,18 @@ the run is over (``<checkpoint_dir>/body.truth.npz``) so that a launched run
 is evaluated as an offline one (``evaluation.graph_clock``): the rows executed
 after each command (row clock) and the world state each was answered in; on
 the row clock also the clock's end, its held rows and how far each change
-moved the sensation at the resting arm. Never read by the agent. A body
-restarted on the row clock knows only its own commands (``graph.nodes.body_clock``):
-its record says it is not ``whole``. Also the layout of ``body.clock`` (a
-``RestingStateFile``): the last command's number and where the clock stood
-before and after it (``clock_record``, ``split_clock_record``).
+moved the sensation at the resting arm. Never read by the agent. On the row
+clock the body also appends each command's record as it answers
+(``TruthLog``, ``body.truth.log``), so that a body restarted after a kill -9
+knows what the dead one knew (``graph.nodes.body_clock``); a restarted body
+without that log says its record is not ``whole``. Also the layout of
+``body.clock`` (a ``RestingStateFile``): the last command's number and where
+the clock stood before and after it (``clock_record``, ``split_clock_record``).
 Pure numpy, no rclpy."""
 from __future__ import annotations
 
 import os
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +30,64 @@ def split_clock_record(values: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]
     """``(number, before, after)`` of a ``clock_record`` vector."""
     before, after = np.split(np.asarray(values, dtype=float)[1:], 2)
     return int(values[0]), before, after
+
+
+class TruthLog:
+    """The body's record of time, appended command by command: records of
+    three float64s, ``(number, rows after it, world state after it)`` for a
+    command or hold, ``(-1 - k, how far change k moved the resting
+    sensation, 0)`` for a change. One ``os.write`` a record on an append-only
+    descriptor: in the page cache when it returns, so a kill -9 loses none
+    that was answered (the answer is published after it); a record cut by
+    the kill is ignored on reading. Written again for a command executed
+    again (the same values: the row clock repeats it bit for bit)."""
+
+    RECORD = 3
+
+    def __init__(self, path: Path, fresh: bool):
+        """Open ``path`` to append to (``fresh``: emptied first; else a record a
+        kill cut is cut off, so that the next one is read whole)."""
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | (os.O_TRUNC if fresh else 0)
+        self._fd = os.open(self.path, flags, 0o644)
+        weakref.finalize(self, os.close, self._fd)
+        size = os.fstat(self._fd).st_size
+        os.ftruncate(self._fd, size - size % (8 * self.RECORD))
+
+    def command(self, number: int, rows_after: int | None, state_after: int) -> None:
+        rows = -1 if rows_after is None else rows_after
+        os.write(self._fd, np.array([number, rows, state_after], np.float64).tobytes())
+
+    def changes(self, first: int, jumps: np.ndarray) -> None:
+        """Changes ``first``, ``first + 1``, ... moved the resting sensation by ``jumps``."""
+        jumps = np.asarray(jumps, dtype=float).reshape(-1)
+        if not len(jumps):
+            return
+        records = np.zeros((len(jumps), self.RECORD))
+        records[:, 0] = -1.0 - (first + np.arange(len(jumps)))
+        records[:, 1] = jumps
+        os.write(self._fd, records.tobytes())
+
+    @classmethod
+    def read(cls, path: Path) -> tuple[dict, dict, dict] | None:
+        """``(rows_after, state_after, jumps)`` of the log at ``path`` (command
+        number -> rows / world state; change -> jump; a later record of one
+        number wins), rows_after empty on the wall clock; None when missing."""
+        try:
+            data = np.fromfile(path, dtype=np.float64)
+        except (OSError, ValueError):
+            return None
+        records = data[:len(data) - len(data) % cls.RECORD].reshape(-1, cls.RECORD)
+        rows_after, state_after, jumps = {}, {}, {}
+        for key, first, second in records:
+            if key >= 0:
+                if first >= 0:
+                    rows_after[int(key)] = int(first)
+                state_after[int(key)] = int(second)
+            else:
+                jumps[int(-1 - key)] = float(first)
+        return rows_after, state_after, jumps
 
 
 def write_clock_truth(path: Path, rows_after: dict, state_after: dict, clocked_body=None,

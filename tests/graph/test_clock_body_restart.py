@@ -9,8 +9,10 @@ clock is the rows executed, so the restart changes nothing the agent sees. An
 older command is dropped. Checked on an imperfect body (noise numbered by
 command, joints landing off) whose world changes inside the commands, and
 end to end: the body process killed mid-run and started again, the agent's
-POVs, equality sets and motor states are the offline run's.
+POVs, equality sets and motor states are the offline run's, and so is the
+body's record of time (``body.truth.log`` read back by the restarted body).
 """
+import os
 import re
 import threading
 import time
@@ -23,6 +25,7 @@ from sensorispace_ros import config, messages
 from sensorispace_ros.graph import in_process, launcher
 from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.messages.clouds import FloatCloud
+from sensorispace_ros.state.clock_truth import read_clock_truth
 
 from shared import SMOKE, NodeProcess, spin_graph, stop_by_pid
 
@@ -87,6 +90,8 @@ def test_a_restarted_body_answers_as_the_uninterrupted_one(context, tmp_path):
         uninterrupted = _answers(reference)
         rows_after, row = reference.rows_after, reference.clocked_body.row
         change_row = reference.clocked_body.change_row
+        truth = (dict(rows_after), dict(reference.state_after),
+                 reference.clocked_body.rest_jumps.copy())
     finally:
         reference.destroy_node()
     assert list(uninterrupted) == [f"{'hold' if n == 3 else 'cmd'}/{n}"
@@ -106,6 +111,10 @@ def test_a_restarted_body_answers_as_the_uninterrupted_one(context, tmp_path):
                 send(dead, number)
         finally:
             dead.destroy_node()
+        if sent_again == killed_after:
+            # Killed while it logged the command it had executed: half a record written.
+            log = checkpoints / "body.truth.log"
+            os.truncate(log, log.stat().st_size - 12)
         restarted = _body(context, tmp_path / "c", checkpoints)
         try:
             # A command answered before the restart is dropped.
@@ -118,6 +127,10 @@ def test_a_restarted_body_answers_as_the_uninterrupted_one(context, tmp_path):
             for frame_id, rows in again.items():
                 np.testing.assert_array_equal(rows, uninterrupted[frame_id], err_msg=frame_id)
             assert restarted.clocked_body.row == row
+            # What the dead body knew of time is known again: the evaluator's record is whole.
+            assert restarted.truth_whole
+            assert (restarted.rows_after, restarted.state_after) == truth[:2]
+            np.testing.assert_array_equal(restarted.clocked_body.rest_jumps, truth[2])
         finally:
             restarted.destroy_node()
 
@@ -227,6 +240,12 @@ def test_the_body_killed_on_the_row_clock_changes_nothing_the_agent_finds(
     np.testing.assert_array_equal(run.agent.points_of_view, offline.povs)
     np.testing.assert_array_equal(representation.result["povs"], offline.povs)
     np.testing.assert_array_equal(representation.result["pairs"], offline.pairs)
+    # The body's record of time, the dead body's part read back from its log, is the
+    # offline run's: the launched run is evaluated as an uninterrupted one.
+    truth = read_clock_truth(tmp_path / "checkpoints" / "body.truth.npz")
+    assert truth["whole"] and len(truth["rows_after"]) > killed_at
+    assert (truth["rows"], truth["held_rows"]) == (offline.clock.rows, offline.clock.held_rows)
+    np.testing.assert_array_equal(truth["rest_jumps"], offline.clock.rest_jumps)
     print({"killed_at_command": killed_at, "resumed_after": int(resumed[1]),
            "row": int(resumed[2]), "retransmits": retransmits,
            "povs": len(offline.povs)})

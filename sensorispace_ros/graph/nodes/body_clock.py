@@ -23,9 +23,11 @@ there: the command sent again (the dead body may have executed it without its
 answer getting out) is executed again from where it began, bit for bit, a later
 one from where the last ended; an older one is dropped. The world's clock is
 the rows executed, so a kill -9 of the body changes nothing the agent does.
-What the dead body knew only in memory (``rows_after``, ``state_after``,
-``rest_jumps``) is not restored: the evaluator's ground truth of time covers
-the restarted body's commands. The ``wall`` clock's body has no restart.
+The ground truth of time (``rows_after``, ``state_after``, ``rest_jumps``) is
+appended to ``<dir>/body.truth.log`` as each command is answered
+(``state.clock_truth.TruthLog``) and read back by a restarted body, so the
+evaluation of a run whose body was killed is that of an uninterrupted one. The
+``wall`` clock's body has no restart.
 
 Ground truth for the evaluator, never published to the agent: the rows
 executed after each command (``rows_after``, rows) and the world state each
@@ -43,8 +45,8 @@ from rclpy.duration import Duration
 from sensorispace_ros import contracts
 from sensorispace_ros.core.world_clock import ClockedBody, clock_change_rows, clock_events
 from sensorispace_ros.graph.framework import frame
-from sensorispace_ros.protocol import BODY_CLOCK_FILE, BODY_TRUTH_FILE
-from sensorispace_ros.state.clock_truth import (clock_record, split_clock_record,
+from sensorispace_ros.protocol import BODY_CLOCK_FILE, BODY_TRUTH_FILE, BODY_TRUTH_LOG_FILE
+from sensorispace_ros.state.clock_truth import (TruthLog, clock_record, split_clock_record,
                                                 write_clock_truth)
 from sensorispace_ros.state.resting_state import RestingStateFile
 
@@ -59,7 +61,9 @@ class BodyClock:
         self.state_after: dict[int, int] = {}
         self.last_answer: tuple[int, bytes] | None = None    # (command number, answer)
         self.clock_file = None
-        self.clock_resumed = False        # restarted: rows_after, state_after since then only
+        self.truth_log = None             # row clock with graph.checkpoint_dir: TruthLog
+        self.jumps_logged = 0             # the changes whose rest jump the log holds
+        self.truth_whole = True           # False: restarted without the dead body's log
         self.resumed: tuple[int, np.ndarray] | None = None   # (number, position before it)
         self.holding = None               # wall: (number, motor (1, N), low, high)
         self.world_ended = False
@@ -82,16 +86,36 @@ class BodyClock:
         size = 1 + 2 * (3 + self.description.n_motors)
         self.clock_file = RestingStateFile(Path(self.graph["checkpoint_dir"]) / BODY_CLOCK_FILE,
                                            size)
+        log_path = Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_LOG_FILE
         saved = self.clock_file.load()
         if saved is None:
+            self.truth_log = TruthLog(log_path, fresh=True)
             return
         number, before, after = split_clock_record(saved)
         self.clocked_body.resume(after)
-        self.resumed, self.clock_resumed = (number, before), True
+        self.resumed = (number, before)
+        self.restore_truth(log_path)
         self.get_logger().warning(
             f"restarted on the row clock: resumed after command {number} at row "
             f"{self.clocked_body.row} (world state {self.clocked_body.state}), from "
             f"{self.clock_file.path}")
+
+    def restore_truth(self, log_path: Path) -> None:
+        """The dead body's record of time from its log, appended to from now on;
+        without the log the record is not whole (the evaluator says so)."""
+        logged = TruthLog.read(log_path)
+        self.truth_log = TruthLog(log_path, fresh=logged is None)
+        if logged is None:
+            self.truth_whole = False
+            self.get_logger().warning(f"no {log_path}: the ground truth of time covers the "
+                                      "commands since the restart only")
+            return
+        rows_after, state_after, jumps = logged
+        self.rows_after.update(rows_after)
+        self.state_after.update(state_after)
+        for change, jump in jumps.items():
+            self.clocked_body.rest_jumps[change] = jump
+        self.jumps_logged = max(jumps, default=-1) + 1
 
     def on_the_clock(self, number: int, topic: str = "/body/motor_command") -> bool:
         """Before executing command or hold ``number``: after a restart, the
@@ -200,6 +224,13 @@ class BodyClock:
         if self.clocked_body is not None:
             self.rows_after[number] = int(self.clocked_body.row)
         self.state_after[number] = int(self.world_state)
+        if self.truth_log is not None:
+            changed = self.clocked_body.state
+            if changed > self.jumps_logged:
+                self.truth_log.changes(self.jumps_logged,
+                                       self.clocked_body.rest_jumps[self.jumps_logged:changed])
+                self.jumps_logged = changed
+            self.truth_log.command(number, self.rows_after[number], self.state_after[number])
 
     def clock_answer(self, sensations: np.ndarray, motor: np.ndarray, frame_id: str) -> None:
         """Say simulation 2 once the world replays its schedule (again before a
@@ -224,7 +255,7 @@ class BodyClock:
         if self.graph["checkpoint_dir"]:
             write_clock_truth(Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_FILE,
                               self.rows_after, self.state_after, self.clocked_body,
-                              whole=not self.clock_resumed)
+                              whole=self.truth_whole)
         if self.graph["exit_when_done"]:
             self.sensation_pub.wait_for_all_acked(Duration(seconds=2.0))
             self.finished = True
