@@ -35,7 +35,7 @@ from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import (NaiveExploration, NaiveRunResult, run_naive,
                                              summarize_naive)
 from sensorispace_ros.core.world import REDISTRIBUTION
-from sensorispace_ros.core.world_clock import ClockedBody, change_rows
+from sensorispace_ros.core.world_clock import ClockedBody, clock_plays, world_on_clock
 
 
 @dataclass
@@ -100,10 +100,10 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
     changes it detects. Returns ``(NaiveExploration, ClockTruth)``."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
-    events = list(world.events) * (2 if equality_changes > 0 else 1)
-    body = ClockedBody(world.body(lights=world.initial_lights),
-                       [world.initial_lights] + [e.lights for e in events],
-                       change_rows(len(events), interval, world.seed))
+    plays = clock_plays(equality_changes)
+    events = list(world.events) * plays
+    body = world_on_clock(world.body(lights=world.initial_lights), world, interval=interval,
+                          plays=plays)
     run = begin_run(body, world.m0, world.seed, params, sweep_budget)
     tick = None if progress is None or not callable(progress) else \
         (lambda: progress(body.state, len(events)))

@@ -51,8 +51,30 @@ def clock_change_rows(cfg: dict, n_events: int) -> np.ndarray:
     return change_rows(n_events * _plays(cfg), cfg["world"]["change_interval"], cfg["seed"])
 
 
+def clock_plays(equality_changes: int) -> int:
+    """How often the world plays its schedule: twice when the agent has an
+    equality pass (``equality_changes`` > 0), for simulation 2."""
+    return 2 if equality_changes > 0 else 1
+
+
 def _plays(cfg: dict) -> int:
-    return 2 if cfg["naive"]["clock_equality_changes"] > 0 else 1
+    return clock_plays(cfg["naive"]["clock_equality_changes"])
+
+
+def world_on_clock(body, world, *, interval: float, plays: int) -> "ClockedBody":
+    """``body`` in ``world`` on a row clock: its schedule played ``plays``
+    times, a change every ``interval`` rows on average (``change_rows`` of
+    the world's seed)."""
+    events = list(world.events) * int(plays)
+    return ClockedBody(body, [world.initial_lights] + [e.lights for e in events],
+                       change_rows(len(events), interval, world.seed))
+
+
+def clock_body(body, world, cfg: dict) -> "ClockedBody":
+    """``world_on_clock`` as configuration ``cfg`` has it (``world.change_interval``,
+    simulation 2's replay: ``clock_events``)."""
+    return world_on_clock(body, world, interval=cfg["world"]["change_interval"],
+                          plays=_plays(cfg))
 
 
 class ClockedBody:

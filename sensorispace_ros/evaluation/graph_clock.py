@@ -19,7 +19,7 @@ import numpy as np
 from sensorispace_ros.core.clocked_run import ClockTruth
 from sensorispace_ros.core.naive.run import summarize_naive
 from sensorispace_ros.core.run_world import run_world
-from sensorispace_ros.core.world_clock import ClockedBody, clock_change_rows, clock_events
+from sensorispace_ros.core.world_clock import clock_body, clock_events
 from sensorispace_ros.protocol import BODY_TRUTH_FILE, BODY_TRUTH_LOG_FILE, SNAPSHOT_FILE
 from sensorispace_ros.state.agent_journal import read_snapshot
 from sensorispace_ros.state.clock_truth import read_clock_truth
@@ -111,9 +111,7 @@ def clocked_numbers(cfg: dict, checkpoint_dir: Path) -> dict:
     world = run_world(cfg)
     events = clock_events(world, cfg)
     if cfg["world"]["clock"] == "rows":
-        body = ClockedBody(world.body(lights=world.initial_lights),
-                           [world.initial_lights] + [e.lights for e in events],
-                           clock_change_rows(cfg, len(world.events)))
+        body = clock_body(world.body(lights=world.initial_lights), world, cfg)
         body.row, body.held_rows, body.rest_jumps = (truth["rows"], truth["held_rows"],
                                                      truth["rest_jumps"])
         result = graph_clocked_run(snapshot["run"], world, events, clocked_body=body,

@@ -43,7 +43,7 @@ import numpy as np
 from rclpy.duration import Duration
 
 from sensorispace_ros import contracts
-from sensorispace_ros.core.world_clock import ClockedBody, clock_change_rows, clock_events
+from sensorispace_ros.core.world_clock import clock_body
 from sensorispace_ros.graph.framework import frame
 from sensorispace_ros.protocol import BODY_CLOCK_FILE, BODY_TRUTH_FILE, BODY_TRUTH_LOG_FILE
 from sensorispace_ros.state.clock_truth import (TruthLog, clock_record, split_clock_record,
@@ -70,10 +70,7 @@ class BodyClock:
         self.announced = False
         contracts.create_subscription(self, "/body/hold", self.on_hold, raw=True)
         if self.clock == "rows":
-            events = clock_events(world, self.cfg)
-            self.clocked_body = ClockedBody(
-                self.body, [world.initial_lights] + [e.lights for e in events],
-                clock_change_rows(self.cfg, len(world.events)))
+            self.clocked_body = clock_body(self.body, world, self.cfg)
             if self.graph["checkpoint_dir"]:
                 self.resume_clock()
         elif self.clock == "wall":
