@@ -93,12 +93,14 @@ def metric(metrics: dict, dotted: str, default=None):
     return node
 
 
-def _jsonable(value):
+def as_written(value):
+    """``value`` as ``write_metrics`` writes it: plain JSON types, floats
+    rounded to ``FLOAT_DIGITS`` significant digits, non-finite ones None."""
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): as_written(v) for k, v in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):
-        return [_jsonable(v) for v in np.asarray(value, dtype=object).tolist()] \
-            if isinstance(value, np.ndarray) else [_jsonable(v) for v in value]
+        return [as_written(v) for v in np.asarray(value, dtype=object).tolist()] \
+            if isinstance(value, np.ndarray) else [as_written(v) for v in value]
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (int, np.integer)):
@@ -114,7 +116,7 @@ def _jsonable(value):
 def write_metrics(metrics: dict, path: str | Path) -> None:
     """Sorted keys, floats rounded to ``FLOAT_DIGITS`` significant digits."""
     path = Path(path)
-    text = json.dumps(_jsonable(metrics), sort_keys=True, indent=2) + "\n"
+    text = json.dumps(as_written(metrics), sort_keys=True, indent=2) + "\n"
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(text)
     os.replace(tmp, path)

@@ -65,7 +65,7 @@ def test_a_launched_run_on_the_row_clock_reports_the_offline_naive_numbers(tmp_p
     offline = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows",
                            interval=cfg["world"]["change_interval"])
     # Rounded as metrics.json writes them.
-    expected = {key: run_files._jsonable(value) for key, value in {
+    expected = {key: run_files.as_written(value) for key, value in {
         **evaluate_naive_run(offline, world).metrics, **clock_metrics(offline, world)}.items()
         if key.startswith("naive.") and not any(t in key for t in TIMED)}
     assert len(expected) > 40 and "naive.clock.recall" in expected
