@@ -26,12 +26,17 @@ Run as::
 """
 from __future__ import annotations
 
-import atexit
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
+
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+from bench.instrumented import run_instrumented  # noqa: E402
 
 RECORDS: list = []
 STACK: list = []
@@ -131,11 +136,7 @@ def instrument() -> None:
 
 
 def main() -> None:
-    from sensorispace_ros.cli.main import main as cli
-
-    out = Path(sys.argv[sys.argv.index("--out") + 1])
-
-    def write():
+    def write(out: Path):
         out.mkdir(parents=True, exist_ok=True)
         (out / "clock_drift.json").write_text(json.dumps(RECORDS, indent=0))
         lights = STATE["body"].lights if "body" in STATE else []
@@ -148,10 +149,7 @@ def main() -> None:
         for r in worst:
             print({k: v for k, v in r.items() if k != "first"})
 
-    atexit.register(write)
-    instrument()
-    sys.argv = ["sensorispace"] + sys.argv[1:]
-    cli()
+    run_instrumented(instrument, write)
 
 
 if __name__ == "__main__":

@@ -35,13 +35,18 @@ clocked agent's methods, which change nothing it does, and writes
 """
 from __future__ import annotations
 
-import atexit
 import collections
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
+
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+from bench.instrumented import run_instrumented  # noqa: E402
 
 COUNTS: collections.Counter = collections.Counter()
 TRACE: list = []        # (motor states, POVs, clock row) after each kept reaction
@@ -180,19 +185,12 @@ def instrument() -> None:
 
 
 def main() -> None:
-    from sensorispace_ros.cli.main import main as cli
-
-    out = Path(sys.argv[sys.argv.index("--out") + 1])
-
-    def write():
+    def write(out: Path):
         (out / "clock_rows.json").write_text(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
         (out / "clock_trace.json").write_text(json.dumps(TRACE))
         print(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
 
-    atexit.register(write)
-    instrument()
-    sys.argv = ["sensorispace"] + sys.argv[1:]
-    cli()
+    run_instrumented(instrument, write)
 
 
 if __name__ == "__main__":
