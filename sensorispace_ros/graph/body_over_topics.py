@@ -78,6 +78,7 @@ class BodyOverTopics:
         # A hold on the row clock is answered at once: sent again when unanswered
         # (a restarted body node), as a command is. On the wall clock it lasts.
         self.resend_holds = bool(resend_holds)
+        self._holding = None      # while a hold is waited for: publishes it again
         self._pending_end: str | None = None   # end/<n>: also answers hold/<n> or end/<n>
         self.reply_frame = ""                  # frame id of the last answer taken
         self._spin_once = spin_once
@@ -124,7 +125,8 @@ class BodyOverTopics:
         message, numbered with the commands, answered once. Returns that
         sensation, or None when the body answers ``end/<n>`` (its world has no
         change left). Re-sent only with ``resend_holds`` (the row clock): on the
-        wall clock a hold lasts as long as the world stays."""
+        wall clock a hold lasts as long as the world stays, and is sent again
+        only to a body that started again (``hold_again``)."""
         motor_state = self._checked(np.reshape(motor_state, (1, -1)))
         self.await_move()
         self.await_ahead()
@@ -136,11 +138,23 @@ class BodyOverTopics:
         self._reply = None
         started = time.perf_counter()
         self._publish_hold(motor_state, band[0], band[1], frame_id)
-        reply = self._receive(
-            _Sent(self.requests, 0, motor_state, frame_id, started, None), started,
-            resend=self.resend_holds,
-            publish=lambda *_: self._publish_hold(motor_state, band[0], band[1], frame_id))
+        self._holding = lambda *_: self._publish_hold(motor_state, band[0], band[1], frame_id)
+        try:
+            reply = self._receive(
+                _Sent(self.requests, 0, motor_state, frame_id, started, None), started,
+                resend=self.resend_holds, publish=self._holding)
+        finally:
+            self._holding = None
         return None if self.reply_frame.startswith("end/") else reply[0]
+
+    def hold_again(self) -> bool:
+        """Publish the hold being waited for once more (a body that started again
+        forgot it); False when no hold is waited for."""
+        if self._holding is None:
+            return False
+        self.retransmits += 1
+        self._holding()
+        return True
 
     def end_run(self, motor_state: np.ndarray) -> None:
         """Tell the body the run is over (``end/<n>`` on ``/body/motor_command``,

@@ -107,6 +107,10 @@ class GraphNode(Node):
         self._on_described = on_first
         contracts.create_subscription(self, DESCRIPTION_TOPIC, self.on_description)
 
+    def body_started_again(self) -> None:
+        """The body's description came again: a body process (re)started and
+        published it anew. Nothing by default."""
+
     def on_description(self, msg) -> None:
         """A malformed description, or one that differs from the one taken, is dropped."""
         try:
@@ -118,6 +122,8 @@ class GraphNode(Node):
             if description != self.description:
                 self.drop(DESCRIPTION_TOPIC, f"{description} differs from the body "
                                              f"description taken, {self.description}")
+            else:
+                self.body_started_again()
             return
         self.description = description
         self._columns.clear()

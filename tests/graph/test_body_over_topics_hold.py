@@ -92,3 +92,33 @@ def test_an_unanswered_hold_is_sent_again_only_on_the_row_clock(resend):
         np.testing.assert_array_equal(motor, [[1.0, 2.0]])
         np.testing.assert_array_equal(sent_low, low)
         np.testing.assert_array_equal(sent_high, high)
+
+
+class RestartingBody(FakeBody):
+    """A body that dies holding (its first spins answer nothing) and starts
+    again at spin ``restart_at``, when the agent hears its description again
+    (``hold_again``); it answers the hold it is sent after that."""
+
+    def __init__(self, answer, restart_at: int):
+        super().__init__(answer)
+        self.spins, self.restart_at, self.holds_seen_at_restart = 0, restart_at, None
+
+    def spin_once(self, timeout_s):
+        self.spins += 1
+        if self.spins == self.restart_at:
+            self.holds_seen_at_restart = len(self.holds)
+            assert self.proxy.hold_again()
+        elif self.spins > self.restart_at and len(self.holds) > self.holds_seen_at_restart:
+            super().spin_once(timeout_s)
+
+
+def test_a_hold_is_sent_again_to_a_body_that_started_again_on_the_wall_clock():
+    left = np.array([[0.5, 0.2, 0.1]])
+    body = RestartingBody(lambda frame_id: (frame_id, left), restart_at=5)
+    body.proxy = BodyOverTopics(body.publish_command, body.spin_once, n_motors=2, n_sensors=3,
+                                command_timeout_s=60.0, publish_hold=body.publish_hold)
+    assert not body.proxy.hold_again()                 # no hold waited for: nothing sent
+    sensed = body.proxy.hold(np.array([1.0, 2.0]), np.zeros(3), np.ones(3))
+    np.testing.assert_array_equal(sensed, left[0])
+    assert [h[0] for h in body.holds] == ["hold/1", "hold/1"] and body.proxy.retransmits == 1
+    assert not body.proxy.hold_again() and len(body.holds) == 2    # answered: not again

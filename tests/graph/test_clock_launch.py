@@ -4,12 +4,16 @@ body's record of time (``graph.checkpoint_dir``, which the launcher sets)
 are joined by ``evaluation.graph_clock.clocked_numbers``. On the row clock
 every ``naive.*`` number of the recorded run equals the offline run's
 (``core.clocked_run.run_on_clock``); on the wall clock the run ends by itself
-and reports its coverage and its detections.
+and reports its coverage and its detections, its body killed with SIGKILL
+and respawned too.
 """
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
+import threading
 
 import pytest
 
@@ -29,7 +33,10 @@ WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equal
 TIMED = ("timings", "seconds", "_s")
 
 
-def _launched(tmp_path, domain_id, overrides, record):
+def _launched(tmp_path, domain_id, overrides, record, kill_body_after_s=None):
+    """``sensorispace launch`` of the smoke world with ``overrides``; with
+    ``kill_body_after_s`` the body process is killed (SIGKILL) that long
+    after it started, and respawned by the launcher."""
     cfg = config.load_config(SMOKE, overrides=overrides)
     path = tmp_path / "clock.yaml"
     path.write_text(config.to_parameter_file(cfg))
@@ -39,16 +46,40 @@ def _launched(tmp_path, domain_id, overrides, record):
     command = [sys.executable, "-m", "sensorispace_ros.cli", "launch", "--config", str(path),
                "--run", "clock", "--domain-id", str(domain_id),
                "--results", str(tmp_path / "results"), "--timeout", "400"]
-    proc = subprocess.Popen(command + ([] if record else ["--no-record"]), cwd=tmp_path, env=env,
+    command += ([] if record else ["--no-record"]) + \
+        ([] if kill_body_after_s is None else ["--respawn", "1"])
+    proc = subprocess.Popen(command, cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        output, _ = proc.communicate(timeout=450)
+        if kill_body_after_s is None:
+            output, _ = proc.communicate(timeout=450)
+        else:
+            output = _kill_body(proc, kill_body_after_s)
     finally:
         stop_by_pid(proc)
     assert proc.returncode == 0, output[-3000:]
     metrics = run_files.flatten_metrics(json.loads(
         (tmp_path / "results" / "clock" / "metrics.json").read_text()))
     return cfg, metrics, output
+
+
+def _kill_body(proc, after_s: float) -> str:
+    """The launcher's output, its body process killed ``after_s`` after it started."""
+    lines, killed = [], False
+    timer = threading.Timer(450, proc.kill)
+    timer.start()
+    try:
+        for line in proc.stdout:
+            lines.append(line)
+            started = re.match(r"\[launch\] started body \(pid (\d+)\)", line)
+            if started and not killed:
+                pid = int(started[1])
+                threading.Timer(after_s, os.kill, (pid, signal.SIGKILL)).start()
+                killed = True
+        proc.wait()
+    finally:
+        timer.cancel()
+    return "".join(lines)
 
 
 def test_a_launched_run_on_the_row_clock_reports_the_offline_naive_numbers(tmp_path, domain_id):
@@ -86,3 +117,18 @@ def test_a_launched_run_on_the_wall_clock_ends_and_reports_coverage_and_detectio
     print({key: launched[key] for key in ("pov.count", "naive.coverage", "naive.clock.recall",
                                           "naive.clock.false_detection_rate",
                                           "naive.clock.detections")})
+
+
+def test_a_launched_run_on_the_wall_clock_whose_body_is_killed_ends_and_reports(
+        tmp_path, domain_id):
+    _, launched, output = _launched(tmp_path, domain_id, WALL, record=False,
+                                    kill_body_after_s=8.0)
+    assert "body was killed by signal 9; respawned" in output, output[-3000:]
+    logs = "".join(p.read_text() for p in (tmp_path / "results" / "clock" / "logs").iterdir())
+    assert "restarted on the wall clock" in logs
+    # The restarted body read back the dead one's record of time: the run is evaluated.
+    assert launched["analysis.naive_records"].startswith("world.clock: the agent's snapshot")
+    assert launched["naive.clock.tests"] > 0 and launched["naive.accepted_across_change"] == 0
+    print({key: launched[key] for key in ("pov.count", "naive.coverage", "naive.clock.recall",
+                                          "naive.clock.detections")},
+          re.findall(r"hold/\d+ sent again", logs))

@@ -26,8 +26,14 @@ the rows executed, so a kill -9 of the body changes nothing the agent does.
 The ground truth of time (``rows_after``, ``state_after``, ``rest_jumps``) is
 appended to ``<dir>/body.truth.log`` as each command is answered
 (``state.clock_truth.TruthLog``) and read back by a restarted body, so the
-evaluation of a run whose body was killed is that of an uninterrupted one. The
-``wall`` clock's body has no restart.
+evaluation of a run whose body was killed is that of an uninterrupted one.
+
+Restart on the ``wall`` clock: the body appends its record of time there too
+and reads it back; it answers nothing until the environment's history of
+lights (``/environment/lights`` keeps the latest changes for late joiners) is
+back at the change it last answered in, and the agent sends again the hold
+the dead body was watching when the body's description comes again. What
+the world did meanwhile is not replayed: the wall clock is not reproducible.
 
 Ground truth for the evaluator, never published to the agent: the rows
 executed after each command (``rows_after``, rows) and the world state each
@@ -64,6 +70,7 @@ class BodyClock:
         self.truth_log = None             # row clock with graph.checkpoint_dir: TruthLog
         self.jumps_logged = 0             # the changes whose rest jump the log holds
         self.truth_whole = True           # False: restarted without the dead body's log
+        self.lights_before_restart = 0    # wall: the change the dead body answered in last
         self.resumed: tuple[int, np.ndarray] | None = None   # (number, position before it)
         self.holding = None               # wall: (number, motor (1, N), low, high)
         self.world_ended = False
@@ -76,6 +83,8 @@ class BodyClock:
         elif self.clock == "wall":
             self.body.set_lights(world.initial_lights, change=0)
             self.lights_number = 0
+            if self.graph["checkpoint_dir"]:
+                self.resume_wall()
 
     def resume_clock(self) -> None:
         """Open ``<checkpoint_dir>/body.clock``; after a restart, stand where the
@@ -96,6 +105,20 @@ class BodyClock:
             f"restarted on the row clock: resumed after command {number} at row "
             f"{self.clocked_body.row} (world state {self.clocked_body.state}), from "
             f"{self.clock_file.path}")
+
+    def resume_wall(self) -> None:
+        """wall: the record of time of a body that ran before in this checkpoint
+        directory (the launcher empties it for a new run), appended to."""
+        log_path = Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_LOG_FILE
+        if not log_path.is_file():
+            self.truth_log = TruthLog(log_path, fresh=True)
+            return
+        self.restore_truth(log_path)
+        self.lights_before_restart = max(self.state_after.values(), default=0)
+        self.get_logger().warning(
+            f"restarted on the wall clock: {len(self.state_after)} commands in {log_path}; "
+            f"commands wait for the world's lights of change {self.lights_before_restart} "
+            "(the environment's history)")
 
     def restore_truth(self, log_path: Path) -> None:
         """The dead body's record of time from its log, appended to from now on;
@@ -156,6 +179,11 @@ class BodyClock:
             before = self.clocked_body.position()
             sensations = self.clocked_body.sense(command.matrix)
             self.executed(number, before)
+        elif self.lights_number < self.lights_before_restart:
+            self.drop("/body/motor_command",
+                      f"restarted: the world's lights are at change {self.lights_number} of "
+                      f"{self.lights_before_restart} (the agent re-sends it)")
+            return
         else:
             sensations = self.body.sense(command.matrix)
         self.record(number)
@@ -194,7 +222,7 @@ class BodyClock:
 
     def watch_hold(self) -> None:
         """wall: look at the held state in the world as it is now."""
-        if self.holding is None:
+        if self.holding is None or self.lights_number < self.lights_before_restart:
             return
         number, motor, low, high = self.holding
         if self.world_ended:
@@ -221,13 +249,15 @@ class BodyClock:
         if self.clocked_body is not None:
             self.rows_after[number] = int(self.clocked_body.row)
         self.state_after[number] = int(self.world_state)
-        if self.truth_log is not None:
+        if self.truth_log is None:
+            return
+        if self.clocked_body is not None:
             changed = self.clocked_body.state
             if changed > self.jumps_logged:
                 self.truth_log.changes(self.jumps_logged,
                                        self.clocked_body.rest_jumps[self.jumps_logged:changed])
                 self.jumps_logged = changed
-            self.truth_log.command(number, self.rows_after[number], self.state_after[number])
+        self.truth_log.command(number, self.rows_after.get(number), self.state_after[number])
 
     def clock_answer(self, sensations: np.ndarray, motor: np.ndarray, frame_id: str) -> None:
         """Say simulation 2 once the world replays its schedule (again before a
