@@ -1,6 +1,7 @@
 """Which frontier rows the naive agent searches (``frontier.FrontierChoice``):
 with ``frontier_give_way`` under noise, not a target a remembered split
-POV senses now, and the rows whose searches failed least often first;
+POV senses now, and the rows whose searches failed least often first; with
+``frontier_skip_split`` alone, not those targets, the rest nearest first;
 otherwise the nearest in sensation first."""
 from types import SimpleNamespace
 
@@ -18,10 +19,11 @@ SD = 1e-3     # the noise the fake agent measured
 class _Agent(FrontierChoice):
     """The parts of a NaiveAgent ``FrontierChoice`` reads."""
 
-    def __init__(self, n_povs, n_sensors, noisy=True, split_now=(), give_way=True):
+    def __init__(self, n_povs, n_sensors, noisy=True, split_now=(), give_way=True,
+                 skip_split=False):
         self._noisy = noisy
         self.structure = SimpleNamespace(noise=SD)
-        self.params = NaiveParams(frontier_give_way=give_way)
+        self.params = NaiveParams(frontier_give_way=give_way, frontier_skip_split=skip_split)
         self._body = SimpleNamespace(n_sensors=n_sensors)
         self._store = SimpleNamespace(count=n_povs)
         self._split_now = np.asarray(split_now, dtype=float).reshape(-1, n_sensors)
@@ -95,3 +97,15 @@ def test_the_failures_grow_with_the_povs_found():
     _searched(agent, [2])
     agent._store.count = 5
     assert list(agent._frontier_fails()) == [0, 0, 1, 0, 0]
+
+
+def test_skipping_split_targets_alone_keeps_the_rest_nearest_first_however_often_they_failed():
+    agent = _Agent(8, 1, split_now=[[0.22 + SD]], give_way=False, skip_split=True)
+    assert _rows(agent, 2) == [3, 4]
+    _searched(agent, [3, 4])
+    assert _rows(agent, 3) == [3, 4, 5]                  # failures change no turn
+    # Noiseless, or no split POV sensing the target: nothing is skipped.
+    assert _rows(_Agent(8, 1, noisy=False, split_now=[[0.22]], give_way=False,
+                        skip_split=True), 2) == [2, 3]
+    assert _rows(_Agent(8, 1, split_now=[[0.22 + 50 * SD]], give_way=False,
+                        skip_split=True), 2) == [2, 3]

@@ -7,13 +7,16 @@ may be a new POV, a pose whose POV splits, or a pose no motor state reaches.
 The agent searches ``_frontier_budget`` of them per event, fewer while they
 keep failing (``_track_frontier``).
 
-With ``frontier_give_way``, where noise sized the tolerances, the rows are
-taken in an order meant to keep the budget on targets that may still be new
-POVs (``_frontier_order``):
+With ``frontier_skip_split`` or ``frontier_give_way``, where noise sized the
+tolerances, the budget is kept on targets that may still be new POVs
+(``_frontier_order``):
 
 * a row whose target a remembered split POV senses now, within what two
   sensings of one pose differ by, is not searched: a search would end on
   that loop, walked before and found split. The next rows fill the budget;
+
+and with ``frontier_give_way`` the rows are also taken in this order:
+
 * the rows whose searches failed least often come first (``frontier_fails``,
   counted per POV: its row searched and no new POV found), then the nearest
   in sensation to a matched row. A row whose targets keep failing (one at
@@ -27,7 +30,8 @@ of most sensings come first, then the nearest. Otherwise the order is the
 nearest in sensation first; a search's end on a
 remembered split POV is found after the search (``searching._known_solutions``).
 The order trades coverage between seeds (docs/mujoco.md, "Frontier rows
-that keep failing give way"), hence off by default.
+that keep failing give way"), hence off by default; skipping the split rows
+alone is set where it was measured (``config/mujoco-ring.yaml``).
 """
 from __future__ import annotations
 
@@ -49,22 +53,34 @@ class FrontierChoice:
         order = np.argsort(distance, kind="stable")
         if snapshot.counts is not None and averages_targets(self):
             order = order[np.argsort(-snapshot.counts[rows[order]], kind="stable")]
+        if self._skips_split():
+            order = order[~self._split_sensed(rows, snapshot)[order]]
         if not self._give_way():
             return order
-        split = np.asarray(getattr(self, "_split_now", ()), dtype=float)
-        if split.size:
-            sd2 = self.structure.noise ** 2
-            quantile = chi2.ppf(self.params.noise_confidence, self._body.n_sensors)
-            counts = np.array([snapshot.count(int(r)) for r in rows], dtype=float)
-            sensed = _sensed_by_any(snapshot.sensations[rows], split,
-                                    quantile * sd2 * (1.0 + 1.0 / counts))
-            order = order[~sensed[order]]
         fails = self._frontier_fails()
         return order[np.argsort(fails[rows[order]], kind="stable")]
+
+    def _split_sensed(self, rows, snapshot) -> np.ndarray:
+        """``(len(rows),)`` whether a remembered split POV senses the row's target
+        now, within what two sensings of one pose differ by (``_split_now``)."""
+        split = np.asarray(getattr(self, "_split_now", ()), dtype=float)
+        if not split.size:
+            return np.zeros(len(rows), dtype=bool)
+        sd2 = self.structure.noise ** 2
+        quantile = chi2.ppf(self.params.noise_confidence, self._body.n_sensors)
+        counts = np.array([snapshot.count(int(r)) for r in rows], dtype=float)
+        return _sensed_by_any(snapshot.sensations[rows], split,
+                              quantile * sd2 * (1.0 + 1.0 / counts))
 
     def _give_way(self) -> bool:
         """Whether the order of ``frontier_give_way`` applies (noise sized the tolerances)."""
         return bool(self._noisy and self.params.frontier_give_way)
+
+    def _skips_split(self) -> bool:
+        """Whether rows a remembered split POV senses are passed over
+        (``frontier_skip_split`` or ``frontier_give_way``, where noise sized the tolerances)."""
+        return bool(self._noisy and (self.params.frontier_skip_split
+                                     or self.params.frontier_give_way))
 
     def _frontier_fails(self) -> np.ndarray:
         """``(P,)`` frontier searches of each known POV's row that found no new POV."""

@@ -83,6 +83,7 @@ class NaiveParams:
     probe_starts: int = _default("probe_starts")
     frontier_attempts: int = _default("frontier_attempts")
     frontier_give_way: bool = _default("frontier_give_way")
+    frontier_skip_split: bool = _default("frontier_skip_split")
     equality_snapshots: int = _default("equality_snapshots")
     confirm_checks: int = _default("confirm_checks")
     remember_sensations: bool = _default("remember_sensations")
