@@ -59,15 +59,16 @@ def _planar(xy: np.ndarray) -> np.ndarray:
     return np.column_stack([xy, np.zeros(len(xy))])
 
 
-def arm_joint_positions(motor_state: np.ndarray, lengths=arm.SEGMENT_LENGTHS) -> np.ndarray:
-    """The base, the two elbows and the tip (where the eye's joint sits): (4, 2).
-    The tip is ``arm.forward``'s (x, y)."""
+def arm_joint_positions(motor_state: np.ndarray, body_arm: arm.Arm = arm.PAPER_ARM
+                        ) -> np.ndarray:
+    """The base, the elbows and the tip (where the eye sits) of the planar
+    chain ``body_arm``: ``(links + 1, 2)``. The tip is ``body_arm.forward``'s (x, y)."""
     motor_state = np.asarray(motor_state, dtype=float).reshape(-1)
-    if motor_state.shape != (arm.N_JOINTS,):
-        raise ValueError(f"motor_state: must hold {arm.N_JOINTS} joint angles, "
+    if motor_state.shape != (body_arm.n_joints,):
+        raise ValueError(f"motor_state: must hold {body_arm.n_joints} joint angles, "
                          f"got shape {motor_state.shape}")
-    theta = np.cumsum(motor_state[:3])
-    steps = np.asarray(lengths, dtype=float)[:, None] * np.column_stack(
+    theta = np.cumsum(body_arm.to_radians(motor_state)[:body_arm.n_links])
+    steps = np.asarray(body_arm.segments, dtype=float)[:, None] * np.column_stack(
         [np.cos(theta), np.sin(theta)])
     return np.vstack([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
 
@@ -96,19 +97,22 @@ def position_colours(xy: np.ndarray) -> np.ndarray:
 class Scene:
     """The world as the viewer last heard of it, and the shapes that draw it.
 
-    ``receptors`` (retina positions, unit focal length) and ``retina_half_width``
-    come from the run's world; ``ray_length`` is how far the eye's rays are drawn.
+    ``receptors`` (retina positions, unit focal length), ``retina_half_width``
+    and ``body_arm`` (the planar chain that carries the eye) come from the
+    run's world; ``ray_length`` is how far the eye's rays are drawn.
     """
 
-    def __init__(self, receptors: np.ndarray, retina_half_width: float, ray_length: float):
+    def __init__(self, receptors: np.ndarray, retina_half_width: float, ray_length: float,
+                 body_arm: arm.Arm = arm.PAPER_ARM):
         if not retina_half_width > 0 or not ray_length > 0:
             raise ValueError(f"retina_half_width and ray_length must be > 0, got "
                              f"{retina_half_width} and {ray_length}")
         self.receptors = np.asarray(receptors, dtype=float).reshape(-1)
         self.retina_half_width = float(retina_half_width)
         self.ray_length = float(ray_length)
+        self.arm = body_arm
         self.lights: np.ndarray | None = None          # (L, 2)
-        self.motor_state: np.ndarray | None = None     # the arm at rest, (4,)
+        self.motor_state: np.ndarray | None = None     # the arm at rest, (joints,)
         self.probes = np.zeros((0, 3))                  # eye poses of the latest command
         self.pov_positions: dict[int, np.ndarray] = {}  # true (x, y) of each POV found
 
@@ -116,7 +120,11 @@ class Scene:
         self.lights = np.asarray(lights, dtype=float).reshape(-1, 2).copy()
 
     def set_motor_state(self, motor_state: np.ndarray) -> None:
-        self.motor_state = np.asarray(motor_state, dtype=float).reshape(arm.N_JOINTS).copy()
+        motor_state = np.asarray(motor_state, dtype=float).reshape(-1)
+        if motor_state.shape != (self.arm.n_joints,):
+            raise ValueError(f"motor_state: must hold {self.arm.n_joints} joint angles, "
+                             f"got shape {motor_state.shape}")
+        self.motor_state = motor_state.copy()
 
     def set_probes(self, poses: np.ndarray) -> None:
         self.probes = np.asarray(poses, dtype=float).reshape(-1, 3).copy()
@@ -124,7 +132,8 @@ class Scene:
     def add_points_of_view(self, ids: np.ndarray, motor_states: np.ndarray) -> None:
         """POVs ``ids`` with one motor state each (any of the POV's samples: they
         share the eye's position)."""
-        positions = arm.forward(np.asarray(motor_states, dtype=float).reshape(-1, arm.N_JOINTS))
+        positions = self.arm.forward(
+            np.asarray(motor_states, dtype=float).reshape(-1, self.arm.n_joints))
         for pov, position in zip(np.asarray(ids).reshape(-1), positions):
             self.pov_positions[int(pov)] = position[:2].copy()
 
@@ -132,8 +141,8 @@ class Scene:
         """Every shape there is something to draw for (none before the first news)."""
         shapes = []
         if self.motor_state is not None:
-            joints = _planar(arm_joint_positions(self.motor_state))
-            pose = arm.forward(self.motor_state)
+            joints = _planar(arm_joint_positions(self.motor_state, self.arm))
+            pose = self.arm.forward(self.motor_state)
             edges = self.retina_half_width * np.array([-1.0, 1.0])
             shapes += [
                 Shape("arm", LINE_STRIP, joints, 0.06, ARM_COLOUR),

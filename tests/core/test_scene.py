@@ -86,3 +86,26 @@ def test_bad_shapes_and_motor_states_are_refused_by_name():
         scene.arm_joint_positions([0.0, 1.0])
     with pytest.raises(ValueError, match="ray_length"):
         scene.Scene(np.zeros(3), 1.0, 0.0)
+
+
+@pytest.mark.parametrize("body_arm", [arm.Arm(segments=(1.5, 0.5)),
+                                      arm.Arm(segments=(1.0, 0.7, 0.6, 0.4), eye="link",
+                                              unit="deg")])
+def test_any_planar_chain_is_drawn_from_its_base_to_its_eye(rng, body_arm):
+    view = scene.Scene(np.linspace(-1, 1, 6), 1.0, 6.0, body_arm=body_arm)
+    period = 360.0 if body_arm.unit == "deg" else 2 * np.pi
+    motor = rng.uniform(-period / 2, period / 2, size=(5, body_arm.n_joints))
+    for state in motor:
+        joints = scene.arm_joint_positions(state, body_arm)
+        assert joints.shape == (body_arm.n_links + 1, 2)
+        np.testing.assert_allclose(np.linalg.norm(np.diff(joints, axis=0), axis=1),
+                                   body_arm.segments, atol=1e-12)
+        np.testing.assert_allclose(joints[-1], body_arm.forward(state)[:2], atol=1e-12)
+    view.set_motor_state(motor[0])
+    view.add_points_of_view(np.array([3, 1]), motor[1:3])
+    shapes = {s.namespace: s for s in view.shapes()}
+    np.testing.assert_allclose(shapes["arm"].points[-1, :2], body_arm.forward(motor[0])[:2])
+    np.testing.assert_allclose(shapes["points_of_view"].points[:, :2],
+                               body_arm.forward(motor[[2, 1]])[:, :2])
+    with pytest.raises(ValueError, match=f"must hold {body_arm.n_joints} joint angles"):
+        view.set_motor_state(np.zeros(body_arm.n_joints + 1))

@@ -186,6 +186,21 @@ def test_the_viewer_drops_malformed_messages_and_draws_on(context):
         viewer.destroy_node()
 
 
+def test_the_viewer_draws_the_planar_chain_of_the_configured_body(context):
+    from shared import REPO
+
+    viewer = ViewerNode(context=context, parameter_overrides=in_process.parameter_overrides(
+        REPO / "config" / "bodies" / "five-joint.yaml"))
+    try:
+        # The start drawn at init: four links of 0.75 from the base to the eye.
+        assert viewer.undrawable == 0
+        arm_points = {s.namespace: s for s in viewer.scene.shapes()}["arm"].points
+        assert len(arm_points) == 5
+        np.testing.assert_allclose(np.linalg.norm(np.diff(arm_points, axis=0), axis=1), 0.75)
+    finally:
+        viewer.destroy_node()
+
+
 # ---------------------------------------------------------------- a smoke run, viewed live
 
 class SubscriptionObserver(Node):

@@ -51,7 +51,8 @@ class ViewerNode(GraphNode):
         super().__init__("viewer", **kwargs)
         world = build_world(self.cfg)
         self.scene = scene.Scene(world.receptors, self.cfg["world"]["retina"]["half_width"],
-                                 ray_length=self.cfg["world"]["grid_half_width"])
+                                 ray_length=self.cfg["world"]["grid_half_width"],
+                                 body_arm=world.arm)
         self.undrawable = 0
         # A MuJoCo body's receptors are a camera's pixels, shown as its image too.
         self.camera = (tuple(self.cfg["mujoco"]["image"])
@@ -145,8 +146,8 @@ class ViewerNode(GraphNode):
         self.draw(self.scene.add_points_of_view, ids, motor)
 
     def draw(self, change, *args) -> None:
-        """``change(*args)`` of the scene (the simulated arm of the configuration);
-        a body it cannot draw is said once and left undrawn."""
+        """``change(*args)`` of the scene (the world's planar chain); a body it
+        cannot draw is said once and left undrawn."""
         try:
             change(*args)
         except ValueError as exc:
