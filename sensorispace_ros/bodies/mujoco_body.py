@@ -8,7 +8,9 @@ reaches no further than its range: a value beyond it lands at the limit,
 and ``last_reached`` says so), the pixel count. The object is the model's
 mocap body: ``set_lights`` places it and its geoms where the world's points
 lie (the centre of the points, and each geom at its point: the world's
-object, in the chain's frame, see ``bodies.mujoco_model``).
+object, in the chain's frame, see ``bodies.mujoco_model``). Points that are
+one of the world's arrangements turned (``world.rotation_count``) turn the
+body (``object_turn``), so its geoms turn with it, headings included.
 
 ``settle``: ``kinematic`` puts the joints at the commanded values exactly;
 ``physics`` sends them to the model's position actuators and steps the
@@ -26,6 +28,7 @@ import numpy as np
 from sensorispace_ros.bodies.mujoco_model import MujocoSpec, PlanarChain, camera_pose
 from sensorispace_ros.bodies.mujoco_render import TiledRenderer
 from sensorispace_ros.config import ConfigError
+from sensorispace_ros.core import world as world_mod
 from sensorispace_ros.core.body_description import BodyDescription
 
 SETTLE_SPEED = 1e-6        # rad/s: joints slower than this have settled
@@ -38,7 +41,8 @@ class MujocoBody:
     code = None
 
     def __init__(self, spec: MujocoSpec, chain: PlanarChain, cfg_mujoco: dict,
-                 lights_world: np.ndarray | None = None, motor_state: np.ndarray | None = None):
+                 lights_world: np.ndarray | None = None, motor_state: np.ndarray | None = None,
+                 layouts: list | None = None):
         import mujoco
 
         self.mujoco = mujoco
@@ -65,6 +69,9 @@ class MujocoBody:
         self.description = BodyDescription(spec.joint_names, "rad",
                                            (2.0 * np.pi,) * self.n_motors, self.n_sensors)
         self.geom_z = self.model.geom_pos[list(spec.object_geoms), 2].copy()
+        # The object's arrangements, unturned and about their centre: a placement that
+        # is one of them turned turns the object's body (its geoms' headings with it).
+        self.layouts = [np.asarray(o, dtype=float) - np.mean(o, axis=0) for o in layouts or ()]
         self.queries = 0          # motor states probed so far
         self.calls = 0            # sense() and move() calls
         self.changes = 0          # set_lights() calls: the number of the current layout
@@ -85,10 +92,15 @@ class MujocoBody:
                              f"got {len(points)} points")
         world = self.chain.to_world_xy(points)
         centre = world.mean(axis=0)
+        turn = object_turn(points, self.layouts)
         mocap = self.spec.mocap
         self.data.mocap_pos[mocap, :2] = centre
-        self.data.mocap_quat[mocap] = (1.0, 0.0, 0.0, 0.0)
-        self.model.geom_pos[list(self.spec.object_geoms), :2] = world - centre
+        self.data.mocap_quat[mocap] = (np.cos(turn / 2), 0.0, 0.0, np.sin(turn / 2))
+        # The geoms about the body's centre, unturned: the body's turn places them.
+        offsets = world - centre
+        if turn != 0.0:
+            offsets = offsets @ world_mod.rotation_matrix(turn)
+        self.model.geom_pos[list(self.spec.object_geoms), :2] = offsets
         self.model.geom_pos[list(self.spec.object_geoms), 2] = self.geom_z
         self.lights_world = points
         self.changes = self.changes + 1 if change is None else int(change)
@@ -179,3 +191,23 @@ def _position_actuators(model, spec: MujocoSpec) -> list[int]:
                               f"commanded joint; joint {name!r} has none")
         found.append(ids[0])
     return found
+
+
+# A placement is a turned arrangement when it lies this close to it (relative to its size).
+_RIGID_TOL = 1e-9
+
+
+def object_turn(points: np.ndarray, layouts: list) -> float:
+    """The turn (rad, about the object's centre) that carries one of the
+    ``layouts`` (unturned, about their centre) onto ``points`` ``(L, 2)``, a
+    rigid placement of it (2-D Procrustes); 0 when none fits."""
+    q = np.asarray(points, dtype=float) - np.mean(points, axis=0)
+    for layout in layouts:
+        if layout.shape != q.shape:
+            continue
+        turn = float(np.arctan2(np.sum(layout[:, 0] * q[:, 1] - layout[:, 1] * q[:, 0]),
+                                np.sum(layout[:, 0] * q[:, 0] + layout[:, 1] * q[:, 1])))
+        placed = layout @ world_mod.rotation_matrix(turn).T
+        if np.max(np.abs(placed - q)) <= _RIGID_TOL * (1.0 + np.max(np.abs(q))):
+            return 0.0 if abs(turn) <= _RIGID_TOL else turn
+    return 0.0

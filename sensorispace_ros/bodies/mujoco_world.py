@@ -42,7 +42,15 @@ class MujocoWorld(World):
 
     def body(self, kernel: str = "auto", lights: np.ndarray | None = None) -> MujocoBody:
         """The MuJoCo body of this world, resting at ``m0``."""
-        return MujocoBody(self.spec, self.chain, self.mujoco_cfg, lights, self.m0.copy())
+        return MujocoBody(self.spec, self.chain, self.mujoco_cfg, lights, self.m0.copy(),
+                          layouts=self.layouts)
+
+    @property
+    def layouts(self) -> list:
+        """The object's arrangements of its geoms, unturned (chain frame, about
+        their centre): the start's and each rearrangement's."""
+        return [self.initial_offsets] + [e.offsets for e in self.events
+                                         if e.kind == world_mod.REDISTRIBUTION]
 
 
 def _grid_about(center: np.ndarray, world: dict) -> tuple[np.ndarray, int | None]:
@@ -84,6 +92,7 @@ def mujoco_world(cfg: dict, seed: int | None = None) -> MujocoWorld:
     events = world_mod.schedule(grid, rng_for(seed, "schedule"), offsets,
                                 redistribution_probability=world["redistribution_probability"],
                                 order=world["schedule"], light_kwargs=light_kwargs,
+                                rotation_count=int(world["rotation_count"]),
                                 start_index=start_index)
     n_pixels = int(np.prod(cfg["mujoco"]["image"])) * (3 if cfg["mujoco"]["channels"] == "rgb"
                                                          else 1)
