@@ -67,7 +67,7 @@ class BodyClock:
         self.state_after: dict[int, int] = {}
         self.last_answer: tuple[int, bytes] | None = None    # (command number, answer)
         self.clock_file = None
-        self.truth_log = None             # row clock with graph.checkpoint_dir: TruthLog
+        self.truth_log = None             # with graph.checkpoint_dir: the TruthLog appended to
         self.jumps_logged = 0             # the changes whose rest jump the log holds
         self.truth_whole = True           # False: restarted without the dead body's log
         self.lights_before_restart = 0    # wall: the change the dead body answered in last
