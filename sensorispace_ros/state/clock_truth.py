@@ -3,11 +3,11 @@ the run is over (``<checkpoint_dir>/body.truth.npz``) so that a launched run
 is evaluated as an offline one (``evaluation.graph_clock``): the rows executed
 after each command (row clock) and the world state each was answered in; on
 the row clock also the clock's end, its held rows and how far each change
-moved the sensation at the resting arm. Never read by the agent. On the row
-clock the body also appends each command's record as it answers
-(``TruthLog``, ``body.truth.log``), so that a body restarted after a kill -9
-knows what the dead one knew (``graph.nodes.body_clock``); a restarted body
-without that log says its record is not ``whole``. Also the layout of
+moved the sensation at the resting arm. Never read by the agent. The body
+also appends each command's record as it answers (``TruthLog``,
+``body.truth.log``), so that a body restarted after a kill -9 knows what the
+dead one knew (``graph.nodes.body_clock``); a restarted body without that log
+says its record is not ``whole``. Also the layout of
 ``body.clock`` (a ``RestingStateFile``): the last command's number and where
 the clock stood before and after it (``clock_record``, ``split_clock_record``).
 Pure numpy, no rclpy."""
