@@ -79,6 +79,7 @@ class BodyOverTopics:
         # (a restarted body node), as a command is. On the wall clock it lasts.
         self.resend_holds = bool(resend_holds)
         self._holding = None      # while a hold is waited for: publishes it again
+        self._hold_resent = False  # sent again to a restarted body: re-sent by time too
         self._pending_end: str | None = None   # end/<n>: also answers hold/<n> or end/<n>
         self.reply_frame = ""                  # frame id of the last answer taken
         self._spin_once = spin_once
@@ -144,15 +145,18 @@ class BodyOverTopics:
                 _Sent(self.requests, 0, motor_state, frame_id, started, None), started,
                 resend=self.resend_holds, publish=self._holding)
         finally:
-            self._holding = None
+            self._holding, self._hold_resent = None, False
         return None if self.reply_frame.startswith("end/") else reply[0]
 
     def hold_again(self) -> bool:
         """Publish the hold being waited for once more (a body that started again
-        forgot it); False when no hold is waited for."""
+        forgot it), and again every ``command_timeout_s`` until it is answered
+        (the restarted body's subscription may not have matched yet); False when
+        no hold is waited for."""
         if self._holding is None:
             return False
         self.retransmits += 1
+        self._hold_resent = True
         self._holding()
         return True
 
@@ -251,7 +255,8 @@ class BodyOverTopics:
                 raise RunAborted("shutting down while waiting for the body")
             self._spin_once(wait_s)
             now = time.perf_counter()
-            if resend and self._reply is None and now - last_sent >= timeout_s:
+            if (resend or self._hold_resent) and self._reply is None \
+                    and now - last_sent >= timeout_s:
                 self.retransmits += 1
                 if self._on_retransmit is not None:
                     self._on_retransmit(sent.frame_id, now - sent.started)

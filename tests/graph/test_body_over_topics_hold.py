@@ -122,3 +122,40 @@ def test_a_hold_is_sent_again_to_a_body_that_started_again_on_the_wall_clock():
     np.testing.assert_array_equal(sensed, left[0])
     assert [h[0] for h in body.holds] == ["hold/1", "hold/1"] and body.proxy.retransmits == 1
     assert not body.proxy.hold_again() and len(body.holds) == 2    # answered: not again
+
+
+class LateSubscriber(FakeBody):
+    """A restarted body whose hold subscription matches late: the hold sent on
+    its description is lost; it answers the first hold that reaches it."""
+
+    def __init__(self, answer):
+        super().__init__(answer)
+        self.spins = 0
+
+    def spin_once(self, timeout_s):
+        import time
+        time.sleep(0.005)
+        self.spins += 1
+        assert self.spins < 400, "the hold was not sent again after the restart"
+        if self.spins == 3:
+            assert self.proxy.hold_again()          # lost: not subscribed yet
+            self.lost = len(self.holds)
+        elif self.spins > 3 and len(self.holds) > self.lost:
+            super().spin_once(timeout_s)
+
+
+def test_a_hold_sent_again_to_a_restarted_body_is_sent_by_time_until_answered():
+    left = np.array([[0.5, 0.2, 0.1]])
+    body = LateSubscriber(lambda frame_id: (frame_id, left))
+    body.proxy = BodyOverTopics(body.publish_command, body.spin_once, n_motors=2, n_sensors=3,
+                                command_timeout_s=0.02, publish_hold=body.publish_hold)
+    sensed = body.proxy.hold(np.array([1.0, 2.0]), np.zeros(3), np.ones(3))
+    np.testing.assert_array_equal(sensed, left[0])
+    # Sent, sent again on the restart (lost), then by time until answered.
+    assert len(body.holds) >= 3 and {h[0] for h in body.holds} == {"hold/1"}
+    # Answered: the next hold on this (wall) clock is not re-sent by time.
+    quiet = SlowBody(lambda frame_id: (frame_id, left), answer_at=12, spin_s=0.005)
+    quiet.proxy = body.proxy
+    body.proxy._publish_hold, body.proxy._spin_once = quiet.publish_hold, quiet.spin_once
+    body.proxy.hold(np.array([1.0, 2.0]), np.zeros(3), np.ones(3))
+    assert len(quiet.holds) == 1

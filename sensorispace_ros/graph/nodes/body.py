@@ -96,9 +96,7 @@ class BodyNode(BodyClock, GraphNode):
         self.pose_packer = messages.CloudCdrPacker(self.columns["/body/sensor_pose"])
         self.joint_packer = messages.JointStateCdrPacker(
             contracts.contract("/body/joint_states").joint_names_for(self.description))
-        # Once, kept for late joiners (transient_local): what this body is.
         self.description_pub = contracts.create_publisher(self, "/body/description")
-        self.description_pub.publish(messages.description_to_msg(self.description, self.now_ns()))
         self.sensation_pub = contracts.create_publisher(self, "/body/sensation")
         self.pose_pub = contracts.create_publisher(self, "/body/sensor_pose")
         self.joint_pub = contracts.create_publisher(self, "/body/joint_states")
@@ -107,6 +105,10 @@ class BodyNode(BodyClock, GraphNode):
         contracts.create_subscription(self, "/environment/lights", self.on_lights, raw=True)
         contracts.create_subscription(self, "/body/motor_command", self.on_command, raw=True)
         self.init_clock(world)        # world.clock rows or wall: graph.nodes.body_clock
+        # Once, kept for late joiners (transient_local): what this body is; last, when
+        # every subscription exists (a restarted body's description tells the agent
+        # to send its hold again).
+        self.description_pub.publish(messages.description_to_msg(self.description, self.now_ns()))
 
     def on_lights(self, msg) -> None:
         read = self.read_float_cloud("/environment/lights", msg, kinds=("change", "end"))
