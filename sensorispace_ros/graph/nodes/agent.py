@@ -96,13 +96,6 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
                 raise config.ConfigError(f"graph.checkpoint_dir: {exc}") from exc
         self.subscribe_description(self.start_body)
 
-    def body_started_again(self) -> None:
-        """A body restarted (its description came again): a hold it was
-        watching is sent again (on the wall clock holds are not re-sent by time)."""
-        if self.body is not None and self.body.hold_again():
-            self.get_logger().warning(f"the body started again: hold/{self.body.requests} "
-                                      "sent again")
-
     def start_body(self, description) -> None:
         """Size the agent from the body description: its commands, its sensations,
         the naive agent; then resume from the checkpoint, if any."""

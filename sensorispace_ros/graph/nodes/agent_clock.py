@@ -65,6 +65,13 @@ class AgentClock:
             self.finished = True
             return
 
+    def body_started_again(self) -> None:
+        """A body restarted (its description came again): a hold it was
+        watching is sent again (on the wall clock holds are not re-sent by time)."""
+        if self.body is not None and self.body.hold_again():
+            self.get_logger().warning(f"the body started again: hold/{self.body.requests} "
+                                      "sent again")
+
     def publish_hold(self, motor_state: np.ndarray, low: np.ndarray, high: np.ndarray,
                      frame_id: str) -> None:
         row = np.concatenate([np.reshape(motor_state, -1), low, high])[None]
