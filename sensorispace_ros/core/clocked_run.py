@@ -100,10 +100,9 @@ def explore_clocked(world, params: NaiveParams | None = None, *, interval: float
     changes it detects. Returns ``(NaiveExploration, ClockTruth)``."""
     params = params if params is not None else NaiveParams()
     started = time.perf_counter()
-    plays = clock_plays(equality_changes)
-    events = list(world.events) * plays
-    body = world_on_clock(world.body(lights=world.initial_lights), world, interval=interval,
-                          plays=plays)
+    events = list(world.events) * clock_plays(equality_changes)
+    body = world_on_clock(world.body(lights=world.initial_lights), world, events,
+                          interval=interval)
     run = begin_run(body, world.m0, world.seed, params, sweep_budget)
     tick = None if progress is None or not callable(progress) else \
         (lambda: progress(body.state, len(events)))

@@ -61,20 +61,19 @@ def _plays(cfg: dict) -> int:
     return clock_plays(cfg["naive"]["clock_equality_changes"])
 
 
-def world_on_clock(body, world, *, interval: float, plays: int) -> "ClockedBody":
-    """``body`` in ``world`` on a row clock: its schedule played ``plays``
-    times, a change every ``interval`` rows on average (``change_rows`` of
-    the world's seed)."""
-    events = list(world.events) * int(plays)
+def world_on_clock(body, world, events: list, *, interval: float) -> "ClockedBody":
+    """``body`` in ``world`` on a row clock: the changes ``events`` (the
+    schedule as played), a change every ``interval`` rows on average
+    (``change_rows`` of the world's seed)."""
     return ClockedBody(body, [world.initial_lights] + [e.lights for e in events],
                        change_rows(len(events), interval, world.seed))
 
 
 def clock_body(body, world, cfg: dict) -> "ClockedBody":
-    """``world_on_clock`` as configuration ``cfg`` has it (``world.change_interval``,
-    simulation 2's replay: ``clock_events``)."""
-    return world_on_clock(body, world, interval=cfg["world"]["change_interval"],
-                          plays=_plays(cfg))
+    """``world_on_clock`` as configuration ``cfg`` has it (``clock_events``,
+    ``world.change_interval``)."""
+    return world_on_clock(body, world, clock_events(world, cfg),
+                          interval=cfg["world"]["change_interval"])
 
 
 class ClockedBody:

@@ -92,15 +92,13 @@ class BodyClock:
         size = 1 + 2 * (3 + self.description.n_motors)
         self.clock_file = RestingStateFile(Path(self.graph["checkpoint_dir"]) / BODY_CLOCK_FILE,
                                            size)
-        log_path = Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_LOG_FILE
         saved = self.clock_file.load()
+        self.open_truth_log(restarted=saved is not None)
         if saved is None:
-            self.truth_log = TruthLog(log_path, fresh=True)
             return
         number, before, after = split_clock_record(saved)
         self.clocked_body.resume(after)
         self.resumed = (number, before)
-        self.restore_truth(log_path)
         self.get_logger().warning(
             f"restarted on the row clock: resumed after command {number} at row "
             f"{self.clocked_body.row} (world state {self.clocked_body.state}), from "
@@ -109,26 +107,33 @@ class BodyClock:
     def resume_wall(self) -> None:
         """wall: the record of time of a body that ran before in this checkpoint
         directory (the launcher empties it for a new run), appended to."""
-        log_path = Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_LOG_FILE
-        if not log_path.is_file():
-            self.truth_log = TruthLog(log_path, fresh=True)
+        restarted = self.truth_log_path.is_file()
+        self.open_truth_log(restarted)
+        if not restarted:
             return
-        self.restore_truth(log_path)
         self.lights_before_restart = max(self.state_after.values(), default=0)
         self.get_logger().warning(
-            f"restarted on the wall clock: {len(self.state_after)} commands in {log_path}; "
+            f"restarted on the wall clock: {len(self.state_after)} commands in "
+            f"{self.truth_log_path}; "
             f"commands wait for the world's lights of change {self.lights_before_restart} "
             "(the environment's history)")
 
-    def restore_truth(self, log_path: Path) -> None:
-        """The dead body's record of time from its log, appended to from now on;
-        without the log the record is not whole (the evaluator says so)."""
-        logged = TruthLog.read(log_path)
-        self.truth_log = TruthLog(log_path, fresh=logged is None)
+    @property
+    def truth_log_path(self) -> Path:
+        return Path(self.graph["checkpoint_dir"]) / BODY_TRUTH_LOG_FILE
+
+    def open_truth_log(self, restarted: bool) -> None:
+        """``<checkpoint_dir>/body.truth.log``, appended to from now on; after a
+        restart, the dead body's record of time read back from it first (without
+        the log the record is not whole: the evaluator says so)."""
+        logged = TruthLog.read(self.truth_log_path) if restarted else None
+        self.truth_log = TruthLog(self.truth_log_path, fresh=logged is None)
+        if not restarted:
+            return
         if logged is None:
             self.truth_whole = False
-            self.get_logger().warning(f"no {log_path}: the ground truth of time covers the "
-                                      "commands since the restart only")
+            self.get_logger().warning(f"no {self.truth_log_path}: the ground truth of time "
+                                      "covers the commands since the restart only")
             return
         rows_after, state_after, jumps = logged
         self.rows_after.update(rows_after)
