@@ -33,9 +33,9 @@ WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equal
 TIMED = ("timings", "seconds", "_s")
 
 
-def _launched(tmp_path, domain_id, overrides, record, kill_body_after_s=None):
+def _launched(tmp_path, domain_id, overrides, record, kill_after_s=None, node="body"):
     """``sensorispace launch`` of the smoke world with ``overrides``; with
-    ``kill_body_after_s`` the body process is killed (SIGKILL) that long
+    ``kill_after_s`` the process of ``node`` is killed (SIGKILL) that long
     after it started, and respawned by the launcher."""
     cfg = config.load_config(SMOKE, overrides=overrides)
     path = tmp_path / "clock.yaml"
@@ -47,14 +47,14 @@ def _launched(tmp_path, domain_id, overrides, record, kill_body_after_s=None):
                "--run", "clock", "--domain-id", str(domain_id),
                "--results", str(tmp_path / "results"), "--timeout", "400"]
     command += ([] if record else ["--no-record"]) + \
-        ([] if kill_body_after_s is None else ["--respawn", "1"])
+        ([] if kill_after_s is None else ["--respawn", "1"])
     proc = subprocess.Popen(command, cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        if kill_body_after_s is None:
+        if kill_after_s is None:
             output, _ = proc.communicate(timeout=450)
         else:
-            output = _kill_body(proc, kill_body_after_s)
+            output = _kill(proc, node, kill_after_s)
     finally:
         stop_by_pid(proc)
     assert proc.returncode == 0, output[-3000:]
@@ -63,15 +63,15 @@ def _launched(tmp_path, domain_id, overrides, record, kill_body_after_s=None):
     return cfg, metrics, output
 
 
-def _kill_body(proc, after_s: float) -> str:
-    """The launcher's output, its body process killed ``after_s`` after it started."""
+def _kill(proc, node: str, after_s: float) -> str:
+    """The launcher's output, its ``node`` process killed ``after_s`` after it started."""
     lines, killed = [], False
     timer = threading.Timer(450, proc.kill)
     timer.start()
     try:
         for line in proc.stdout:
             lines.append(line)
-            started = re.match(r"\[launch\] started body \(pid (\d+)\)", line)
+            started = re.match(rf"\[launch\] started {node} \(pid (\d+)\)", line)
             if started and not killed:
                 pid = int(started[1])
                 threading.Timer(after_s, os.kill, (pid, signal.SIGKILL)).start()
@@ -121,8 +121,7 @@ def test_a_launched_run_on_the_wall_clock_ends_and_reports_coverage_and_detectio
 
 def test_a_launched_run_on_the_wall_clock_whose_body_is_killed_ends_and_reports(
         tmp_path, domain_id):
-    _, launched, output = _launched(tmp_path, domain_id, WALL, record=False,
-                                    kill_body_after_s=8.0)
+    _, launched, output = _launched(tmp_path, domain_id, WALL, record=False, kill_after_s=8.0)
     assert "body was killed by signal 9; respawned" in output, output[-3000:]
     logs = "".join(p.read_text() for p in (tmp_path / "results" / "clock" / "logs").iterdir())
     assert "restarted on the wall clock" in logs
@@ -132,3 +131,19 @@ def test_a_launched_run_on_the_wall_clock_whose_body_is_killed_ends_and_reports(
     print({key: launched[key] for key in ("pov.count", "naive.coverage", "naive.clock.recall",
                                           "naive.clock.detections")},
           re.findall(r"hold/\d+ sent again", logs))
+
+
+def test_a_launched_run_on_the_wall_clock_whose_environment_is_killed_goes_on_and_ends(
+        tmp_path, domain_id):
+    cfg, launched, output = _launched(tmp_path, domain_id, WALL, record=False, kill_after_s=6.0,
+                                      node="environment")
+    assert "environment was killed by signal 9; respawned" in output, output[-3000:]
+    logs = "".join(p.read_text() for p in (tmp_path / "results" / "clock" / "logs").iterdir())
+    resumed = re.findall(r"restarted: resuming at change (\d+)", logs)
+    assert len(resumed) == 1, logs[-3000:]
+    # The world went on from where the dead node left it, to the end of its schedule.
+    assert f"world.clock wall: {launched['naive.clock.changes']} changes played" in logs
+    assert 0 < int(resumed[0]) < launched["naive.clock.changes"]
+    assert launched["naive.clock.tests"] > 0 and launched["naive.accepted_across_change"] == 0
+    print(resumed, {key: launched[key] for key in ("pov.count", "naive.coverage",
+                                                   "naive.clock.recall", "naive.clock.detections")})

@@ -11,9 +11,8 @@ Restart: with ``graph.checkpoint_dir`` set, ``{current, settled}``
 is written to ``<dir>/environment.json`` (``state.environment_record``; the
 launcher polls it for its progress line) at every change, at the end and
 when the run is complete: a fixed-size JSON record overwritten in place by one
-``os.pwrite`` (a kill cannot tear a one-page write; 4-7 us, where tmp file +
-``os.replace`` took 1.0-1.5 ms on ext4, which flushes data on rename). A restarted
-environment does not rewind: it resumes at ``current`` (re-publishes its event
+``os.pwrite`` (a kill cannot tear a one-page write; cheaper than a renamed
+file, docs/benchmarks.md). A restarted environment does not rewind: it resumes at ``current`` (re-publishes its event
 and lights; the world and its schedule are rebuilt from the seed), or goes on
 to the next change if ``current`` was already settled, and re-sends the
 current lights every ``graph.resend_period_s`` until the agent settles it (a
@@ -29,7 +28,10 @@ gaps of mean ``world.change_period_s`` (stream ``world.clock``), the
 schedule played twice when the agent has an equality pass
 (``core.world_clock.clock_events``), then ``end/<k>``; with ``rows``
 the body keeps the clock and this node publishes no lights. Either way the
-agent's settle (of its end) ends the run; no restart in these modes.
+agent's settle (of its end) ends the run. A restarted environment on the
+wall clock publishes ``current`` again (the body ignores lights it has) and
+goes on with the gaps the seed draws after it: what the world would have
+done while the node was dead is not played.
 """
 from __future__ import annotations
 
@@ -66,15 +68,13 @@ class EnvironmentNode(GraphNode):
         self.lights_pub = contracts.create_publisher(self, "/environment/lights")
         # Published as serialized bytes (the body takes them raw): the
         # hand-over of every change waits for them.
-        self.lights_packer = messages.CloudCdrPacker(contracts.contract("/environment/lights")
-                                                     .columns)
+        self.lights_packer = messages.CloudCdrPacker(
+            contracts.contract("/environment/lights").columns)
         self.event_pub = contracts.create_publisher(self, "/environment/event")
         contracts.create_subscription(self, "/agent/settled", self.on_settled)
-        self.current = -1              # number of the last change published (end = n + 1)
-        self.settled = -1
+        self.current, self.settled = -1, -1   # the last change published (end: n + 1), settled
         self.lights = self.world.initial_lights
-        self.finished = False
-        self.run_complete = False
+        self.finished = self.run_complete = False
         self.progress_file = (Path(self.graph["checkpoint_dir"]) / PROGRESS_FILE
                               if self.graph["checkpoint_dir"] else None)
         self.progress_writer = (ProgressWriter(self.progress_file)
@@ -173,6 +173,20 @@ class EnvironmentNode(GraphNode):
             if self.clock == "wall":
                 self.next_wall_change()
 
+    def resume_on_clock(self) -> None:
+        """Wall clock: ``current``'s lights again, then the gap the seed draws
+        after it (the gaps before it are drawn and set aside)."""
+        self.resuming = False
+        if self.clock != "wall" or self.run_complete:
+            return
+        if self.current > self.n_changes:
+            self.publish_current_lights()
+            return
+        self.wall_gaps.exponential(float(self.cfg["world"]["change_period_s"]),
+                                   size=self.current)
+        self.publish_change(self.current)
+        self.next_wall_change()
+
     def next_wall_change(self) -> None:
         """wall: the next change after a seeded exponential gap, whatever the agent does."""
         gap_s = self.wall_gaps.exponential(float(self.cfg["world"]["change_period_s"]))
@@ -189,15 +203,16 @@ class EnvironmentNode(GraphNode):
             self.next_wall_change()
         else:
             self.current = k
+            self._save_progress()
             self.publish_lights(frame("end", k))
             self.get_logger().info(f"world.clock wall: {self.n_changes} changes played")
 
     def on_timer(self) -> None:
-        if self.clock != "agent":
-            return
         if self.resuming:
             if self._peers_ready():
-                self.resume()
+                (self.resume if self.clock == "agent" else self.resume_on_clock)()
+            return
+        if self.clock != "agent":
             return
         if self.resent_until_settled is not None:
             if self.settled >= self.resent_until_settled:
