@@ -1,5 +1,7 @@
 """The brief POV walk of the agent on a clock (points_of_view.brief_loop_walks):
 the same POVs as the lockstep walk, on the level set, for fewer rows."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -14,18 +16,20 @@ from sensorispace_ros.core.run_world import run_world
 SMOKE = "config/smoke.yaml"
 
 
-def _walks(kinds, **overrides):
+def _walks(kinds, walk_overrides=(), **overrides):
     """One state of the smoke world's start POV walked by each agent kind
-    (each started alone in the same static world): ``(world, [(agent,
-    samples, pov rows)])``."""
+    (each started alone in the same static world; ``walk_overrides`` ``{name:
+    value}`` per kind, set after the start): ``(world, [(agent, samples, pov
+    rows)])``."""
     cfg = config.load_config(SMOKE)
     world = run_world(cfg)
     params = NaiveParams(**{**cfg["naive"], **overrides})
     walks = []
     state = None
-    for kind in kinds:
+    for kind, walk_params in zip(kinds, list(walk_overrides) or [{}] * len(kinds)):
         agent = kind(SensingOnly(world.body(lights=world.initial_lights)), params)
         agent.start(world.m0, seed=world.seed)
+        agent.params = replace(agent.params, **walk_params)
         if state is None:
             state = agent.points_of_view[0, len(agent.points_of_view[0]) // 3][None]
         before = agent._body.rows.get("pov", 0)
@@ -98,6 +102,23 @@ def test_a_brief_walk_whose_knots_left_the_level_set_is_no_pov(two_walks, monkey
     assert walked.reason[0] == (points_of_view.VALID if kept else points_of_view.NOT_CLOSED)
 
 
+def test_a_brief_walk_senses_and_steps_only_its_checked_samples():
+    _, ((_, every, every_rows), (_, none, none_rows), (_, some, some_rows)) = _walks(
+        (ClockedAgent,) * 3, walk_overrides=(
+            {"clock_pov_checked_samples": checked, "clock_pov_polish_iterations": n}
+            for checked, n in ((0, 1), (0, 0), (12, 1))))
+    # 12 of the 99 samples after the start, evenly spread: the first and last among them.
+    stepped = np.flatnonzero(np.any(some != none, axis=1))
+    assert len(stepped) == 12 and stepped[0] == 1 and stepped[-1] == len(some) - 1
+    assert np.all(np.diff(stepped) >= 8)
+    # Each sensed sample takes the step it takes when every one is sensed; the others
+    # stay where the walk's spline put them, and no row is spent on them.
+    np.testing.assert_array_equal(some[stepped], every[stepped])
+    unsensed = np.setdiff1d(np.arange(len(some)), stepped)
+    np.testing.assert_array_equal(some[unsensed], none[unsensed])
+    assert some_rows - none_rows == 12 and every_rows - none_rows == len(some) - 1
+
+
 def test_the_lockstep_agent_keeps_its_walk(two_walks):
     # The lockstep walk polishes its knots and repairs its samples: its
     # samples come back onto the level set to round-off.
@@ -116,6 +137,7 @@ def test_without_the_brief_walk_the_clocked_agent_walks_as_the_lockstep_one():
 
 @pytest.mark.parametrize("name, value", [("clock_pov_predictor_tol", 0.0),
                                          ("clock_pov_polish_iterations", -1),
+                                         ("clock_pov_checked_samples", -1),
                                          ("clock_brief_walk", 2)])
 def test_the_brief_walks_parameters_are_checked_at_start_up(name, value):
     with pytest.raises(config.ConfigError, match=rf"naive\.{name}"):

@@ -441,7 +441,8 @@ class ClockedAgent(KnownNearby, NaiveAgent):
             max_step=p.pov_max_step, predictor_tol=p.clock_pov_predictor_tol,
             max_queries=p.pov_max_queries, closure_tol=p.pov_closure_tol,
             checks=(p.rank_ratio, self._tol.min_singular, p.pattern_ratio),
-            polish_iterations=p.clock_pov_polish_iterations)
+            polish_iterations=p.clock_pov_polish_iterations,
+            checked_samples=p.clock_pov_checked_samples)
 
     def _walk_through(self, motor_states, keep_invalid=False, others=None):
         """``SearchAndSample._sample_povs``, started again in the new world

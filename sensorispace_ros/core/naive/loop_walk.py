@@ -320,7 +320,7 @@ class LoopWalk:
         return samples
 
     def project(self, samples: np.ndarray, polish_iterations: int,
-                sample_tol: float = np.inf, step_tol: float = np.inf) -> float:
+                sample_tol: float = np.inf, step_tol: float = np.inf, checked: int = 0) -> float:
         """Project the valid POVs' samples (in place) back onto the level set
         with ``polish_iterations`` Gauss-Newton steps each; returns the
         largest sensory error before the last step (0 without steps).
@@ -335,40 +335,44 @@ class LoopWalk:
         ``step_tol`` is not kept (``NOT_CLOSED``): that sample lay as far off
         the level set as an uncorrected prediction, so the knots it was drawn
         from were not on it, and one step does not bring it back
-        (``points_of_view.brief_loop_walks``)."""
+        (``points_of_view.brief_loop_walks``). ``checked`` > 0: only that many
+        samples, evenly spread along the loop, are sensed and stepped (a
+        loop that left the level set leaves it over a stretch); the others
+        stay as the spline put them."""
         n_pov, n_samples, n_motors = samples.shape
         max_residual = 0.0
         good = np.flatnonzero([r == VALID for r in self.reason])
+        cols = np.arange(1, n_samples) if not 0 < checked < n_samples - 1 else \
+            1 + np.unique(np.rint(np.linspace(0, n_samples - 2, checked)).astype(int))
+        n_cols = len(cols)
         if len(good) and polish_iterations:
-            flat = samples[good, 1:].reshape(-1, n_motors)
-            flat_target = np.repeat(self.target[good], n_samples - 1, axis=0)
+            flat = samples[good][:, cols].reshape(-1, n_motors)
+            flat_target = np.repeat(self.target[good], n_cols, axis=0)
             nearest_jac = np.concatenate([
                 np.asarray(self.jacobians_along[p])[
-                    _nearest_rows(samples[p, 1:], np.asarray(self.paths[p]))]
+                    _nearest_rows(samples[p, cols], np.asarray(self.paths[p]))]
                 for p in good])
             for _ in range(polish_iterations):
                 sensation = self._sensed(flat)
                 self.calls += 1
-                self.queries[good] += (n_samples - 1) * self.repeats
+                self.queries[good] += n_cols * self.repeats
                 residual = sensation - flat_target
                 max_residual = float(np.max(np.linalg.norm(residual, axis=1)))
                 step = minimum_norm_correction(nearest_jac, residual, self.rank) \
                     if self.noise_sd <= 0 else loop_smoothed_correction(
-                        nearest_jac, residual, self.rank, self._noise(1, True)[0],
-                        n_samples - 1)
+                        nearest_jac, residual, self.rank, self._noise(1, True)[0], n_cols)
                 flat = flat + _finite_or_zero(step)     # a lost row is not a step
             with np.errstate(invalid="ignore"):
                 stray = ~(np.linalg.norm(step, axis=1) <= sample_tol)
             if stray.any():
-                self._repair(flat, flat_target, stray, np.repeat(good, n_samples - 1),
-                             sample_tol)
+                self._repair(flat, flat_target, stray, np.repeat(good, n_cols), sample_tol)
             if np.isfinite(step_tol):
                 with np.errstate(over="ignore", invalid="ignore"):
-                    moved = np.linalg.norm(flat - samples[good, 1:].reshape(-1, n_motors),
+                    moved = np.linalg.norm(flat - samples[good][:, cols].reshape(-1, n_motors),
                                            axis=1)
-                for p in np.unique(np.repeat(good, n_samples - 1)[~(moved <= step_tol)]):
+                for p in np.unique(np.repeat(good, n_cols)[~(moved <= step_tol)]):
                     self.reason[p] = NOT_CLOSED
-            samples[good, 1:] = flat.reshape(len(good), n_samples - 1, n_motors)
+            samples[np.ix_(good, cols)] = flat.reshape(len(good), n_cols, n_motors)
         return max_residual
 
     def _sensed(self, states: np.ndarray) -> np.ndarray:

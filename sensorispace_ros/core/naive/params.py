@@ -99,6 +99,7 @@ class NaiveParams:
     clock_sentinel_rows: int = _default("clock_sentinel_rows")
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
     clock_pov_polish_iterations: int = _default("clock_pov_polish_iterations")
+    clock_pov_checked_samples: int = _default("clock_pov_checked_samples")
     clock_unconfirmed_when_lost: bool = _default("clock_unconfirmed_when_lost")
     clock_unconfirmed_min_rate: float = _default("clock_unconfirmed_min_rate")
 

@@ -181,7 +181,8 @@ def sample_sensory_points_of_view(
 def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial_step: float,
                      min_step: float, max_step: float, predictor_tol: float, max_queries: int,
                      closure_tol: float, checks: tuple, polish_iterations: int = 1,
-                     knots_per_step: int = 4, min_loop_length: float = 0.3):
+                     knots_per_step: int = 4, min_loop_length: float = 0.3,
+                     checked_samples: int = 0):
     """1-D POVs of ``start`` ``(P, M)`` walked with fewer rows, for an agent
     whose world may change under a walk (``ClockedAgent``; docs/clock.md):
     the knots as the walk corrected them (``resample(polish_knots=False)``:
@@ -194,10 +195,12 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
     ``step_tol``), as its loop was not on the level set there. The caller
     may set ``predictor_tol`` larger than the full walk's: fewer knots.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
-    pattern_ratio)``. Returns a ``SensoryPointsOfView``."""
+    pattern_ratio)``; ``checked_samples`` > 0: only that many samples are
+    sensed and stepped (``project``'s ``checked``). Returns a ``SensoryPointsOfView``."""
     return _walk_loops(body, np.array(start, dtype=float, copy=True), rank=rank,
                        n_samples=n_samples, initial_step=initial_step, checks=checks,
-                       polish=(polish_iterations, np.inf, predictor_tol), polish_knots=False,
+                       polish=(polish_iterations, np.inf, predictor_tol, checked_samples),
+                       polish_knots=False,
                        fd_step=fd_step, min_step=min_step, max_step=max_step,
                        predictor_tol=predictor_tol, max_queries=max_queries,
                        min_loop_length=min_loop_length, knots_per_step=knots_per_step,
@@ -208,7 +211,7 @@ def _walk_loops(body, start, *, rank, n_samples, initial_step, checks, polish,
                 polish_knots=True, **walk_parameters) -> SensoryPointsOfView:
     """1-D POVs: ``LoopWalk`` from every start, resampled and polished.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
-    pattern_ratio)``; ``polish``: ``(iterations, sample_tol[, step_tol])``;
+    pattern_ratio)``; ``polish``: ``(iterations, sample_tol[, step_tol[, checked]])``;
     ``polish_knots``: see ``LoopWalk.resample``."""
     walk = LoopWalk(body, start, rank=rank, **walk_parameters)
     walk.begin(*checks, initial_step)
