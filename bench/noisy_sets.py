@@ -1,0 +1,98 @@
+"""What a naive run's 2-D after residual owes to its equality sets and to its POVs.
+
+Reads the ``arrays.npz`` of a naive run (``sensorispace reproduce --strategy
+naive`` or ``bench/noisy_naive.py --out DIR``) and regularises its Hausdorff
+metric again (the run's configuration and seed, ``offline.representation``'s
+2-D chain) with, one JSON line each:
+
+* ``own``: the run's equality sets;
+* ``right``: those sets without their wrong pairs (ground truth: a pair whose
+  true displacement lies more than half a grid step from its set's median);
+* ``sample N`` (``--sample N ...``): N of the run's pairs, whole sets drawn
+  at random (``--seed``), as a run finding fewer would have them;
+* ``truth``: every pair of the run's POVs, one set per displacement between
+  grid positions: perfect sets, so what is left is the POVs' own pose errors.
+
+Each line: pairs, sets, wrong pairs, the 2-D after affine residual, and the
+largest offset of a POV's true position from the lattice of the first POV's
+(grid steps)::
+
+    .venv/bin/python bench/noisy_sets.py /tmp/noisy_naive --sample 60000 150000
+
+Diagnostics only: nothing here is the agent's.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from sensorispace_ros.core import quality
+from sensorispace_ros.offline.representation import _dimension_chain
+
+
+def wrong_pairs(true_positions, pairs, set_ids, step) -> np.ndarray:
+    """(K,) bool: pairs whose true displacement lies more than half ``step``
+    from the median displacement of their set."""
+    shift = true_positions[pairs[:, 1]] - true_positions[pairs[:, 0]]
+    wrong = np.zeros(len(pairs), dtype=bool)
+    for s in np.unique(set_ids):
+        members = np.flatnonzero(set_ids == s)
+        median = np.median(shift[members], axis=0)
+        wrong[members] = np.linalg.norm(shift[members] - median, axis=1) > 0.5 * step
+    return wrong
+
+
+def true_sets(true_positions, step):
+    """Every pair of POVs, one set per displacement in whole grid steps (sets of two pairs or more)."""
+    i, j = np.triu_indices(len(true_positions), 1)
+    shift = np.rint((true_positions[j] - true_positions[i]) / step).astype(int)
+    _, set_ids = np.unique(shift, axis=0, return_inverse=True)
+    set_ids = set_ids.reshape(-1)
+    keep = np.bincount(set_ids)[set_ids] >= 2
+    return np.stack([i, j], axis=1)[keep], set_ids[keep]
+
+
+def sampled_sets(pairs, set_ids, n_pairs, rng):
+    """Whole sets drawn at random until ``n_pairs`` pairs."""
+    order = rng.permutation(np.unique(set_ids))
+    sizes = np.bincount(set_ids)[order]
+    keep = np.isin(set_ids, order[np.cumsum(sizes) <= n_pairs])
+    return pairs[keep], set_ids[keep]
+
+
+def residual(arrays, cfg, pairs, set_ids) -> float:
+    chain = _dimension_chain(arrays["hausdorff"], pairs, set_ids, cfg, int(arrays["seed"]),
+                             "2d", 2)
+    return quality.affine_residual(chain["iterations"][-1], arrays["true_positions"])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("run", help="a naive run's output directory (its arrays.npz)")
+    parser.add_argument("--sample", type=int, nargs="*", default=[])
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    arrays = np.load(Path(args.run) / "arrays.npz")
+    cfg = json.loads(str(arrays["config_json"]))
+    positions, step = arrays["true_positions"], float(arrays["grid_spacing"])
+    pairs, set_ids = arrays["pairs"], arrays["set_ids"]
+    wrong = wrong_pairs(positions, pairs, set_ids, step)
+    offset = (positions - positions[0]) / step
+    lattice = float(np.max(np.linalg.norm(offset - np.rint(offset), axis=1)))
+    rng = np.random.default_rng(args.seed)
+    variants = [("own", pairs, set_ids), ("right", pairs[~wrong], set_ids[~wrong])]
+    variants += [(f"sample {n}", *sampled_sets(pairs, set_ids, n, rng)) for n in args.sample]
+    variants.append(("truth", *true_sets(positions, step)))
+    for name, p, s in variants:
+        print(json.dumps({"sets": name, "pairs": int(len(p)), "set_count": int(len(np.unique(s))),
+                          "wrong_pairs": int(wrong_pairs(positions, p, s, step).sum()),
+                          "affine_residual_2d_after": residual(arrays, cfg, p, s),
+                          "povs": int(len(positions)), "max_lattice_offset": lattice}),
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,51 @@
+"""bench/noisy_sets.py's ground-truth helpers: sets of one displacement, and
+the pairs that do not belong to their set."""
+import sys
+
+import numpy as np
+
+from shared import REPO
+sys.path.insert(0, str(REPO))
+
+from bench import noisy_sets  # noqa: E402
+
+STEP = 0.2
+
+
+def _lattice(n=5, jitter=0.0, seed=0):
+    grid = np.stack(np.meshgrid(np.arange(n), np.arange(n)), axis=-1).reshape(-1, 2) * STEP
+    return grid + np.random.default_rng(seed).uniform(-jitter, jitter, grid.shape)
+
+
+def test_every_pair_of_a_true_set_has_its_displacement():
+    positions = _lattice(jitter=0.1 * STEP)
+    pairs, set_ids = noisy_sets.true_sets(positions, STEP)
+    shift = np.rint((positions[pairs[:, 1]] - positions[pairs[:, 0]]) / STEP)
+    for s in np.unique(set_ids):
+        assert len(np.unique(shift[set_ids == s], axis=0)) == 1
+    # Different sets, different displacements; every set of two pairs or more.
+    firsts = np.array([shift[set_ids == s][0] for s in np.unique(set_ids)])
+    assert len(np.unique(firsts, axis=0)) == len(firsts)
+    assert np.unique(set_ids, return_counts=True)[1].min() >= 2
+    # 5 x 5 points: each displacement but the two corner-to-corner diagonals joins two pairs or more.
+    assert len(pairs) == 25 * 24 // 2 - 2
+
+
+def test_a_pair_off_its_sets_displacement_is_wrong():
+    positions = _lattice()
+    pairs, set_ids = noisy_sets.true_sets(positions, STEP)
+    assert not noisy_sets.wrong_pairs(positions, pairs, set_ids, STEP).any()
+    bad = np.flatnonzero(np.bincount(set_ids)[set_ids] >= 3)[0]
+    corrupted = pairs.copy()
+    corrupted[bad] = corrupted[bad][::-1]           # the opposite displacement
+    wrong = noisy_sets.wrong_pairs(positions, corrupted, set_ids, STEP)
+    assert wrong.sum() == 1 and wrong[bad]
+
+
+def test_sampled_sets_are_whole_sets_within_the_count():
+    positions = _lattice()
+    pairs, set_ids = noisy_sets.true_sets(positions, STEP)
+    kept_pairs, kept_ids = noisy_sets.sampled_sets(pairs, set_ids, 60, np.random.default_rng(1))
+    assert 0 < len(kept_pairs) <= 60
+    for s in np.unique(kept_ids):
+        assert (kept_ids == s).sum() == (set_ids == s).sum()
