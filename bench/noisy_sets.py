@@ -38,15 +38,17 @@ def wrong_pairs(true_positions, pairs, set_ids, step) -> np.ndarray:
     from the median displacement of their set."""
     shift = true_positions[pairs[:, 1]] - true_positions[pairs[:, 0]]
     wrong = np.zeros(len(pairs), dtype=bool)
-    for s in np.unique(set_ids):
-        members = np.flatnonzero(set_ids == s)
+    order = np.argsort(set_ids, kind="stable")
+    _, first = np.unique(set_ids[order], return_index=True)
+    for members in np.split(order, first[1:]):
         median = np.median(shift[members], axis=0)
         wrong[members] = np.linalg.norm(shift[members] - median, axis=1) > 0.5 * step
     return wrong
 
 
 def true_sets(true_positions, step):
-    """Every pair of POVs, one set per displacement in whole grid steps (sets of two pairs or more)."""
+    """Every pair of POVs, one set per displacement in whole grid steps (sets of
+    two pairs or more)."""
     i, j = np.triu_indices(len(true_positions), 1)
     shift = np.rint((true_positions[j] - true_positions[i]) / step).astype(int)
     _, set_ids = np.unique(shift, axis=0, return_inverse=True)

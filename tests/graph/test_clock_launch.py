@@ -144,8 +144,8 @@ def test_a_launched_run_on_the_wall_clock_whose_body_is_killed_ends_and_reports(
 
 def test_a_launched_run_on_the_wall_clock_whose_environment_is_killed_goes_on_and_ends(
         tmp_path, domain_id):
-    cfg, launched, output = _launched(tmp_path, domain_id, WALL, record=False, kill_after_s=6.0,
-                                      node="environment")
+    _, launched, output = _launched(tmp_path, domain_id, WALL, record=False, kill_after_s=6.0,
+                                    node="environment")
     assert "environment was killed by signal 9; respawned" in output, output[-3000:]
     logs = "".join(p.read_text() for p in (tmp_path / "results" / "clock" / "logs").iterdir())
     resumed = re.findall(r"restarted: resuming at change (\d+)", logs)

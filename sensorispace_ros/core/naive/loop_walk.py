@@ -346,7 +346,8 @@ class LoopWalk:
             1 + np.unique(np.rint(np.linspace(0, n_samples - 2, checked)).astype(int))
         n_cols = len(cols)
         if len(good) and polish_iterations:
-            flat = samples[good][:, cols].reshape(-1, n_motors)
+            projected = samples[good][:, cols].reshape(-1, n_motors)
+            flat = projected
             flat_target = np.repeat(self.target[good], n_cols, axis=0)
             nearest_jac = np.concatenate([
                 np.asarray(self.jacobians_along[p])[
@@ -368,8 +369,7 @@ class LoopWalk:
                 self._repair(flat, flat_target, stray, np.repeat(good, n_cols), sample_tol)
             if np.isfinite(step_tol):
                 with np.errstate(over="ignore", invalid="ignore"):
-                    moved = np.linalg.norm(flat - samples[good][:, cols].reshape(-1, n_motors),
-                                           axis=1)
+                    moved = np.linalg.norm(flat - projected, axis=1)
                 for p in np.unique(np.repeat(good, n_cols)[~(moved <= step_tol)]):
                     self.reason[p] = NOT_CLOSED
             samples[np.ix_(good, cols)] = flat.reshape(len(good), n_cols, n_motors)

@@ -7,20 +7,20 @@ environment during compensation). The end of the run is one more lights
 message, ``end/<k>``, with unchanged lights: the body turns it into a passive
 sensation, so the agent learns of the end only through its body.
 
-Restart: with ``graph.checkpoint_dir`` set, ``{current, settled}``
-is written to ``<dir>/environment.json`` (``state.environment_record``; the
-launcher polls it for its progress line) at every change, at the end and
-when the run is complete: a fixed-size JSON record overwritten in place by one
-``os.pwrite`` (a kill cannot tear a one-page write; cheaper than a renamed
-file, docs/benchmarks.md). A restarted environment does not rewind: it resumes at ``current`` (re-publishes its event
-and lights; the world and its schedule are rebuilt from the seed), or goes on
-to the next change if ``current`` was already settled, and re-sends the
+Restart: with ``graph.checkpoint_dir`` set, ``{current, settled}`` is written to
+``<dir>/environment.json`` (``state.environment_record``; the launcher polls it
+for its progress line) at every change, at the end and when the run is complete:
+a fixed-size JSON record overwritten in place by one ``os.pwrite`` (a kill
+cannot tear a one-page write; cheaper than a renamed file, docs/benchmarks.md).
+A restarted environment does not rewind: it resumes at ``current`` (re-publishes
+its event and lights; the world and its schedule are rebuilt from the seed), or
+goes on to the next change if ``current`` was already settled, and re-sends the
 current lights every ``graph.resend_period_s`` until the agent settles it (a
-settle sent while the environment was dead is lost; the agent answers a
-re-sent change it already settled with its settle again). A repeated settle of
-the change before ``current`` (a restarted agent that lost the passive
-sensation of ``current``) is answered with the current lights again. Bag and
-analysis see the re-sent messages as duplicates (first occurrence wins).
+settle sent while the environment was dead is lost; the agent answers a re-sent
+change it already settled with its settle again). A repeated settle of the
+change before ``current`` (a restarted agent that lost the passive sensation of
+``current``) is answered with the current lights again. Bag and analysis see the
+re-sent messages as duplicates (first occurrence wins).
 
 In a world on its own clock nothing waits for the agent: with
 ``world.clock: wall`` the changes come on a ROS timer, seeded exponential
@@ -177,7 +177,7 @@ class EnvironmentNode(GraphNode):
         """Wall clock: ``current``'s lights again, then the gap the seed draws
         after it (the gaps before it are drawn and set aside)."""
         self.resuming = False
-        if self.clock != "wall" or self.run_complete:
+        if self.clock != "wall":
             return
         if self.current > self.n_changes:
             self.publish_current_lights()
