@@ -17,8 +17,10 @@ beside ``sd_all``, the isotropic figure of the same repeats. With
 ``sd_across``; with ``--precision`` a compensation's predicted pose error is
 ``sqrt(n * (sd_across^2 / s_r^2 + motor_sd^2))`` instead of
 ``sqrt(n) * sd / s_r`` (``n`` the sensings' variance in units of the
-measured ``sd^2``, ``s_r`` the weakest singular value). Both only where the
-split is clear (``sd_across`` below half ``sd_all``). Prints the split and
+measured ``sd^2``, ``s_r`` the weakest singular value); with ``--whiten``
+that error, and the residual inside the Jacobian's range, whitened by the
+split (``confirm._judge``'s settle test). Only where the split is clear
+(``sd_across`` below half ``sd_all``). Prints the split and
 ``bench/noisy_naive.py``'s summary line::
 
     .venv/bin/python bench/noise_split.py --config config/paper.yaml --motor_noise 1e-3 --precision
@@ -66,7 +68,7 @@ def split_noise(body, m0: np.ndarray, rank: int, fd_step) -> dict:
             "singular": singular[:rank].round(5).tolist()}
 
 
-def patch(rank_floor: bool, precision: bool) -> None:
+def patch(rank_floor: bool, precision: bool, whiten: bool = False) -> None:
     measure, judge, floor = NaiveAgent._measure_body, confirm_mod._judge, \
         SearchAndSample._pinning_floor
 
@@ -85,6 +87,8 @@ def patch(rank_floor: bool, precision: bool) -> None:
         return m0
 
     def judged(jac, residual, rank, whole, variances, limits, bounds, max_step):
+        if whiten and SPLIT.get("clear"):
+            return whitened(jac, residual, rank, whole, variances, limits, bounds, max_step)
         step, explained, settled = judge(jac, residual, rank, whole, variances, limits,
                                          bounds, max_step)
         if not (precision and SPLIT.get("clear")):
@@ -105,6 +109,30 @@ def patch(rank_floor: bool, precision: bool) -> None:
             step = np.where(retry[:, None], step2, step)
         return step, explained, settled
 
+    def whitened(jac, residual, rank, whole, variances, limits, bounds, max_step):
+        """``confirm._judge`` with the residual's noise inside the Jacobian's
+        range of the split's shape, ``count (sd_across^2 + motor_sd^2 s_i^2)``
+        along its i-th direction (across it, the measured sd as before)."""
+        u, singular, _ = np.linalg.svd(jac, full_matrices=False)
+        along = np.einsum("bsk,bs->bk", u[:, :, :rank], residual)
+        outside = np.sum(residual ** 2, axis=1) - np.sum(along ** 2, axis=1)
+        across, joints = SPLIT["sd_across"] ** 2, SPLIT["motor_sd"] ** 2
+        counts = [v / SPLIT["sd_measured"] ** 2 for v in variances]
+        lead = singular[:, :rank] ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            spread = np.sqrt(counts[0] * (across / lead[:, -1] + joints))
+            inside = np.sum(along ** 2 / (counts[1][:, None] * (across + joints * lead)), axis=1)
+        step = confirm_mod.minimum_norm_correction(jac, residual, rank)
+        max_error, min_singular = bounds
+        explained = whole & np.isfinite(outside) & \
+            (outside <= variances[0] * limits[0]) & (spread <= max_error) & \
+            (singular[:, rank - 1] > min_singular) & np.all(np.isfinite(step), axis=1)
+        if max_step is None:
+            settled = explained & (inside <= limits[1])
+        else:
+            settled = explained & (np.linalg.norm(step, axis=1) <= max_step)
+        return step, explained, settled
+
     def pinning_floor(self):
         return getattr(self, "_across_floor", None) or floor(self)
 
@@ -122,8 +150,9 @@ def main() -> None:
         parser.add_argument(f"--{name}", type=float, default=0.0)
     parser.add_argument("--rank-floor", action="store_true")
     parser.add_argument("--precision", action="store_true")
+    parser.add_argument("--whiten", action="store_true")
     args = vars(parser.parse_args())
-    patch(args.pop("rank_floor"), args.pop("precision"))
+    patch(args.pop("rank_floor"), args.pop("precision"), args.pop("whiten"))
     summary = run(args.pop("config"), args.pop("seed"), args.pop("out"),
                   **{k: v for k, v in args.items() if v})
     print(json.dumps({"split": SPLIT}))
