@@ -65,6 +65,7 @@ class EnvironmentNode(GraphNode):
         self.n_changes = len(self.events)
         self.wall_timer = None
         self.wall_gaps = rng_for(self.cfg["seed"], CLOCK_STREAM)
+        self.wall_period_s = float(self.cfg["world"]["change_period_s"])
         self.lights_pub = contracts.create_publisher(self, "/environment/lights")
         # Published as serialized bytes (the body takes them raw): the
         # hand-over of every change waits for them.
@@ -182,14 +183,13 @@ class EnvironmentNode(GraphNode):
         if self.current > self.n_changes:
             self.publish_current_lights()
             return
-        self.wall_gaps.exponential(float(self.cfg["world"]["change_period_s"]),
-                                   size=self.current)
+        self.wall_gaps.exponential(self.wall_period_s, size=self.current)
         self.publish_change(self.current)
         self.next_wall_change()
 
     def next_wall_change(self) -> None:
         """wall: the next change after a seeded exponential gap, whatever the agent does."""
-        gap_s = self.wall_gaps.exponential(float(self.cfg["world"]["change_period_s"]))
+        gap_s = self.wall_gaps.exponential(self.wall_period_s)
         self.wall_timer = self.create_timer(gap_s, self.on_wall_timer)
 
     def on_wall_timer(self) -> None:
