@@ -31,7 +31,7 @@ else:
     from . import node_processes as np_mod
 
 from sensorispace_ros.graph import dds_environment, launcher  # noqa: E402
-from sensorispace_ros.graph.framework import RESTART_EXIT_CODE  # noqa: E402
+from sensorispace_ros.graph.framework import PUBLISH_RETRY_S, RESTART_EXIT_CODE  # noqa: E402
 from shared import SMOKE  # noqa: E402
 
 
@@ -74,6 +74,10 @@ class SettledWatcher:
 # milliseconds of its arrival (write-ahead log), this margin covers a recorder
 # lagging behind the watcher on a loaded machine.
 RECORDER_MARGIN_S = 0.2
+# A run that stops settling for this long has stalled: longer than the slowest
+# recovery the graph allows itself after a kill, a publish retried for up to
+# PUBLISH_RETRY_S, then a command sent again and the body restarted.
+NO_PROGRESS_S = 2.0 * PUBLISH_RETRY_S + 10.0
 
 
 def bag_losses(bag: Path, expected_settled: set[int], expected_changes: set[int]) -> dict:
@@ -155,8 +159,8 @@ def restart_run(victim: str, work: Path, kill_at: int, stall_s: float, reference
             if dead:
                 state = f"died {dead}"
                 break
-            if time.monotonic() - last_progress > 30 and "representation" not in exited:
-                state = f"stalled at settled {watcher.settled} (no progress for 30 s)"
+            if time.monotonic() - last_progress > NO_PROGRESS_S and "representation" not in exited:
+                state = f"stalled at settled {watcher.settled} (no progress for {NO_PROGRESS_S:.0f} s)"
                 break
         outcome["state"] = state
         outcome["settled_at_end"] = int(watcher.settled)
