@@ -87,51 +87,32 @@ def patch(rank_floor: bool, precision: bool, whiten: bool = False) -> None:
         return m0
 
     def judged(jac, residual, rank, whole, variances, limits, bounds, max_step):
-        if whiten and SPLIT.get("clear"):
-            return whitened(jac, residual, rank, whole, variances, limits, bounds, max_step)
         step, explained, settled = judge(jac, residual, rank, whole, variances, limits,
                                          bounds, max_step)
-        if not (precision and SPLIT.get("clear")):
+        if not ((precision or whiten) and SPLIT.get("clear")):
             return step, explained, settled
-        # Re-decide the states only the isotropic precision bound refused.
-        singular = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
-        count = variances[0] / SPLIT["sd_measured"] ** 2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            old = np.sqrt(variances[0]) / singular
-            new = np.sqrt(count * (SPLIT["sd_across"] ** 2 / singular ** 2
-                                   + SPLIT["motor_sd"] ** 2))
-        retry = ~explained & (old > bounds[0]) & (new <= bounds[0])
-        if retry.any():
-            loose = (np.inf, bounds[1])
-            step2, explained2, settled2 = judge(jac, residual, rank, whole, variances, limits,
-                                                loose, max_step)
-            explained, settled = explained | (retry & explained2), settled | (retry & settled2)
-            step = np.where(retry[:, None], step2, step)
-        return step, explained, settled
-
-    def whitened(jac, residual, rank, whole, variances, limits, bounds, max_step):
-        """``confirm._judge`` with the residual's noise inside the Jacobian's
-        range of the split's shape, ``count (sd_across^2 + motor_sd^2 s_i^2)``
-        along its i-th direction (across it, the measured sd as before)."""
+        # The same test without its isotropic precision bound, then the split's bound:
+        # the pose error of n sensings, sqrt(n (sd_across^2 / s_r^2 + motor_sd^2)).
+        _, loose, loose_settled = judge(jac, residual, rank, whole, variances, limits,
+                                        (np.inf, bounds[1]), max_step)
         u, singular, _ = np.linalg.svd(jac, full_matrices=False)
-        along = np.einsum("bsk,bs->bk", u[:, :, :rank], residual)
-        outside = np.sum(residual ** 2, axis=1) - np.sum(along ** 2, axis=1)
+        sensings = [v / SPLIT["sd_measured"] ** 2 for v in variances]
         across, joints = SPLIT["sd_across"] ** 2, SPLIT["motor_sd"] ** 2
-        counts = [v / SPLIT["sd_measured"] ** 2 for v in variances]
-        lead = singular[:, :rank] ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
-            spread = np.sqrt(counts[0] * (across / lead[:, -1] + joints))
-            inside = np.sum(along ** 2 / (counts[1][:, None] * (across + joints * lead)), axis=1)
-        step = confirm_mod.minimum_norm_correction(jac, residual, rank)
-        max_error, min_singular = bounds
-        explained = whole & np.isfinite(outside) & \
-            (outside <= variances[0] * limits[0]) & (spread <= max_error) & \
-            (singular[:, rank - 1] > min_singular) & np.all(np.isfinite(step), axis=1)
-        if max_step is None:
-            settled = explained & (inside <= limits[1])
-        else:
-            settled = explained & (np.linalg.norm(step, axis=1) <= max_step)
-        return step, explained, settled
+            within = np.sqrt(sensings[0] * (across / singular[:, rank - 1] ** 2 + joints)) \
+                <= bounds[0]
+        if not whiten:      # re-decide only the states the isotropic bound refused
+            return step, explained | (loose & within), settled | (within & loose_settled)
+        explained = loose & within
+        if max_step is not None:
+            return step, explained, explained & loose_settled
+        # Settled: the residual inside the range whitened by the split, along its
+        # i-th direction n (sd_across^2 + motor_sd^2 s_i^2).
+        along = np.einsum("bsk,bs->bk", u[:, :, :rank], residual)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inside = np.sum(along ** 2 / (sensings[1][:, None]
+                                          * (across + joints * singular[:, :rank] ** 2)), axis=1)
+        return step, explained, explained & (inside <= limits[1])
 
     def pinning_floor(self):
         return getattr(self, "_across_floor", None) or floor(self)
