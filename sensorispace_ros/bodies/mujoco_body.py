@@ -125,6 +125,36 @@ class MujocoBody:
         images, poses = self._look(self.motor_state[None])
         return images[0], poses[0]
 
+    def resting_truth(self) -> np.ndarray | None:
+        """``sense_at_rest``'s image as floats (ground truth; the pixels have no
+        noise of their own); None before the arm rests anywhere."""
+        if self.lights_world is None or self.motor_state is None:
+            return None
+        return self.sense_at_rest()[0].astype(float)
+
+    def physics_state(self) -> np.ndarray:
+        """What the next settle steps from, as a vector (MuJoCo's
+        ``mjSTATE_INTEGRATION``: joints, speeds, controls, warm start...);
+        empty with ``settle: kinematic``, whose answers depend on the command
+        alone."""
+        if self.settle != "physics":
+            return np.zeros(0)
+        kind = self.mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(self.mujoco.mj_stateSize(self.model, kind))
+        self.mujoco.mj_getState(self.model, self.data, state, kind)
+        return state
+
+    def set_physics_state(self, state: np.ndarray) -> None:
+        """Stand where ``physics_state`` stood: the same commands from here are
+        answered bit for bit as they were from there."""
+        state = np.asarray(state, dtype=float).reshape(-1)
+        size = len(self.physics_state())
+        if len(state) != size:
+            raise ValueError(f"physics state: need {size} values, got {len(state)}")
+        if size:
+            self.mujoco.mj_setState(self.model, self.data, state,
+                                    self.mujoco.mjtState.mjSTATE_INTEGRATION)
+
     def move(self, motor_states: np.ndarray, call: int | None = None) -> None:
         """The command ``sense`` answers, without the images."""
         self._count(motor_states)

@@ -283,6 +283,16 @@ class SimulatedBody:
             return self.noise.perceive(raw, self.code, rng)[0], poses[0]
         return (raw if self.code is None else self.code.apply(raw))[0], poses[0]
 
+    def resting_truth(self) -> np.ndarray | None:
+        """What the resting eye sees without the body's imperfections, ``(R,)``
+        (ground truth, not a query; the numpy kernel, the same bits on any
+        machine); None before the arm rests anywhere."""
+        if self.lights_world is None or self.motor_state is None:
+            return None
+        raw, _ = simulate(self.motor_state[None], self.lights_world, self.receptor_positions,
+                          "numpy", self.arm)
+        return (raw if self.code is None else self.code.apply(raw))[0]
+
     def move(self, motor_states: np.ndarray, call: int | None = None) -> None:
         """The command ``sense`` answers, for a caller that already has the
         sensations (the naive agent resting at a state it sensed since the

@@ -132,35 +132,44 @@ class ClockedBody:
             self.rest_jumps[self.state - 1] = float(np.max(np.abs(after - before)))
 
     def _resting_truth(self):
-        motor = getattr(self._body, "motor_state", None)
-        if motor is None:
-            return None
-        from sensorispace_ros.core.body import simulate
-        raw, _ = simulate(np.asarray(motor, float)[None], self._body.lights_world,
-                          self._body.receptor_positions, "numpy", self._body.arm)
-        code = getattr(self._body, "code", None)
-        return (raw if code is None else code.apply(raw))[0]
+        """The body's noiseless sensation at its resting arm (None: a body
+        that cannot say, or an arm not yet moved)."""
+        truth = getattr(self._body, "resting_truth", None)
+        return None if truth is None else truth()
 
     def position(self) -> np.ndarray:
         """Where the clock and the arm stand: ``[row, held_rows, calls,
-        motor state...]`` (``calls``: the body's commands, which number its
-        noise draws; the motor state NaN before the first command). What a
-        restarted body node goes on from (``resume``)."""
+        motor state..., physics...]`` (``calls``: the body's commands, which
+        number its noise draws; the motor state NaN before the first command;
+        ``physics``: the body's ``physics_state``, what its next settle steps
+        from, none for a body whose answers depend on the command alone).
+        What a restarted body node goes on from (``resume``)."""
         motor = getattr(self._body, "motor_state", None)
         motor = np.full(self.n_motors, np.nan) if motor is None else np.asarray(motor, float)
         calls = getattr(self._body, "calls", 0)
-        return np.concatenate([[self.row, self.held_rows, calls], motor.reshape(-1)])
+        return np.concatenate([[self.row, self.held_rows, calls], motor.reshape(-1),
+                               self._physics()])
+
+    @property
+    def position_size(self) -> int:
+        """The length of ``position()``'s vector."""
+        return 3 + self.n_motors + len(self._physics())
+
+    def _physics(self) -> np.ndarray:
+        state = getattr(self._body, "physics_state", None)
+        return np.zeros(0) if state is None else np.asarray(state(), dtype=float)
 
     def resume(self, position) -> None:
         """Stand where ``position`` (``position()``'s vector) says: the world in
-        the state of that row, the body's command count and arm as they were.
-        The same commands from there are answered bit for bit as the first
-        time. The changes skipped over are not seen again: their
+        the state of that row, the body's command count, arm and physics as
+        they were. The same commands from there are answered bit for bit as
+        the first time. The changes skipped over are not seen again: their
         ``rest_jumps`` stay unknown (NaN)."""
         position = np.asarray(position, dtype=float).reshape(-1)
-        if len(position) != 3 + self.n_motors or not np.all(np.isfinite(position[:3])):
-            raise ValueError(f"position: need row, held rows, calls and {self.n_motors} joints, "
-                             f"got {position.tolist()}")
+        if len(position) != self.position_size or not np.all(np.isfinite(position[:3])):
+            raise ValueError(f"position: need row, held rows, calls, {self.n_motors} joints and "
+                             f"{self.position_size - 3 - self.n_motors} physics values, "
+                             f"got {len(position)} values")
         row, held, calls = (int(x) for x in position[:3])
         if not 0 <= held <= row:
             raise ValueError(f"position: held rows {held} outside [0, row {row}]")
@@ -169,9 +178,11 @@ class ClockedBody:
         self._body.set_lights(self._lights[self.state], change=self.state)
         if hasattr(self._body, "calls"):
             self._body.calls = calls
-        motor = position[3:]
+        motor, physics = np.split(position[3:], [self.n_motors])
         if hasattr(self._body, "motor_state"):
             self._body.motor_state = motor.copy() if np.all(np.isfinite(motor)) else None
+        if len(physics):
+            self._body.set_physics_state(physics)
 
     # ------------------------------------------------------------- body
 

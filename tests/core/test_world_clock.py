@@ -74,7 +74,7 @@ def test_a_clock_resumed_at_its_position_answers_as_it_did():
     np.testing.assert_array_equal(clocked.sense(states[2:]), then)
     assert clocked.ended and clocked.row == 7
     np.testing.assert_array_equal(first, SimulatedBody(RECEPTORS, LIGHTS[0]).sense(states[:2]))
-    with pytest.raises(ValueError, match="position: need row, held rows, calls and 4 joints"):
+    with pytest.raises(ValueError, match="position: need row, held rows, calls, 4 joints and 0 physics values"):
         clocked.resume(at[:3])
     with pytest.raises(ValueError, match="held rows 9 outside"):
         clocked.resume(np.concatenate([[2, 9, 1], states[1]]))

@@ -89,7 +89,7 @@ class BodyClock:
     def resume_clock(self) -> None:
         """Open ``<checkpoint_dir>/body.clock``; after a restart, stand where the
         last command executed left the clock (module docstring)."""
-        size = 1 + 2 * (3 + self.description.n_motors)
+        size = 1 + 2 * self.clocked_body.position_size
         self.clock_file = RestingStateFile(Path(self.graph["checkpoint_dir"]) / BODY_CLOCK_FILE,
                                            size)
         saved = self.clock_file.load()
