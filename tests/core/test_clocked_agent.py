@@ -252,3 +252,19 @@ def test_an_undone_reaction_loses_its_compensations_and_sets_and_keeps_the_earli
     assert agent.compensations[-1] is extra
     agent.restore(saved, salvage=False)
     assert agent.compensations == before
+
+
+def test_a_reaction_that_takes_no_snapshot_is_checked_against_its_own_rest():
+    """With ``chained_anchors`` (the rotation world's agent) a reaction whose
+    rest is not chained to the start's takes no snapshot: the check after it
+    compares the rest sensed again with what this reaction sensed there, not
+    with an older snapshot's (every such reaction would be undone as cut)."""
+    cfg = config.load_config("config/rotations-smoke.yaml",
+                             {"world.clock": "rows", "world.change_interval": 2000.0})
+    assert cfg["naive"]["chained_anchors"]
+    world = run_world(cfg)
+    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=2000.0)
+    metrics = clock_metrics(run, world)
+    assert metrics["naive.clock.detectable"] > 500
+    assert metrics["naive.clock.recall"] >= 0.99
+    assert metrics["naive.clock.false_detection_rate"] <= 0.01

@@ -98,8 +98,14 @@ class ClockedAgent(KnownNearby, NaiveAgent):
 
     @property
     def anchor_sensation(self) -> np.ndarray | None:
-        """The sensation recorded at the resting state in its last reaction."""
-        return None if not self._pool else self._pool[0].rest_sensation.copy()
+        """The sensation recorded at the resting state in its last reaction
+        (``_rest_after``; before any, the start's snapshot's). Not the newest
+        snapshot's: with ``chained_anchors`` a reaction whose rest is not
+        chained to the start's takes none."""
+        sensed = getattr(self, "_rest_sensed", None)
+        if sensed is None:
+            return None if not self._pool else self._pool[0].rest_sensation.copy()
+        return sensed.copy()
 
     @property
     def queries_total(self) -> int:
@@ -488,7 +494,9 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         of before, its rest would sense the new one)."""
         if self.crossing is not None:
             return None, RANK_UNKNOWN
-        return super()._rest_after(rest_choice, rank_now)
+        sensation, rank = super()._rest_after(rest_choice, rank_now)
+        self._rest_sensed = sensation
+        return sensation, rank
 
     def _renew_pool(self, matches, known_comp, found_rest, snapshot) -> None:  # not after a crossing
         if self.crossing is None:
