@@ -325,6 +325,8 @@ class ClockedRun:
         grid_all = [-1] + [e.grid_index for e in events]
         explored = NaiveExploration(self.agent, centers, layout, kinds, exploration_s, 0.0)
         explored.grid_index = np.asarray([grid_all[s] for s in states], dtype=np.int64)
+        orientation_all = np.asarray([0.0] + [e.orientation for e in events])
+        explored.orientations = orientation_all[states]
         return explored
 
     def truth(self) -> ClockTruth:

@@ -125,12 +125,17 @@ def paper_compensated_poses(world) -> np.ndarray:
     return explored.true_poses.copy()
 
 
-def _turning(world) -> dict:
-    """``NaiveGroundTruth``'s rotation fields of ``world`` (none when the object only translates)."""
+def _turning(world, orientations=None) -> dict:
+    """``NaiveGroundTruth``'s rotation fields of ``world`` (none when the object
+    only translates). ``orientations``: the object's at each of the agent's
+    events (a run on its own clock reacts to the worlds it saw); default: at
+    each change of the schedule."""
     count = int(world.params.get("rotation_count", 0))
     if count < 2:
         return {}
-    return {"orientations": np.asarray([0.0] + [e.orientation for e in world.events]),
+    if orientations is None:
+        orientations = [0.0] + [e.orientation for e in world.events]
+    return {"orientations": np.asarray(orientations, dtype=float),
             "paper_poses": paper_compensated_poses(world), "rotation_count": count}
 
 
@@ -175,7 +180,8 @@ def naive_truth_of_run(run, world, paper_positions: np.ndarray | None = None
         true_poses=world.arm.forward(povs[:, 0]) if len(povs) else np.zeros((0, 3)),
         initial_motor_state=np.asarray(world.m0, dtype=float),
         paper_positions=np.asarray(paper_positions, dtype=float).reshape(-1, 2),
-        arm=world.arm, spacing=float(world.spacing), **_turning(world))
+        arm=world.arm, spacing=float(world.spacing),
+        **_turning(world, getattr(explored, "orientations", None)))
 
 
 def naive_truth_of_changes(truth: RunTruth, n_changes: int, poses: np.ndarray,

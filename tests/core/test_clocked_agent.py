@@ -254,17 +254,36 @@ def test_an_undone_reaction_loses_its_compensations_and_sets_and_keeps_the_earli
     assert agent.compensations == before
 
 
-def test_a_reaction_that_takes_no_snapshot_is_checked_against_its_own_rest():
-    """With ``chained_anchors`` (the rotation world's agent) a reaction whose
-    rest is not chained to the start's takes no snapshot: the check after it
-    compares the rest sensed again with what this reaction sensed there, not
-    with an older snapshot's (every such reaction would be undone as cut)."""
+
+@pytest.fixture(scope="module")
+def clocked_rotations():
+    """The rotation world's agent (``chained_anchors``) on the row clock."""
     cfg = config.load_config("config/rotations-smoke.yaml",
                              {"world.clock": "rows", "world.change_interval": 2000.0})
     assert cfg["naive"]["chained_anchors"]
     world = run_world(cfg)
     run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=2000.0)
+    return world, run
+
+
+def test_a_reaction_that_takes_no_snapshot_is_checked_against_its_own_rest(clocked_rotations):
+    """With ``chained_anchors`` a reaction whose rest is not chained to the
+    start's takes no snapshot: the check after it compares the rest sensed
+    again with what this reaction sensed there, not with an older snapshot's
+    (every such reaction would be undone as cut)."""
+    world, run = clocked_rotations
     metrics = clock_metrics(run, world)
     assert metrics["naive.clock.detectable"] > 500
     assert metrics["naive.clock.recall"] >= 0.99
     assert metrics["naive.clock.false_detection_rate"] <= 0.01
+
+
+def test_a_turning_world_on_the_clock_is_judged_in_the_worlds_the_agent_saw(clocked_rotations):
+    """The pose a compensation is asked for is turned by the orientations of
+    the worlds its reaction and its anchor's saw, not of the schedule's
+    changes numbered as the reactions."""
+    world, run = clocked_rotations
+    metrics = evaluate_naive_run(run, world).metrics
+    assert metrics["naive.compensations_accepted"] >= 10
+    assert metrics["naive.wrong_poses"] == 0
+    assert metrics["naive.pose_error_median"] < 1e-6

@@ -37,6 +37,7 @@ class NaiveExploration:
     exploration_s: float
     equality_s: float
     grid_index: np.ndarray | None = None     # per event; None: event t is world.events[t - 1]
+    orientations: np.ndarray | None = None   # the object's, per event; None: as grid_index
 
 
 @dataclass
