@@ -11,13 +11,16 @@ metric again (the run's configuration and seed, ``offline.representation``'s
 * ``sample N`` (``--sample N ...``): N of the run's pairs, whole sets drawn
   at random (``--seed``), as a run finding fewer would have them;
 * ``truth``: every pair of the run's POVs, one set per displacement between
-  grid positions: perfect sets, so what is left is the POVs' own pose errors.
+  grid positions: perfect sets, so what is left is the POVs' own pose errors;
+* ``own + segments`` / ``right + segments`` (``--segments N``): those sets
+  and the sets of segments they imply (``clock_equality.translated_sets``,
+  N changes a set, as the agent on the row clock takes them).
 
 Each line: pairs, sets, wrong pairs, the 2-D after affine residual, and the
 largest offset of a POV's true position from the lattice of the first POV's
 (grid steps)::
 
-    .venv/bin/python bench/noisy_sets.py /tmp/noisy_naive --sample 60000 150000
+    .venv/bin/python bench/noisy_sets.py /tmp/noisy_naive --sample 60000 150000 --segments 150
 
 Diagnostics only: nothing here is the agent's.
 """
@@ -30,6 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros.core import quality
+from sensorispace_ros.core.naive.clock_equality import translated_sets
+from sensorispace_ros.core.seeding import CounterStream
 from sensorispace_ros.offline.representation import _dimension_chain
 
 
@@ -65,6 +70,14 @@ def sampled_sets(pairs, set_ids, n_pairs, rng):
     return pairs[keep], set_ids[keep]
 
 
+def with_segments(pairs, set_ids, n_povs, per_set, seed):
+    """``pairs``/``set_ids`` and the sets of segments they imply, numbered after them."""
+    extra, extra_ids = translated_sets(pairs, set_ids, n_povs, per_set,
+                                       stream=CounterStream(seed, "naive.clock_translated"))
+    first = int(set_ids.max()) + 1 if len(set_ids) else 0
+    return np.concatenate([pairs, extra]), np.concatenate([set_ids, extra_ids + first])
+
+
 def residual(arrays, cfg, pairs, set_ids) -> float:
     chain = _dimension_chain(arrays["hausdorff"], pairs, set_ids, cfg, int(arrays["seed"]),
                              "2d", 2)
@@ -76,6 +89,9 @@ def main() -> None:
     parser.add_argument("run", help="a naive run's output directory (its arrays.npz)")
     parser.add_argument("--sample", type=int, nargs="*", default=[])
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--segments", type=int, default=0,
+                        help="also each of own and right with its sets of segments "
+                             "(this many changes a set; 0: not)")
     args = parser.parse_args()
     arrays = np.load(Path(args.run) / "arrays.npz")
     cfg = json.loads(str(arrays["config_json"]))
@@ -86,6 +102,10 @@ def main() -> None:
     lattice = float(np.max(np.linalg.norm(offset - np.rint(offset), axis=1)))
     rng = np.random.default_rng(args.seed)
     variants = [("own", pairs, set_ids), ("right", pairs[~wrong], set_ids[~wrong])]
+    if args.segments:
+        variants += [(f"{name} + segments", *with_segments(p, s, len(positions), args.segments,
+                                                            args.seed))
+                     for name, p, s in variants[:2]]
     variants += [(f"sample {n}", *sampled_sets(pairs, set_ids, n, rng)) for n in args.sample]
     variants.append(("truth", *true_sets(positions, step)))
     for name, p, s in variants:

@@ -49,3 +49,17 @@ def test_sampled_sets_are_whole_sets_within_the_count():
     assert 0 < len(kept_pairs) <= 60
     for s in np.unique(kept_ids):
         assert (kept_ids == s).sum() == (set_ids == s).sum()
+
+
+def test_sets_with_their_segments_keep_the_sets_and_number_the_segments_after():
+    positions = _lattice()
+    pairs, set_ids = noisy_sets.true_sets(positions, STEP)
+    both, both_ids = noisy_sets.with_segments(pairs, set_ids, len(positions), 150, seed=0)
+    assert np.array_equal(both[:len(pairs)], pairs)
+    assert np.array_equal(both_ids[:len(pairs)], set_ids)
+    segments, segment_ids = both[len(pairs):], both_ids[len(pairs):]
+    assert len(segments) > 0 and segment_ids.min() == set_ids.max() + 1
+    # Under a translation a segment and its images are one vector, as the sets' pairs are.
+    vector = positions[segments[:, 1]] - positions[segments[:, 0]]
+    for s in np.unique(segment_ids):
+        assert np.allclose(vector[segment_ids == s], vector[segment_ids == s][0])
