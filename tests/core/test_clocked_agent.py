@@ -157,17 +157,39 @@ def test_lost_rows_are_counted_by_stage(clocked_smoke):
     assert sum(by_stage.values()) <= metrics["naive.clock.lost_rows"]
 
 
-def test_simulation_2_matches_with_the_ratio_test_where_the_agent_measured_noise():
-    # Smoke seed 1 measures a round-off noise (a separation of ~1e-13): its
-    # matches must stand out by the ratio, as the lockstep sweep's do; a
-    # match by separation alone is refused (ValueError) and the run stops.
+@pytest.fixture(scope="module")
+def clocked_noisy_smoke():
+    """The smoke world on the row clock, its receptors noisy by 1e-12 (far
+    below what a brief walk's unchecked samples lie off the level set)."""
     cfg = config.load_config(SMOKE, {"seed": 1, "world.clock": "rows",
-                                     "world.change_interval": 1000.0})
+                                     "world.change_interval": 10000.0,
+                                     "world.retina.noise": 1e-12})
     world = run_world(cfg)
-    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=1000.0)
+    return world, run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=10000.0)
+
+
+def test_simulation_2_matches_with_the_ratio_test_where_the_agent_measured_noise(
+        clocked_noisy_smoke):
+    # Where the agent measured a noise its matches must stand out by the
+    # ratio, as the lockstep sweep's do; a match by separation alone is
+    # refused (ValueError) and the run stops.
+    _, run = clocked_noisy_smoke
     sweep = run.agent._sweep
     assert sweep is not None and sweep.ratio > 0 and sweep.separation < sweep.match_tol
     assert len(sweep.history) > 1            # simulation 2 matched sweeps to its end
+
+
+def test_brief_walks_are_kept_where_the_measured_noise_is_below_their_own_error(
+        clocked_noisy_smoke):
+    # Every sample of a walk is held to its start's sensation where noise
+    # sized the tolerances; a brief walk's unchecked samples lie ~1e-5 off,
+    # which noise 1e-12 does not cover: without the walk's own allowance no
+    # POV is kept and the run finds nothing.
+    world, run = clocked_noisy_smoke
+    metrics = {**evaluate_naive_run(run, world).metrics, **clock_metrics(run, world)}
+    assert 1e-13 < run.agent.structure.noise < 1e-11
+    assert metrics["naive.distinct_positions"] >= 20
+    assert metrics["naive.wrong_poses"] == 0 and metrics["naive.accepted_across_change"] == 0
 
 
 def test_a_pending_solution_on_a_known_pov_is_not_walked_again():
@@ -178,7 +200,12 @@ def test_a_pending_solution_on_a_known_pov_is_not_walked_again():
     world = run_world(cfg)
     agent, _ = _agent_in_two_worlds(world, NaiveParams(**cfg["naive"]), change_after=10 ** 8)
     known = agent._store.count
-    on_loop = agent._store.samples[0, len(agent._store.samples[0]) // 3]
+    # A sample of the first POV a third of the way round that senses its
+    # sensation (a brief walk leaves most samples where its spline put them).
+    samples = agent._store.samples[0]
+    sensed = world.body(lights=world.initial_lights).sense(agent._to_body(samples))
+    third = np.arange(len(samples) // 4, len(samples) // 2)
+    on_loop = samples[third[np.argmin(np.linalg.norm(sensed[third] - sensed[0], axis=1))]]
     rest = agent.rest_motor_state
     agent.pending = on_loop[None].copy()
     assert agent.walk_pending(agent.sense_again(rest)[0]) == 0

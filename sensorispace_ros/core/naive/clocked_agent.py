@@ -36,16 +36,16 @@ from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
 from sensorispace_ros.core.naive.clock_known import KnownNearby
+from sensorispace_ros.core.naive.clock_walks import BriefWalks
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.points_of_view import brief_loop_walks
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 
 __all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
 
-WITNESSES = 8        # swept POVs sensed again after a reaction
+WITNESSES = 4        # swept POVs sensed again after a reaction
 # A reaction only adds to the compensations and the equality sets (their
 # records never change): a checkpoint keeps their counts, not copies, and an
 # undo cuts them back (simulation 2's sweep adds to the same sets).
@@ -64,7 +64,7 @@ class _CurrentTree:
         return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
 
 
-class ClockedAgent(KnownNearby, NaiveAgent):
+class ClockedAgent(KnownNearby, BriefWalks, NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
@@ -434,21 +434,6 @@ class ClockedAgent(KnownNearby, NaiveAgent):
         # Every call of the walk passed its sentinel, and so did the search's before it.
         self._verified = self._store.count
         return walked
-
-    def _walk_povs(self, motor_states):
-        """1-D POVs walked briefly (``points_of_view.brief_loop_walks``: a walk a
-        change may cut is cheaper); other dimensions as the lockstep agent."""
-        if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
-            return super()._walk_povs(motor_states)
-        p = self.params
-        return brief_loop_walks(
-            self._body, motor_states, rank=self.structure.pose_rank, n_samples=self.n_samples,
-            fd_step=self._fd_step, initial_step=p.pov_initial_step, min_step=p.pov_min_step,
-            max_step=p.pov_max_step, predictor_tol=p.clock_pov_predictor_tol,
-            max_queries=p.pov_max_queries, closure_tol=p.pov_closure_tol,
-            checks=(p.rank_ratio, self._tol.min_singular, p.pattern_ratio),
-            polish_iterations=p.clock_pov_polish_iterations,
-            checked_samples=p.clock_pov_checked_samples)
 
     def _walk_through(self, motor_states, keep_invalid=False, others=None):
         """``SearchAndSample._sample_povs``, started again in the new world

@@ -29,6 +29,7 @@ from sensorispace_ros.core.naive.loop_walk import LoopWalk, resample_loop_spline
 
 
 PERIOD = 2.0 * np.pi     # a joint's period in phases
+KNOTS_PER_STEP = 4       # a 1-D walk's probes per front and call (the farthest with its stencil)
 
 
 def torus_phases(motor_states: np.ndarray) -> np.ndarray:
@@ -121,7 +122,7 @@ def sample_sensory_points_of_view(
         fd_step: float = 1e-6, initial_step: float = 0.05, min_step: float = 1e-3,
         max_step: float = 0.15, predictor_tol: float = 2e-3, rank_ratio: float = 1e-3,
         max_queries: int = 5000, polish_iterations: int = 2, min_loop_length: float = 0.3,
-        knots_per_step: int = 4, closure_tol: float = 0.1, sample_tol: float = 1e-6,
+        knots_per_step: int = KNOTS_PER_STEP, closure_tol: float = 0.1, sample_tol: float = 1e-6,
         surface_step: float = 0.15,
         surface_max_queries: int = 400_000, min_singular: float = 0.0,
         pattern_ratio: float = 1e-6, noise_sd: float = 0.0) -> SensoryPointsOfView:
@@ -181,8 +182,8 @@ def sample_sensory_points_of_view(
 def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial_step: float,
                      min_step: float, max_step: float, predictor_tol: float, max_queries: int,
                      closure_tol: float, checks: tuple, polish_iterations: int = 1,
-                     knots_per_step: int = 4, min_loop_length: float = 0.3,
-                     checked_samples: int = 0):
+                     knots_per_step: int = KNOTS_PER_STEP, min_loop_length: float = 0.3,
+                     checked_samples: int = 0, noise_sd: float = 0.0):
     """1-D POVs of ``start`` ``(P, M)`` walked with fewer rows, for an agent
     whose world may change under a walk (``ClockedAgent``; docs/clock.md):
     the knots as the walk corrected them (``resample(polish_knots=False)``:
@@ -196,7 +197,8 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
     may set ``predictor_tol`` larger than the full walk's: fewer knots.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
     pattern_ratio)``; ``checked_samples`` > 0: only that many samples are
-    sensed and stepped (``project``'s ``checked``). Returns a ``SensoryPointsOfView``."""
+    sensed and stepped (``project``'s ``checked``); ``noise_sd``: the noise its
+    corrections leave alone, as the full walk's. Returns a ``SensoryPointsOfView``."""
     return _walk_loops(body, np.array(start, dtype=float, copy=True), rank=rank,
                        n_samples=n_samples, initial_step=initial_step, checks=checks,
                        polish=(polish_iterations, np.inf, predictor_tol, checked_samples),
@@ -204,7 +206,7 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
                        fd_step=fd_step, min_step=min_step, max_step=max_step,
                        predictor_tol=predictor_tol, max_queries=max_queries,
                        min_loop_length=min_loop_length, knots_per_step=knots_per_step,
-                       closure_tol=closure_tol)
+                       closure_tol=closure_tol, noise_sd=noise_sd)
 
 
 def _walk_loops(body, start, *, rank, n_samples, initial_step, checks, polish,

@@ -321,7 +321,7 @@ class SearchAndSample:
 
     def _whole_on_level_set(self, walk) -> np.ndarray:
         """Where noise sized the tolerances: which walked POVs have every
-        sample sensing their start's sensation within ``_SLID`` times what
+        sample sensing their start's sensation within ``SLID`` times what
         two sensings differ by (one call, every sample of every valid walk); a walk
         that slid along a weak pose direction, or onto another pose with a
         like sensation, is not one POV. True everywhere else."""
@@ -335,10 +335,16 @@ class SearchAndSample:
             walk.target_sensations[valid][:, None, :]
         with np.errstate(invalid="ignore"):
             worst = np.max(np.sum(residual ** 2, axis=2), axis=1)
-        limit = _SLID ** 2 * 2.0 * self.structure.noise ** 2 * _level_set_limit(
-            self.params, samples.shape[1], residual.shape[2])
+        limit = self._level_set_allowance(walk, samples.shape[1], residual.shape[2])
         whole[valid] = ~(worst > limit)       # a lost row does not reject a POV
         return whole
+
+    def _level_set_allowance(self, walk, n_samples: int, n_sensors: int) -> float:
+        """The squared distance from its start's sensation no sample of a whole
+        POV exceeds: ``SLID`` times what two sensings differ by, at
+        ``noise_confidence`` shared among its ``n_samples`` samples."""
+        return SLID ** 2 * 2.0 * self.structure.noise ** 2 * _level_set_limit(
+            self.params, n_samples, n_sensors)
 
     def _probe_starts(self, target: np.ndarray) -> np.ndarray:
         """The ``probe_starts`` states of the probe grid (``probe_grid``
@@ -465,7 +471,7 @@ _SAME_POSITION = 0.25
 # lie from its start's sensation: the walk's own tolerances are motor steps
 # (``pov_sample_tol``), which leave a residual along the strong pose
 # directions several times the noise; a slide to another pose leaves more.
-_SLID = 4.0
+SLID = 4.0
 
 
 def _level_set_limit(params, n_samples: int, n_sensors: int) -> float:
