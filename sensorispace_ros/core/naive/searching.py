@@ -341,10 +341,11 @@ class SearchAndSample:
 
     def _level_set_allowance(self, walk, n_samples: int, n_sensors: int) -> float:
         """The squared distance from its start's sensation no sample of a whole
-        POV exceeds: ``SLID`` times what two sensings differ by, at
-        ``noise_confidence`` shared among its ``n_samples`` samples."""
-        return SLID ** 2 * 2.0 * self.structure.noise ** 2 * _level_set_limit(
-            self.params, n_samples, n_sensors)
+        POV exceeds: ``SLID`` times what two sensings differ by, at the
+        ``noise_confidence`` chi-square quantile (``S`` degrees of freedom)
+        shared among its ``n_samples`` samples."""
+        quantile = chi2.ppf(1.0 - (1.0 - self.params.noise_confidence) / n_samples, n_sensors)
+        return SLID ** 2 * 2.0 * self.structure.noise ** 2 * float(quantile)
 
     def _probe_starts(self, target: np.ndarray) -> np.ndarray:
         """The ``probe_starts`` states of the probe grid (``probe_grid``
@@ -472,12 +473,6 @@ _SAME_POSITION = 0.25
 # (``pov_sample_tol``), which leave a residual along the strong pose
 # directions several times the noise; a slide to another pose leaves more.
 SLID = 4.0
-
-
-def _level_set_limit(params, n_samples: int, n_sensors: int) -> float:
-    """The chi-square quantile (``S`` degrees of freedom) no sample of a
-    whole POV exceeds at ``noise_confidence``, shared among its samples."""
-    return float(chi2.ppf(1.0 - (1.0 - params.noise_confidence) / n_samples, n_sensors))
 
 
 def _distinct(states: np.ndarray, tol: float) -> np.ndarray:
