@@ -110,6 +110,30 @@ def test_timed_replay_keeps_the_recorded_spacing_scaled_by_rate(
     assert process.returncode == 0
 
 
+def test_publishing_waits_a_grace_after_the_subscribers_matched(ros_env, ros_context, tmp_path):
+    # The replay's publisher may see a subscriber before that subscriber sees
+    # the publisher; a volatile reader that matches a writer after its first
+    # messages skips them. So publishing waits ``match_grace_s`` after the match.
+    import time
+
+    from rclpy.parameter import Parameter
+
+    from sensorispace_ros.graph.nodes.replay import Replay
+
+    make_bag(tmp_path / "bag", 3, spacing_ns=1_000_000)
+    listener = RawListener(ros_context, [SETTLED])
+    waited = {}
+    for grace in (0.0, 0.8):
+        node = Replay(bag_path=str(tmp_path / "bag"), topics=[SETTLED], context=ros_context,
+                      parameter_overrides=[Parameter("match_grace_s", value=grace)])
+        started = time.monotonic()
+        assert node.wait_for_subscribers() == []
+        waited[grace] = time.monotonic() - started
+        node.destroy_node()
+    assert waited[0.8] >= 0.8 and waited[0.8] - waited[0.0] >= 0.6
+    listener.node.destroy_node()
+
+
 def test_replay_of_a_missing_bag_is_a_one_line_error(ros_env, children, tmp_path):
     process = replay(children, ros_env, tmp_path / "nothing")
     output, _ = process.communicate(timeout=30)

@@ -72,7 +72,7 @@ class Replay(Node):
             del given["topics"]
         own = config.load_replay(given)
         bag_path, self.rate, wanted = own["bag_path"], own["rate"], own["topics"]
-        self.match_timeout_s = own["match_timeout_s"]
+        self.match_timeout_s, self.match_grace_s = own["match_timeout_s"], own["match_grace_s"]
         if not bag_path:
             raise ValueError("bag_path: required (the bag directory to replay)")
         self.bag_path = bag_path
@@ -92,7 +92,8 @@ class Replay(Node):
 
     def wait_for_subscribers(self) -> list[str]:
         """Wait until every replayed topic with messages has a subscriber, or the
-        timeout; returns the topics nobody subscribes to."""
+        timeout, then ``match_grace_s`` more if any matched (the subscribers'
+        side of discovery may not be done); returns the topics nobody subscribes to."""
         deadline = time.monotonic() + self.match_timeout_s
         first_match = None
         while True:
@@ -100,6 +101,8 @@ class Replay(Node):
                       if self.expected[t] and p.get_subscription_count() == 0]
             now = time.monotonic()
             if not lonely or now > deadline:
+                if len(lonely) < sum(1 for n in self.expected.values() if n):
+                    time.sleep(self.match_grace_s)
                 return lonely
             if first_match is None and len(lonely) < sum(1 for n in self.expected.values() if n):
                 # a node's subscriptions are discovered together: once one topic
