@@ -30,7 +30,7 @@ class BriefWalks:
         """1-D POVs walked briefly, with the noise the agent measured as the
         full walk has it (its step, budget and corrections); other dimensions
         as the lockstep agent."""
-        if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
+        if not self._walks_briefly():
             return super()._walk_povs(motor_states)
         p = self.params
         # A call reaches as far as the full walk's: fewer probes, each farther apart.
@@ -52,6 +52,10 @@ class BriefWalks:
         before their step: the others stay where its spline put them, about as
         far off the level set (below the noise this agent may have measured)."""
         allowance = super()._level_set_allowance(walk, n_samples, n_sensors)
-        if self.structure.pov_dim != 1 or not self.params.clock_brief_walk:
+        if not self._walks_briefly():
             return allowance
         return max(allowance, (SLID * float(walk.max_residual)) ** 2)
+
+    def _walks_briefly(self) -> bool:
+        """Its POVs are loops and it walks them briefly (``clock_brief_walk``)."""
+        return self.structure.pov_dim == 1 and self.params.clock_brief_walk
