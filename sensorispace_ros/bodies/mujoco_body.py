@@ -137,23 +137,26 @@ class MujocoBody:
         ``mjSTATE_INTEGRATION``: joints, speeds, controls, warm start...);
         empty with ``settle: kinematic``, whose answers depend on the command
         alone."""
-        if self.settle != "physics":
-            return np.zeros(0)
-        kind = self.mujoco.mjtState.mjSTATE_INTEGRATION
-        state = np.empty(self.mujoco.mj_stateSize(self.model, kind))
-        self.mujoco.mj_getState(self.model, self.data, state, kind)
+        state = np.empty(self._physics_size())
+        if len(state):
+            self.mujoco.mj_getState(self.model, self.data, state, _integration_state(self.mujoco))
         return state
 
     def set_physics_state(self, state: np.ndarray) -> None:
         """Stand where ``physics_state`` stood: the same commands from here are
         answered bit for bit as they were from there."""
         state = np.asarray(state, dtype=float).reshape(-1)
-        size = len(self.physics_state())
+        size = self._physics_size()
         if len(state) != size:
             raise ValueError(f"physics state: need {size} values, got {len(state)}")
         if size:
-            self.mujoco.mj_setState(self.model, self.data, state,
-                                    self.mujoco.mjtState.mjSTATE_INTEGRATION)
+            self.mujoco.mj_setState(self.model, self.data, state, _integration_state(self.mujoco))
+
+    def _physics_size(self) -> int:
+        """Values of ``physics_state``: 0 with ``settle: kinematic``."""
+        if self.settle != "physics":
+            return 0
+        return int(self.mujoco.mj_stateSize(self.model, _integration_state(self.mujoco)))
 
     def move(self, motor_states: np.ndarray, call: int | None = None) -> None:
         """The command ``sense`` answers, without the images."""
@@ -205,6 +208,11 @@ class MujocoBody:
         if self.settle == "physics":
             data.qpos[self.address] = saved
         return images.reshape(len(states), -1), self.chain.to_chain(poses)
+
+
+def _integration_state(mujoco):
+    """MuJoCo's state of what stepping reads (``mjSTATE_INTEGRATION``)."""
+    return mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 def _position_actuators(model, spec: MujocoSpec) -> list[int]:
