@@ -96,15 +96,16 @@ class Replay(Node):
         side of discovery may not be done); returns the topics nobody subscribes to."""
         deadline = time.monotonic() + self.match_timeout_s
         first_match = None
+        with_messages = sum(1 for n in self.expected.values() if n)
         while True:
             lonely = [t for t, p in self.publishers_.items()
                       if self.expected[t] and p.get_subscription_count() == 0]
             now = time.monotonic()
             if not lonely or now > deadline:
-                if len(lonely) < sum(1 for n in self.expected.values() if n):
+                if len(lonely) < with_messages:
                     time.sleep(self.match_grace_s)
                 return lonely
-            if first_match is None and len(lonely) < sum(1 for n in self.expected.values() if n):
+            if first_match is None and len(lonely) < with_messages:
                 # a node's subscriptions are discovered together: once one topic
                 # matched, give the rest 2 s rather than the whole timeout
                 first_match = now
