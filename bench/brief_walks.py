@@ -67,10 +67,10 @@ def main() -> None:
     world = run_world(cfg)
     params = NaiveParams(**cfg["naive"])
     full, brief = started(NaiveAgent, world, params), started(ClockedAgent, world, params)
-    states = arrays["povs"][:, 0]
+    starts = full._phase.to_phase(arrays["povs"][:, 0])
     body = world.body(lights=world.initial_lights)
     rows_full, rows_brief, off, gaps = [], [], [], []
-    for state in full._phase.to_phase(states):
+    for state in starts:
         full_samples, full_rows = walk(full, state)
         brief_samples, brief_rows = walk(brief, state)
         if full_samples is None or brief_samples is None:
@@ -80,12 +80,12 @@ def main() -> None:
         sensed = body.sense(brief._phase.to_body(brief_samples))
         off.append(np.max(np.abs(sensed - sensed[0])) / np.max(np.abs(sensed[0])))
         gaps.append(torus_hausdorff(full_samples, brief_samples))
-    firsts = full._phase.to_phase(arrays["povs"][:, 0])
-    gap = np.linalg.norm(_wrap(firsts[:, None] - firsts[None]), axis=2)
+    gap = np.linalg.norm(_wrap(starts[:, None] - starts[None]), axis=2)
     np.fill_diagonal(gap, np.inf)
     print(json.dumps({
-        "walked": len(rows_full), "povs": len(states),
-        "nearest_pov_median": float(np.median(gap.min(axis=1))), "rows_full_median": float(np.median(rows_full)),
+        "walked": len(rows_full), "povs": len(starts),
+        "nearest_pov_median": float(np.median(gap.min(axis=1))),
+        "rows_full_median": float(np.median(rows_full)),
         "rows_brief_median": float(np.median(rows_brief)),
         "rows_brief_max": int(np.max(rows_brief)),
         "level_set_off_max": float(np.max(off)),
