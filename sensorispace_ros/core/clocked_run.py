@@ -228,7 +228,7 @@ class ClockedRun:
             try:
                 agent.watched(reaction or agent.react, sensed_at_rest)
                 after_rest = agent.rest_motor_state
-                again = agent.sense_again(np.vstack([before_rest, after_rest]))
+                again, moved = agent.check_reaction([before_rest, after_rest])
                 if agent.crossing is not None:
                     # Kept; the world its sweep saw is gone: react again at
                     # once, for a snapshot of the world as it is.
@@ -239,7 +239,7 @@ class ClockedRun:
                 cut = change_detection.differs(agent.noise_sd, sensed_at_rest, again[0]) or \
                     (agent.phase == EXPLORING and
                      change_detection.differs(agent.noise_sd, agent.anchor_sensation, again[1])) \
-                    or agent.witnesses_moved()
+                    or moved
             except WorldChanged:
                 cut, cut_in = True, agent.cut_stage
             self.log.add(reference_row, body.row - 1, cut, before_rest, "cut")

@@ -314,3 +314,23 @@ def test_a_turning_world_on_the_clock_is_judged_in_the_worlds_the_agent_saw(cloc
     assert metrics["naive.compensations_accepted"] >= 10
     assert metrics["naive.wrong_poses"] == 0
     assert metrics["naive.pose_error_median"] < 1e-6
+
+
+def test_the_checks_after_a_reaction_take_one_call():
+    # The resting states and the witnesses are sensed together: one round
+    # trip in the graph, whatever the witnesses.
+    cfg = config.load_config(SMOKE)
+    world = run_world(cfg)
+    agent, body = _agent_in_two_worlds(world, NaiveParams(**cfg["naive"]), change_after=10 ** 6)
+    agent.watched(agent.react, agent.sense_sentinels(agent.rest_motor_state))
+    rest = agent.rest_motor_state
+    states, _ = agent._witness_states()
+    assert len(states) > 0
+    calls, rows = agent._body.total_calls, agent.queries_total
+    again, moved = agent.check_reaction([rest, rest])
+    assert agent._body.total_calls == calls + 1
+    assert agent.queries_total == rows + 2 + len(states)
+    assert again.shape == (2, body.n_sensors) and not moved
+    body.change_row = np.array([body.row])      # the lights move now
+    _, moved = agent.check_reaction([rest])
+    assert moved

@@ -32,20 +32,19 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensorispace_ros.core.seeding import CounterStream
-from sensorispace_ros.core.naive import change_detection
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
 from sensorispace_ros.core.naive.clock_known import KnownNearby
 from sensorispace_ros.core.naive.clock_walks import BriefWalks
+from sensorispace_ros.core.naive.clock_witnesses import WITNESSES, Witnesses
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.change_detection import Tripwire, WorldChanged
 
-__all__ = ["ClockedAgent", "Tripwire", "WorldChanged"]
+__all__ = ["ClockedAgent", "Tripwire", "WITNESSES", "WorldChanged"]
 
-WITNESSES = 4        # swept POVs sensed again after a reaction
 # A reaction only adds to the compensations and the equality sets (their
 # records never change): a checkpoint keeps their counts, not copies, and an
 # undo cuts them back (simulation 2's sweep adds to the same sets).
@@ -64,7 +63,7 @@ class _CurrentTree:
         return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
 
 
-class ClockedAgent(KnownNearby, BriefWalks, NaiveAgent):
+class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
@@ -292,39 +291,6 @@ class ClockedAgent(KnownNearby, BriefWalks, NaiveAgent):
         self._witnesses = (self._store.samples[chosen[top], 0].copy(), sensed[top].copy())
         self._lookouts = self._witnesses[0]
         return current, np.zeros((0, n_sensors))
-
-    def witnesses_moved(self) -> bool:
-        """Sense again the witnesses of this reaction: its swept POVs that
-        sensed most and, from what it sensed since the change, the states
-        that sensed most in each half of the reaction. Did any move? A change
-        the resting state does not see (it sees nothing before and after)
-        shows there."""
-        states, held = self._memory_witnesses()
-        if self._witnesses is not None:
-            states = np.vstack([self._witnesses[0], states])
-            held = np.vstack([self._witnesses[1], held])
-        if not len(states):
-            return False
-        again = self.sense_again(self._to_body(states))
-        return any(change_detection.differs(self.noise_sd, a, b) for a, b in zip(held, again))
-
-    def _memory_witnesses(self):
-        """``WITNESSES`` states sensed since the change that sensed most, half
-        from each half of the reaction (none without ``remember_sensations``)."""
-        memory = getattr(self._body, "_sensed", None)
-        empty = np.zeros((0, self.n_motors)), np.zeros((0, self._body.n_sensors))
-        if memory is None or memory.count == 0:
-            return empty
-        states = memory._motor_states[:memory.count]
-        sensed = memory._sensations[:memory.count]
-        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
-        half = memory.count // 2
-        chosen = []
-        for part in (np.arange(half), np.arange(half, memory.count)):
-            chosen.extend(part[np.argsort(-lit[part], kind="stable")[:WITNESSES // 2]])
-        chosen = np.asarray(chosen, dtype=int)
-        chosen = chosen[lit[chosen] > 0]
-        return states[chosen].copy(), sensed[chosen].copy()
 
     def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
         self._lost = not (np.any(np.asarray(rest_hits) >= 0) or
