@@ -160,33 +160,32 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
 
     def sense_sentinels(self, rest, sweep: bool = False) -> np.ndarray:
         """Sense the resting state ``rest`` (body units) afresh, with the
-        lookout candidates (the last sweep's witnesses, else the first known
-        POVs) after it in the same call; the candidate
+        lookout candidates after it in the same call; the candidate
         that sensed most becomes the lookout the next reaction watches beside
         its resting state (``change_detection.Tripwire``): a resting state that senses nothing
-        sees no change. With ``sweep`` (the next reaction explores) the call
-        also senses that reaction's sweep (``_sweep_indices``, counted as
-        sweep rows), which ``react`` then finds remembered: one call fewer.
+        sees no change. With ``sweep`` (the next reaction explores) the
+        candidates are that reaction's sweep (``_sweep_indices``, counted as
+        sweep rows), which ``react`` then finds remembered: one call fewer;
+        else the last sweep's witnesses (before any, the first known POVs).
         Returns the resting state's sensation."""
-        candidates = self._lookouts if self._lookouts is not None else \
-            self._store.samples[:WITNESSES, 0]
-        candidates = self._to_body(candidates).reshape(-1, self.n_motors)
         ahead = self._store.samples[self._sweep_indices(advance=False), 0] \
             if sweep and self._body.remembers else np.zeros((0, self.n_motors))
-        sensed = self._sense_fresh(np.vstack([self._phase.to_phase(
-            np.vstack([np.asarray(rest, float)[None], candidates])), ahead]))
+        candidates = ahead if len(ahead) else self._lookouts if self._lookouts is not None \
+            else self._store.samples[:WITNESSES, 0]
+        candidates = np.asarray(candidates, dtype=float).reshape(-1, self.n_motors)
+        sensed = self._sense_fresh(np.vstack([
+            self._phase.to_phase(np.asarray(rest, float).reshape(1, -1)), candidates]))
+        found = sensed[1:]
         self._swept_ahead = None
         if len(ahead):
             self._body.recount(len(ahead), "rest", "sweep")
-            self._swept_ahead = (ahead, sensed[len(sensed) - len(ahead):].copy())
-            sensed = sensed[:len(sensed) - len(ahead)]
+            self._swept_ahead = (ahead, found.copy())
         self._lookout = None
         if len(candidates):
-            found = sensed[1:]
             lit = np.where(np.all(np.isfinite(found), axis=1), np.linalg.norm(found, axis=1), -1.0)
             best = int(np.argmax(lit))
             if lit[best] >= 0:
-                self._lookout = (candidates[best].copy(), found[best].copy())
+                self._lookout = (self._to_body(candidates[best]), found[best].copy())
         return sensed[0]
 
     def walk_pending(self, sensed_at_rest) -> int:
