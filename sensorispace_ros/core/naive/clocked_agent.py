@@ -25,7 +25,8 @@ waiting world:
 """
 from __future__ import annotations
 
-import copy
+import pickle
+import types
 from dataclasses import replace
 
 import numpy as np
@@ -255,11 +256,13 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
         """What the agent knows (its counters excluded), to undo a reaction;
         of its compensations and equality sets, their counts (``COUNTS``)."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire", "_sets", "compensations")}
+                if name not in ("_body", "_tripwire", "_sets", "compensations", "_nearest_cache")
+                and not isinstance(value, (types.FunctionType, types.MethodType))}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
                               if name not in ("body", "sets")}
-        saved = copy.deepcopy(kept)
+        # A pickle's round trip copies as deepcopy does, several times faster.
+        saved = pickle.loads(pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL))
         saved[COUNTS] = (len(self.compensations), self._sets.n_sets)
         return saved
 
@@ -272,7 +275,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
         samples = self._store.samples[first:first + kept].copy()
         queries = list(self.pov_queries[first_q:first_q + kept])
         cut = self._cut_walk if salvage else None
-        restored = copy.deepcopy(saved)
+        restored = pickle.loads(pickle.dumps(saved, protocol=pickle.HIGHEST_PROTOCOL))
         sweep = restored.pop("_sweep", None)
         n_compensations, n_sets = restored.pop(COUNTS)
         self._sets.truncate(n_sets)
