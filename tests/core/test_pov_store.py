@@ -77,3 +77,33 @@ def test_a_pickled_store_leaves_its_tree_and_answers_the_same(round_trip):
     for point in points:
         assert restored.near(point, 0.6).tolist() == store.near(point, 0.6).tolist()
     assert restored._near_built == store._near_built == 24
+
+
+def test_truncate_brings_the_store_back_to_its_mark():
+    rng = np.random.default_rng(5)
+    store = PovStore(10, 3)
+    for _ in range(40):
+        store.append(rng.normal(size=(10, 3)))
+    before = store.samples.copy()
+    point = before[3, 0]
+    near_before = store.near(point, 0.5)
+    mark = store.mark()
+    for _ in range(30):                       # grows past the tree and its buffer
+        store.append(rng.normal(size=(10, 3)))
+    store.near(point, 0.5)
+    store.truncate(mark)
+    np.testing.assert_array_equal(store.samples, before)
+    np.testing.assert_array_equal(store.near(point, 0.5), near_before)
+    assert store.append(rng.normal(size=(10, 3))) == 40
+
+
+def test_a_pickled_store_holds_its_povs_only_and_grows_again():
+    store = PovStore(10, 3)
+    for k in range(17):
+        store.append(np.full((10, 3), float(k)))
+    copied = pickle.loads(pickle.dumps(store))
+    assert len(copied._data) == 17
+    np.testing.assert_array_equal(copied.samples, store.samples)
+    assert copied.append(np.zeros((10, 3))) == 17 and copied.count == 18
+    empty = pickle.loads(pickle.dumps(PovStore(10, 3)))
+    assert empty.append(np.ones((10, 3))) == 0

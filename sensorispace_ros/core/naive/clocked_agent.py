@@ -50,6 +50,7 @@ __all__ = ["ClockedAgent", "Tripwire", "WITNESSES", "WorldChanged"]
 # records never change): a checkpoint keeps their counts, not copies, and an
 # undo cuts them back (simulation 2's sweep adds to the same sets).
 COUNTS = "_compensations_and_sets"
+STORE = "_store_mark"       # the POV store only grows too: its mark (``PovStore.mark``)
 
 
 class _CurrentTree:
@@ -254,9 +255,10 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
 
     def checkpoint(self) -> dict:
         """What the agent knows (its counters excluded), to undo a reaction;
-        of its compensations and equality sets, their counts (``COUNTS``)."""
+        of its compensations, equality sets and POVs, their counts (``COUNTS``, ``STORE``)."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire", "_sets", "compensations", "_nearest_cache")
+                if name not in ("_body", "_tripwire", "_sets", "compensations", "_nearest_cache",
+                                "_store")
                 and not isinstance(value, (types.FunctionType, types.MethodType))}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()
@@ -264,13 +266,14 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
         # A pickle's round trip copies as deepcopy does, several times faster.
         saved = pickle.loads(pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL))
         saved[COUNTS] = (len(self.compensations), self._sets.n_sets)
+        saved[STORE] = self._store.mark()
         return saved
 
     def restore(self, saved: dict, salvage: bool = True) -> int:
         """Back to ``saved``; the rows spent since stay counted. With
         ``salvage``, the POVs verified since are kept and the solutions of a
         cut walk are pending (module docstring). Returns the POVs kept."""
-        first, first_q = saved["_store"].count, len(saved["pov_queries"])
+        first, first_q = saved[STORE][0], len(saved["pov_queries"])
         kept = max(0, self._verified - first) if salvage else 0
         samples = self._store.samples[first:first + kept].copy()
         queries = list(self.pov_queries[first_q:first_q + kept])
@@ -278,6 +281,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
         restored = pickle.loads(pickle.dumps(saved, protocol=pickle.HIGHEST_PROTOCOL))
         sweep = restored.pop("_sweep", None)
         n_compensations, n_sets = restored.pop(COUNTS)
+        self._store.truncate(restored.pop(STORE))
         self._sets.truncate(n_sets)
         self.compensations = self.compensations[:n_compensations]
         vars(self).update(restored)

@@ -59,11 +59,22 @@ class PovStore:
         self._near_tree = None           # that tree, once built
 
     def __getstate__(self) -> dict:
-        return {**vars(self), "_near_tree": None}
+        return {**vars(self), "_data": self._data[:self.count], "_near_tree": None}
+
+    def mark(self) -> tuple:
+        """What ``truncate`` needs to bring the store back to now."""
+        return self.count, self._separation, self._near_built
+
+    def truncate(self, mark: tuple) -> None:
+        """Back to ``mark`` (``mark()``): the POVs appended since dropped."""
+        count, self._separation, built = mark
+        if built != self._near_built:
+            self._near_built, self._near_tree = built, None
+        self.count = count
 
     def append(self, samples: np.ndarray) -> int:
         if self.count == len(self._data):
-            grown = np.zeros((2 * len(self._data),) + self._data.shape[1:])
+            grown = np.zeros((max(16, 2 * len(self._data)),) + self._data.shape[1:])
             grown[:self.count] = self._data[:self.count]
             self._data = grown
         self._data[self.count] = samples
