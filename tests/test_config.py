@@ -366,3 +366,15 @@ def test_parameters_file_checks_are_the_named_checks_and_an_unknown_one_is_refus
         config.check_from_spec("real vector of 2")("x", [1.0])
     with pytest.raises(ValueError, match="unknown check 'positive number'"):
         config.check_from_spec("positive number")
+
+
+def test_naive_params_with_counts_changes_a_copy_and_checks_the_counts():
+    from sensorispace_ros.core.naive.params import NaiveParams
+
+    params = NaiveParams()
+    changed = params.with_counts(unconfirmed_max_povs=700, unconfirmed_attempts=0)
+    assert (changed.unconfirmed_max_povs, changed.unconfirmed_attempts) == (700, 0)
+    assert (params.unconfirmed_max_povs, params.unconfirmed_attempts) != (700, 0)
+    assert changed.frontier_attempts == params.frontier_attempts
+    with pytest.raises(ValueError, match="naive.unconfirmed_attempts"):
+        params.with_counts(unconfirmed_attempts=-1)

@@ -162,10 +162,7 @@ def _segment_classes(start: np.ndarray, end: np.ndarray, n_povs: int):
     root = coo_matrix((np.ones(len(first)), (np.full(len(first), count), first)),
                       shape=(count + 1, count + 1))
     order, parent = breadth_first_order(sign + root + root.T, count, directed=False)
-    orient = np.ones(count + 1, dtype=int)
-    for node in order[1:]:
-        if parent[node] != count:
-            orient[node] = orient[parent[node]] * (1 if sign[parent[node], node] >= 0 else -1)
+    orient = _orientations(sign, order[1:], parent, count)
     low, high = np.divmod(keys, n_povs)
     flip = orient[:count] < 0
     oriented = np.stack([np.where(flip, high, low), np.where(flip, low, high)], axis=1)
@@ -173,3 +170,16 @@ def _segment_classes(start: np.ndarray, end: np.ndarray, n_povs: int):
     kept = sizes[component] >= 2
     _, ids = np.unique(component[kept], return_inverse=True)
     return oriented[kept].astype(int), ids.reshape(-1).astype(int)
+
+
+def _orientations(sign, order: np.ndarray, parent: np.ndarray, root: int) -> np.ndarray:
+    """``(root + 1,)`` +1/-1 per node: a child of ``root`` +1, any other the
+    orientation of its parent times the sign of their edge (>= 0: +1), the
+    nodes taken in ``order`` (a BFS order, a parent before its children)."""
+    linked = parent[order] != root
+    nodes, parents = order[linked], parent[order[linked]]
+    step = np.where(np.asarray(sign[parents, nodes]).reshape(-1) >= 0, 1, -1).tolist()
+    orient = [1] * (root + 1)
+    for node, up, s in zip(nodes.tolist(), parents.tolist(), step):
+        orient[node] = orient[up] * s
+    return np.asarray(orient, dtype=int)

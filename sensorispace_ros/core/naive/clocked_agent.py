@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import pickle
 import types
-from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -379,8 +378,8 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
                 attempts = 0
             if getattr(self, "_unconfirmed_credit", 1.0) < 1.0:
                 attempts = 0
-            params = replace(params, unconfirmed_max_povs=self._store.count + 1,
-                             unconfirmed_attempts=attempts)
+            params = params.with_counts(unconfirmed_max_povs=self._store.count + 1,
+                                        unconfirmed_attempts=attempts)
         return params
 
     def _search(self, requests, current, tree, split_now):

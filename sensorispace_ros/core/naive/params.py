@@ -7,7 +7,10 @@ import it.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import asdict, dataclass, field
+
+import numpy as np
 
 from sensorispace_ros import config
 
@@ -115,3 +118,14 @@ class NaiveParams:
         a ``ConfigError`` naming it."""
         merged = {**config.defaults()["naive"], **(values or {})}
         return cls(**config.validate_naive(merged))
+
+    def with_counts(self, **counts: int) -> "NaiveParams":
+        """These parameters with ``counts`` (integers >= 0 the agent works
+        out as it runs) in place, not checked again: ``dataclasses.replace``
+        checks every parameter, which costs more than a reaction's matching."""
+        changed = copy.copy(self)
+        for name, value in counts.items():
+            if not isinstance(value, (int, np.integer)) or value < 0:
+                raise ValueError(f"naive.{name}: must be an integer >= 0, got {value!r}")
+            object.__setattr__(changed, name, int(value))
+        return changed
