@@ -137,8 +137,6 @@ def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_react
         run.reference, run.reference_row = agent.anchor_sensation, run.body.row - 1
         run.equality_left = int(equality_changes)
     while True:
-        run.next_explores = agent.phase == EXPLORING and not (second_round() and
-                                                              run.equality_left)
         sensed = run.walk_pending(run.reference, run.reference_row) \
             if agent.phase == EXPLORING else None
         if sensed is None:
@@ -196,9 +194,6 @@ class ClockedRun:
         # ``drive``'s loop: the sensation at rest held, the row it was sensed
         # at, the reactions of simulation 2 left.
         self.reference, self.reference_row, self.equality_left = None, -1, 0
-        # Whether the next reaction explores (``drive``): its sweep is then
-        # sensed in the call that confirms the change.
-        self.next_explores = False
         # Resumptions after the agent's process died (graph.nodes.agent_restart),
         # and the rows its commands sent between its last snapshot and its death.
         self.restarts = 0
@@ -229,8 +224,6 @@ class ClockedRun:
             saved = agent.checkpoint()
             before_rest = agent.rest_motor_state
             first_row, rows_before = body.row, agent.queries_total
-            # The rows it works with begin at the sentinels' call when that sensed its sweep.
-            evidence_row = self._sentinel_row if agent.swept_ahead else first_row
             stages_before, cut_in, sent = agent.queries_by_stage, "check", agent.rows_sent
             try:
                 agent.watched(reaction or agent.react, sensed_at_rest)
@@ -239,7 +232,7 @@ class ClockedRun:
                 if agent.crossing is not None:
                     # Kept; the world its sweep saw is gone: react again at
                     # once, for a snapshot of the world as it is.
-                    self._crossed(reference_row, evidence_row, first_row - sent, before_rest, again)
+                    self._crossed(reference_row, first_row, first_row - sent, before_rest, again)
                     sensed_at_rest = self._sense_sentinels(before_rest)
                     reference_row = self._sentinel_row
                     continue
@@ -251,8 +244,7 @@ class ClockedRun:
                 cut, cut_in = True, agent.cut_stage
             self.log.add(reference_row, body.row - 1, cut, before_rest, "cut")
             if not cut:
-                self.event_states.append((body.state_at(evidence_row),
-                                          body.state_at(body.row - 1)))
+                self.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
                 return again[1], body.row - 1
             self._undo(saved, rows_before, stages_before, cut_in)
             # The world of this row, at the resting state the undone reaction started from.
@@ -263,7 +255,7 @@ class ClockedRun:
         """``ClockedAgent.sense_sentinels``; notes the row the resting state
         was sensed at (the call's first: the body's position before it)."""
         row = self.body.row
-        sensed = self.agent.sense_sentinels(rest, sweep=self.next_explores)
+        sensed = self.agent.sense_sentinels(rest)
         self._sentinel_row = row
         return sensed
 

@@ -334,34 +334,3 @@ def test_the_checks_after_a_reaction_take_one_call():
     body.change_row = np.array([body.row])      # the lights move now
     _, moved = agent.check_reaction([rest])
     assert moved
-
-
-def _one_reaction(world, params, sweep_ahead: bool):
-    """A started agent's first reaction (the world unchanged), its sweep
-    sensed with the sentinels' call or in a call of its own; the agent and
-    its body's calls and rows by stage before and after."""
-    from sensorispace_ros.core.clocked_run import ClockedRun
-
-    agent, body = _agent_in_two_worlds(world, params, change_after=10 ** 6)
-    run = ClockedRun(agent, body)
-    run.next_explores = sweep_ahead
-    before = (dict(agent._body.calls), dict(agent.queries_by_stage))
-    sensed = run._sense_sentinels(agent.rest_motor_state)
-    assert agent.swept_ahead == sweep_ahead
-    agent.watched(agent.react, sensed)
-    return agent, before, (dict(agent._body.calls), dict(agent.queries_by_stage))
-
-
-def test_the_sweep_sensed_with_the_sentinels_saves_its_call_and_changes_nothing():
-    cfg = config.load_config(SMOKE)
-    world = run_world(cfg)
-    params = NaiveParams(**cfg["naive"])
-    ahead, (calls0, rows0), (calls1, rows1) = _one_reaction(world, params, True)
-    alone, (c0, r0), (c1, r1) = _one_reaction(world, params, False)
-    swept = rows1["sweep"] - rows0.get("sweep", 0)
-    assert swept > 0 and swept == r1["sweep"] - r0.get("sweep", 0)
-    assert calls1.get("sweep", 0) - calls0.get("sweep", 0) == \
-        c1.get("sweep", 0) - c0.get("sweep", 0) - 1
-    np.testing.assert_array_equal(ahead.points_of_view, alone.points_of_view)
-    np.testing.assert_array_equal(ahead.rest_motor_state, alone.rest_motor_state)
-    assert not ahead.swept_ahead

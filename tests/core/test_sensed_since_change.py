@@ -204,31 +204,3 @@ def _no_lookahead(self, motor_states):
 def test_remember_sensations_must_be_a_bool():
     with pytest.raises(ValueError, match="naive.remember_sensations"):
         NaiveParams(remember_sensations="yes")
-
-
-def test_pinned_rows_survive_the_next_forget_only():
-    fake = CountingFake(with_move=False)
-    body = CountingBody(fake)
-    rows = np.linspace(0.1, 1.2, 8).reshape(2, 4)
-    other = rows + 0.5
-    body.stage = "rest"
-    sensed = body.sense(np.vstack([rows, other]))
-    body.pin(rows, sensed[:2])
-    body.forget()
-    calls = len(fake.sent)
-    np.testing.assert_array_equal(body.sense(rows), sensed[:2])     # remembered, no call
-    assert len(fake.sent) == calls
-    body.sense(other)                                               # forgotten: a call
-    assert len(fake.sent) == calls + 1
-    body.forget()                                                   # the pin is used up
-    body.sense(rows)
-    assert len(fake.sent) == calls + 2
-
-
-def test_recount_moves_rows_between_stages_and_keeps_the_call():
-    body = CountingBody(CountingFake(with_move=False))
-    body.stage = "rest"
-    body.sense(np.zeros((5, 4)))
-    body.recount(3, "rest", "sweep")
-    assert body.rows == {"rest": 2, "sweep": 3} and body.calls == {"rest": 1}
-    assert body.total_rows == 5

@@ -121,11 +121,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
     def sense_again(self, motor_states) -> np.ndarray:
         """Sense ``motor_states`` (body units) afresh, not from memory:
         counted as resting rows."""
-        return self._sense_fresh(
-            self._phase.to_phase(np.atleast_2d(np.asarray(motor_states, dtype=float))))
-
-    def _sense_fresh(self, rows: np.ndarray) -> np.ndarray:
-        """``sense_again`` of ``rows`` given as phases."""
+        rows = self._phase.to_phase(np.atleast_2d(np.asarray(motor_states, dtype=float)))
         self._body.stage = "rest"
         with self._body.fresh():
             sensed = self._body.sense(np.ascontiguousarray(rows))
@@ -159,34 +155,24 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
             self._tripwire.disarm()
             self._body.pause()
 
-    def sense_sentinels(self, rest, sweep: bool = False) -> np.ndarray:
+    def sense_sentinels(self, rest) -> np.ndarray:
         """Sense the resting state ``rest`` (body units) afresh, with the
-        lookout candidates after it in the same call; the candidate
+        lookout candidates (the last sweep's witnesses, else the first known
+        POVs) after it in the same call; the candidate
         that sensed most becomes the lookout the next reaction watches beside
         its resting state (``change_detection.Tripwire``): a resting state that senses nothing
-        sees no change. With ``sweep`` (the next reaction explores) the
-        candidates are that reaction's sweep (``_sweep_indices``, counted as
-        sweep rows), which ``react`` then finds remembered: one call fewer;
-        else the last sweep's witnesses (before any, the first known POVs).
-        Returns the resting state's sensation."""
-        ahead = self._store.samples[self._sweep_indices(advance=False), 0] \
-            if sweep and self._body.remembers else np.zeros((0, self.n_motors))
-        candidates = ahead if len(ahead) else self._lookouts if self._lookouts is not None \
-            else self._store.samples[:WITNESSES, 0]
-        candidates = np.asarray(candidates, dtype=float).reshape(-1, self.n_motors)
-        sensed = self._sense_fresh(np.vstack([
-            self._phase.to_phase(np.asarray(rest, float).reshape(1, -1)), candidates]))
-        found = sensed[1:]
-        self._swept_ahead = None
-        if len(ahead):
-            self._body.recount(len(ahead), "rest", "sweep")
-            self._swept_ahead = (ahead, found.copy())
+        sees no change. Returns the resting state's sensation."""
+        candidates = self._lookouts if self._lookouts is not None else \
+            self._store.samples[:WITNESSES, 0]
+        candidates = self._to_body(candidates).reshape(-1, self.n_motors)
+        sensed = self.sense_again(np.vstack([np.asarray(rest, float)[None], candidates]))
         self._lookout = None
         if len(candidates):
+            found = sensed[1:]
             lit = np.where(np.all(np.isfinite(found), axis=1), np.linalg.norm(found, axis=1), -1.0)
             best = int(np.argmax(lit))
             if lit[best] >= 0:
-                self._lookout = (self._to_body(candidates[best]), found[best].copy())
+                self._lookout = (candidates[best].copy(), found[best].copy())
         return sensed[0]
 
     def walk_pending(self, sensed_at_rest) -> int:
@@ -209,23 +195,6 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
             self._tripwire.disarm()
             self._body.pause()
         return len(new)
-
-    def react(self, passive_sensation):
-        """``NaiveAgent.react``; its sweep, if the confirmation of the change
-        sensed it (``sense_sentinels``), stays remembered when the reaction
-        forgets the world of before."""
-        ahead, self._swept_ahead = getattr(self, "_swept_ahead", None), None
-        if ahead is not None:
-            self._body.pin(*ahead)
-        try:
-            return super().react(passive_sensation)
-        finally:
-            self._body.pin(None)
-
-    @property
-    def swept_ahead(self) -> bool:
-        """Whether the next reaction's sweep was sensed with the sentinels."""
-        return getattr(self, "_swept_ahead", None) is not None
 
     def start(self, initial_motor_state, seed: int = 0):
         self._seed = int(seed)
@@ -301,17 +270,15 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
 
     # ------------------------------------------------------ bounded sweeps
 
-    def _sweep_indices(self, advance: bool = True) -> np.ndarray:
+    def _sweep_indices(self) -> np.ndarray:
         """The known POVs this reaction senses: the resting one and the next
-        ``sweep_budget`` from the cursor (all when that is every one); the
-        cursor moves on with ``advance``."""
+        ``sweep_budget`` from the cursor (all when that is every one)."""
         count = self._store.count
         if count <= self.sweep_budget + 1:
             return np.arange(count)
         start = self._sweep_cursor % count
         chosen = (start + np.arange(self.sweep_budget)) % count
-        if advance:
-            self._sweep_cursor = start + self.sweep_budget
+        self._sweep_cursor = start + self.sweep_budget
         if self._rest_pov >= 0:
             chosen = np.append(chosen, self._rest_pov)
         return np.unique(chosen)

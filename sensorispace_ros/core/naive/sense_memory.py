@@ -126,7 +126,6 @@ class CountingBody:
         self.remembered: dict[str, int] = {}
         self._sensed = SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
         self._lookahead: np.ndarray | None = None
-        self._pinned = None
         self.phase = phase if phase is not None else MotorPhase([2.0 * np.pi] * self.n_motors)
         self.retries = int(retries)
         self._fresh = False
@@ -146,31 +145,9 @@ class CountingBody:
         self.stage = None
 
     def forget(self) -> None:
-        """The environment changed: what was sensed before says nothing now,
-        except the rows ``pin`` kept (sensed after the change)."""
+        """The environment changed: what was sensed before says nothing now."""
         if self._sensed is not None:
             self._sensed.clear()
-            if self._pinned is not None:
-                self._sensed.store(*self._pinned)
-        self._pinned = None
-
-    @property
-    def remembers(self) -> bool:
-        """Whether calls are answered from what was sensed since the change."""
-        return self._sensed is not None
-
-    def pin(self, motor_states: np.ndarray | None, sensations: np.ndarray | None = None) -> None:
-        """Have the next ``forget`` keep these rows (phases) and their
-        sensations, sensed in the world it forgets the one before of; None:
-        keep nothing."""
-        self._pinned = None if motor_states is None else (
-            np.ascontiguousarray(motor_states, dtype=float), np.asarray(sensations, dtype=float))
-
-    def recount(self, n_rows: int, counted: str, stage: str) -> None:
-        """``n_rows`` rows counted in stage ``counted`` belong to ``stage``:
-        one call carried rows of two stages (the call stays ``counted``'s)."""
-        self.rows[counted] -= n_rows
-        self.rows[stage] = self.rows.get(stage, 0) + n_rows
 
     @contextlib.contextmanager
     def lookahead(self, motor_states: np.ndarray):
