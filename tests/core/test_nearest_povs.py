@@ -1,12 +1,9 @@
-"""The known POVs nearest a motor state (``clock_known.NearestPovs``): a
-tree over the first POVs and the later ones one by one give exactly what
-measuring every sample on the torus of phases gives."""
-import pickle
-
+"""The known POVs nearest a motor state (``PovStore.nearest``): a tree over
+the first POVs and the later ones one by one give exactly what measuring
+every sample on the torus of phases gives."""
 import numpy as np
 import pytest
 
-from sensorispace_ros.core.naive.clock_known import NearestPovs
 from sensorispace_ros.core.naive.points_of_view import PovStore
 
 
@@ -29,28 +26,29 @@ def _store(rng, count, n_samples=20, motors=3):
 def test_the_nearest_povs_are_those_of_every_sample(share):
     rng = np.random.default_rng(7)
     store = _store(rng, 60)
-    near = NearestPovs(store)
+    store.nearest(np.zeros(3), np.ones(60, dtype=bool), 3)       # the tree over these 60
     for _ in range(3):                                   # POVs appended after the tree
         store.append(rng.uniform(0.0, 6.0, size=(20, 3)))
-    assert near.holds(store)
-    near.extended(store)
+    assert store._near_built == 60
     for _ in range(40):
         state = rng.uniform(-7.0, 13.0, size=3)
         allowed = rng.uniform(size=store.count) < share
         allowed[rng.integers(store.count)] = True
-        np.testing.assert_array_equal(near.nearest(state, allowed, 3),
+        np.testing.assert_array_equal(store.nearest(state, allowed, 3),
                                       _brute(store.samples, state, allowed, 3))
 
 
-def test_a_store_that_lost_povs_or_grew_much_is_not_held():
+def test_an_undo_leaves_the_nearest_povs_of_the_store_it_brings_back():
     rng = np.random.default_rng(8)
     store = _store(rng, 40)
-    near = NearestPovs(store)
-    other = _store(np.random.default_rng(9), 40)
-    assert not near.holds(other)                          # not the same POVs
-    shorter = _store(np.random.default_rng(8), 30)
-    assert not near.holds(shorter)                        # an undo dropped some
-    for _ in range(20):
+    mark = store.mark()
+    before = store.samples.copy()
+    for _ in range(20):                                   # past an eighth: the tree is rebuilt
         store.append(rng.normal(size=(20, 3)))
-    assert not near.holds(store)                          # grew by more than an eighth
-    assert not pickle.loads(pickle.dumps(near)).holds(store)   # pickled without its tree
+    store.nearest(np.zeros(3), np.ones(store.count, dtype=bool), 3)
+    store.truncate(mark)
+    for _ in range(20):
+        state = rng.uniform(-7.0, 13.0, size=3)
+        allowed = np.ones(store.count, dtype=bool)
+        np.testing.assert_array_equal(store.nearest(state, allowed, 3),
+                                      _brute(before, state, allowed, 3))

@@ -12,8 +12,6 @@ from __future__ import annotations
 import numpy as np
 
 from sensorispace_ros.core.naive.equality_sets import finite_rows
-from sensorispace_ros.core.naive.neighbours import curve_distances
-from sensorispace_ros.core.naive.points_of_view import torus_phases, torus_tree
 
 __all__ = ["KnownNearby", "NEAR_POVS"]
 
@@ -73,79 +71,7 @@ class KnownNearby:
             return np.unique(among)
         allowed = np.zeros(self._store.count, dtype=bool)
         allowed[among] = True
-        near = self._near_povs()
         wanted = set()
         for state in states:
-            wanted.update(near.nearest(state, allowed, NEAR_POVS).tolist())
+            wanted.update(self._store.nearest(state, allowed, NEAR_POVS).tolist())
         return np.asarray(sorted(wanted), dtype=int)
-
-    def _near_povs(self) -> "NearestPovs":
-        """The ``NearestPovs`` of the POVs known now: kept across reactions
-        (not in a checkpoint), rebuilt when the POVs it holds are no longer
-        the first ones known (an undo dropped them) or grew by an eighth."""
-        near = getattr(self, "_nearest_cache", None)
-        if near is None or not near.holds(self._store):
-            near = self._nearest_cache = NearestPovs(self._store)
-        return near.extended(self._store)
-
-
-class NearestPovs:
-    """A tree over the samples of the first ``built`` POVs of a store (torus
-    of phases) and the store's later POVs, measured one by one: the POVs
-    nearest a state by their nearest sample, exactly."""
-
-    def __init__(self, store):
-        samples = store.samples
-        self.built = len(samples)
-        self.n_samples = samples.shape[1]
-        self._first = samples[:, 0].copy()     # the POVs it holds, to tell a store that dropped them
-        self._tree = torus_tree(samples.reshape(-1, samples.shape[2])) if self.built else None
-        self._later = samples[:0]
-
-    def __getstate__(self):
-        return {"built": -1}        # pickled (a restart's snapshot) without its tree: rebuilt
-
-    def holds(self, store) -> bool:
-        """Are this tree's POVs the store's first ones, and not an eighth fewer than it holds?"""
-        count = store.count
-        if self.built < 0:
-            return False
-        return count >= self.built and count <= self.built * 9 / 8 + 8 and \
-            np.array_equal(store.samples[:self.built, 0], self._first)
-
-    def extended(self, store) -> "NearestPovs":
-        self._later = store.samples[self.built:]
-        return self
-
-    def nearest(self, state: np.ndarray, allowed: np.ndarray, k: int) -> np.ndarray:
-        """The ``k`` POVs with ``allowed`` (``(P,)`` bools) nearest ``state``,
-        nearest first (fewer when fewer are allowed)."""
-        ids, reach = [], []
-        if len(self._later):
-            later = self.built + np.arange(len(self._later))
-            keep = allowed[later]
-            ids.append(later[keep])
-            reach.append(curve_distances(state, self._later[keep]))
-        if self._tree is not None:
-            seen, distance = self._tree_nearest(state, allowed[:self.built], k)
-            ids.append(seen)
-            reach.append(distance)
-        ids, reach = np.concatenate(ids), np.concatenate(reach)
-        return ids[np.argsort(reach, kind="stable")[:k]]
-
-    def _tree_nearest(self, state, allowed, k):
-        """The allowed POVs of the tree met among ``state``'s nearest samples
-        and their distances (each its nearest sample's), at least ``k`` of
-        them (or every allowed one): a POV not met lies farther than all."""
-        total = self.built * self.n_samples
-        asked = min(total, 4 * self.n_samples)
-        point = torus_phases(np.asarray(state, dtype=float))
-        while True:
-            distance, index = self._tree.query(point, k=asked)
-            owner = np.atleast_1d(index) // self.n_samples
-            distance = np.atleast_1d(distance)
-            owner, first = np.unique(owner, return_index=True)
-            met = allowed[owner]
-            if met.sum() >= k or asked == total:
-                return owner[met], distance[first][met]
-            asked = min(total, 2 * asked)

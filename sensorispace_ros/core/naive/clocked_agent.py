@@ -225,8 +225,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
         """What the agent knows (its counters excluded), to undo a reaction;
         of its compensations, equality sets and POVs, their counts (``COUNTS``, ``STORE``)."""
         kept = {name: value for name, value in vars(self).items()
-                if name not in ("_body", "_tripwire", "_sets", "compensations", "_nearest_cache",
-                                "_store")
+                if name not in ("_body", "_tripwire", "_sets", "compensations", "_store")
                 and not isinstance(value, (types.FunctionType, types.MethodType))}
         if self._sweep is not None:     # simulation 2's sweep senses through the body
             kept["_sweep"] = {name: value for name, value in vars(self._sweep).items()

@@ -114,18 +114,55 @@ class PovStore:
         have grown by an eighth; the POVs appended since are measured one by
         one."""
         from sensorispace_ros.core.naive.neighbours import curve_distances
+        tree, built = self._tree()
+        if tree is None:
+            return np.zeros(0, dtype=int)
+        hits = tree.query_ball_point(torus_phases(point), radius)
+        indexed = np.unique(np.asarray(hits, dtype=int) // self._data.shape[1])
+        later = built + np.flatnonzero(curve_distances(point, self._data[built:self.count])
+                                       <= radius)
+        return np.concatenate([indexed, later]).astype(int)
+
+    def nearest(self, point: np.ndarray, allowed: np.ndarray, k: int) -> np.ndarray:
+        """The ``k`` POVs with ``allowed`` (``(P,)`` bools) nearest ``point``
+        by their nearest sample (torus of phases), nearest first (fewer when
+        fewer are allowed): ``near``'s tree, then the POVs appended since."""
+        from sensorispace_ros.core.naive.neighbours import curve_distances
+        tree, built = self._tree()
+        later = built + np.flatnonzero(allowed[built:self.count])
+        ids, reach = [later], [curve_distances(point, self._data[later])]
+        if tree is not None:
+            seen, distance = self._tree_nearest(tree, built, point, allowed[:built], k)
+            ids.append(seen)
+            reach.append(distance)
+        ids, reach = np.concatenate(ids), np.concatenate(reach)
+        return ids[np.argsort(reach, kind="stable")[:k]]
+
+    def _tree_nearest(self, tree, built, point, allowed, k):
+        """The allowed POVs of ``tree`` met among ``point``'s nearest samples
+        and their distances (each its nearest sample's), at least ``k`` of
+        them (or every allowed one): a POV not met lies farther than all."""
+        n_samples = self._data.shape[1]
+        total = built * n_samples
+        asked = min(total, 4 * n_samples)
+        at = torus_phases(np.asarray(point, dtype=float))
+        while True:
+            distance, index = tree.query(at, k=asked)
+            owner, first = np.unique(np.atleast_1d(index) // n_samples, return_index=True)
+            met = allowed[owner]
+            if met.sum() >= k or asked == total:
+                return owner[met], np.atleast_1d(distance)[first][met]
+            asked = min(total, 2 * asked)
+
+    def _tree(self):
+        """``(tree, built)``: a tree over the samples of the first ``built``
+        POVs, rebuilt when the POVs have grown by an eighth (None before any)."""
         if self.count >= self._near_built * 9 / 8 + 1:
             self._near_built, self._near_tree = self.count, None
         built = self._near_built
         if self._near_tree is None and built:
             self._near_tree = torus_tree(self._data[:built].reshape(-1, self._data.shape[2]))
-        if self._near_tree is None:
-            return np.zeros(0, dtype=int)
-        hits = self._near_tree.query_ball_point(torus_phases(point), radius)
-        indexed = np.unique(np.asarray(hits, dtype=int) // self._data.shape[1])
-        later = built + np.flatnonzero(curve_distances(point, self._data[built:self.count])
-                                       <= radius)
-        return np.concatenate([indexed, later]).astype(int)
+        return self._near_tree, built
 
 
 def sample_sensory_points_of_view(
