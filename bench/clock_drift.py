@@ -99,10 +99,11 @@ def instrument() -> None:
             super().__init__(body, start, **kwargs)
             STATE["walk"] = self
 
-        def project(self, samples, polish_iterations, sample_tol=np.inf, step_tol=np.inf):
+        def project(self, samples, polish_iterations, sample_tol=np.inf, step_tol=np.inf,
+                    checked=0):
             before = samples.copy()
             closed = np.flatnonzero([r == points_of_view.VALID for r in self.reason])
-            out = super().project(samples, polish_iterations, sample_tol, step_tol)
+            out = super().project(samples, polish_iterations, sample_tol, step_tol, checked)
             if np.isfinite(step_tol) and polish_iterations:      # the brief walk
                 for p in closed:
                     step = float(np.max(np.linalg.norm(samples[p, 1:] - before[p, 1:], axis=1)))

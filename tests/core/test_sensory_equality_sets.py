@@ -29,6 +29,24 @@ def test_match_sensations_requires_closeness_and_uniqueness():
     assert sorted(zip(ref.tolist(), cur.tolist())) == [(0, 1), (1, 0)]
 
 
+def test_lost_rows_match_nothing_and_keep_the_others_indices():
+    # A bounded sweep: most rows of both sides lost (NaN), a few sensed.
+    rng = np.random.default_rng(11)
+    truth = rng.uniform(0.0, 1.0, (12, 3))
+    reference = np.full((40, 3), np.nan)
+    current = np.full((40, 3), np.nan)
+    reference[3::3][:12] = truth
+    order = rng.permutation(12)
+    current[5::3][:12] = truth[order]
+    current[0, 1] = np.nan                     # a partly lost row is lost too
+    current[0, [0, 2]] = truth[0, [0, 2]]
+    ref, cur = match_sensations(reference, current, match_tol=1e-8, separation=1e-6)
+    pairs = dict(zip(ref.tolist(), cur.tolist()))
+    assert pairs == {3 + 3 * i: 5 + 3 * int(np.flatnonzero(order == i)[0]) for i in range(12)}
+    assert match_sensations(np.full((5, 3), np.nan), current, match_tol=1e-8,
+                            separation=1e-6)[0].size == 0
+
+
 def test_two_references_on_one_row_match_neither():
     reference = np.array([[1.0, 0.0], [1.0, 1e-9]])
     ref, cur = match_sensations(reference, np.array([[1.0, 0.0], [0.0, 1.0]]),

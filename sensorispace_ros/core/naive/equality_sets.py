@@ -66,15 +66,20 @@ def match_sensations(reference: np.ndarray, current: np.ndarray, *, match_tol: f
     ``tree``: a ``cKDTree`` of ``finite_rows(current, -1)`` to reuse across
     calls. A lost (non-finite) row matches nothing.
     """
-    reference = finite_rows(reference, 1.0)
-    current = finite_rows(current, -1.0)
     if not 0 < match_tol or not (match_tol < separation or ratio > 0):
         raise ValueError(f"match_tol must be > 0 and < separation ({separation}), "
                          f"got {match_tol}")
+    reference = np.asarray(reference, dtype=float)
     empty = np.zeros(0, dtype=int)
     if len(reference) == 0 or len(current) == 0:
         return empty, empty
-    tree = cKDTree(current) if tree is None else tree
+    # A bounded sweep leaves most rows lost: only the others are queried.
+    kept = np.flatnonzero(np.all(np.isfinite(reference), axis=-1))
+    if len(kept) < len(reference):
+        ref_idx, cur_idx = match_sensations(reference[kept], current, match_tol=match_tol,
+                                            separation=separation, tree=tree, ratio=ratio)
+        return kept[ref_idx], cur_idx
+    tree = cKDTree(finite_rows(current, -1.0)) if tree is None else tree
     # Most rows match nothing: a bounded nearest-neighbour query prunes them
     # fast; only the candidates get the (k = 2) uniqueness query.
     distance, index = tree.query(reference, k=1, distance_upper_bound=match_tol)
