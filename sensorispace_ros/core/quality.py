@@ -76,7 +76,10 @@ def _stable(value: float) -> float:
 
 def quality_report(embedding, true_positions, n_neighbors: int = 5) -> dict:
     """The four numbers as plain floats rounded to 12 significant digits, so
-    metrics.json does not change in the last bits between identical runs."""
+    metrics.json does not change in the last bits between identical runs.
+    Fewer than ``2 n_neighbors + 1`` points (a run that found few POVs) rank
+    the largest neighbourhood they allow."""
+    n_neighbors = min(int(n_neighbors), max(1, (len(np.asarray(true_positions)) - 1) // 2))
     return {
         "trustworthiness": _stable(trustworthiness(true_positions, embedding, n_neighbors)),
         "continuity": _stable(continuity(true_positions, embedding, n_neighbors)),

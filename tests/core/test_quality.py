@@ -72,6 +72,18 @@ def test_report_is_json_stable_floats(grid):
     assert 0.99 < report["trustworthiness"] < 1.0
 
 
+def test_report_of_few_points_ranks_the_neighbourhood_they_allow(grid):
+    # Six POVs (a run that found few) cannot rank 5 neighbours; 2 they can:
+    # an embedding that swaps two far points loses trustworthiness there.
+    few = grid[:: len(grid) // 6][:6]
+    assert quality_report(few, few)["trustworthiness"] == 1.0
+    swapped = few.copy()
+    swapped[[0, -1]] = swapped[[-1, 0]]
+    assert quality_report(swapped, few)["trustworthiness"] == pytest.approx(
+        trustworthiness(few, swapped, n_neighbors=2))
+    assert quality_report(swapped, few)["trustworthiness"] < 1.0
+
+
 @pytest.mark.parametrize("call, word", [
     (lambda g: affine_residual(g[:10], g), "points"),
     (lambda g: trustworthiness(g, g, n_neighbors=0), "n_neighbors"),
