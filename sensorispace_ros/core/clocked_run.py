@@ -53,7 +53,8 @@ class ClockTruth:
     ``pending_povs`` the POVs added by walks of pending solutions,
     ``crossed`` the reactions kept whose walk went on through a change;
     ``restarts`` the times the agent resumed from a snapshot (graph only),
-    ``rows_lost_to_restart`` the rows it sent between the snapshot and its death."""
+    ``rows_lost_to_restart`` the rows it sent between the snapshot and its death;
+    ``start_lost_rows`` the rows of the starts a change cut (in ``lost_rows``)."""
 
     change_row: np.ndarray
     rest_jumps: np.ndarray
@@ -72,6 +73,7 @@ class ClockTruth:
     lights: list = field(repr=False, default_factory=list)   # of each world state
     restarts: int = 0
     rows_lost_to_restart: int = 0
+    start_lost_rows: int = 0
 
 
 def run_on_clock(world, params: NaiveParams, clock: str, *, interval: float,
@@ -118,7 +120,7 @@ def begin_run(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_budget
     start noted as event 0."""
     agent, first_row, lost = start_clocked(body, m0, seed, params, sweep_budget)
     run = ClockedRun(agent, body)
-    run.lost_rows = lost
+    run.lost_rows = run.start_lost_rows = lost
     run.event_states.append((body.state_at(first_row), body.state_at(body.row - 1)))
     return run
 
@@ -159,15 +161,21 @@ def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_react
 
 def start_clocked(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_budget: int):
     """A started agent whose start saw one world: the start state is sensed
-    before and after ``start`` and compared by the noise the start measured;
-    a start the world changed under is made again by a new agent (its rows
-    counted as lost). Returns the agent, the start's first row and the rows lost."""
+    before and after ``start`` and compared by the noise the start measured,
+    and watches every call of the start once that noise is known
+    (``ClockedAgent.start``); a start the world changed under is made again
+    by a new agent (its rows counted as lost). Returns the agent, the start's
+    first row and the rows lost."""
     lost = 0
     while True:
         first_row = body.row
         agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
         before = agent.sense_again(m0)[0]
-        agent.start(m0, seed=seed)
+        try:
+            agent.start(m0, seed=seed)
+        except WorldChanged:
+            lost += agent.queries_total
+            continue
         after = agent.sense_again(m0)[0]
         rest_now = agent.sense_again(agent.rest_motor_state)[0]
         if not (change_detection.differs(agent.noise_sd, before, after) or
@@ -184,6 +192,7 @@ class ClockedRun:
         self.log = ChangeLog()
         self.event_states: list[tuple[int, int]] = []
         self.lost_rows = 0
+        self.start_lost_rows = 0       # of ``lost_rows``: the starts a change cut
         self._sentinel_row = -1        # the row the resting state was last sensed at
         self.undone = 0
         self.salvaged = 0
@@ -341,4 +350,5 @@ class ClockedRun:
                           crossed=int(self.crossed),
                           state_of=self.body.state_at, lights=self.body.lights,
                           restarts=int(self.restarts),
-                          rows_lost_to_restart=int(self.rows_lost_to_restart))
+                          rows_lost_to_restart=int(self.rows_lost_to_restart),
+                          start_lost_rows=int(self.start_lost_rows))

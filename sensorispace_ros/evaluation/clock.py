@@ -35,7 +35,11 @@ def clock_metrics(run, world) -> dict:
         np.zeros(0, dtype=bool)
     detection = _detection_numbers(truth, world)
     n_povs = len(run.povs)
+    # Every motor state probed: the starts a change cut were moves too.
+    probed = run.agent.queries_total + int(truth.start_lost_rows)
     return {
+        "naive.queries_total": int(probed),
+        "naive.queries_total_per_pov": probed / n_povs if n_povs else float(probed),
         "naive.accepted_across_change": int(np.sum(across)),
         "naive.clock.changes": int(len(truth.change_row)),
         "naive.clock.rows": int(truth.rows),
@@ -44,7 +48,8 @@ def clock_metrics(run, world) -> dict:
         "naive.clock.undone_reactions": int(truth.undone),
         "naive.clock.salvaged_povs": int(truth.salvaged),
         "naive.clock.reactions": int(len(truth.event_states) - 1),
-        "naive.clock.queries_per_pov": run.agent.queries_total / max(n_povs, 1),
+        "naive.clock.queries_per_pov": probed / max(n_povs, 1),
+        "naive.clock.start_lost_rows": int(truth.start_lost_rows),
         "naive.clock.pending_povs": int(truth.pending_povs),
         "naive.clock.crossed_reactions": int(truth.crossed),
         "naive.clock.walks_restarted": int(getattr(run.agent, "crossings", 0)),

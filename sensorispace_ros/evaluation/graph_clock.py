@@ -83,7 +83,8 @@ def graph_clocked_run(run, world, events: list, *, clocked_body=None, rows_after
                        lost_by_stage=dict(run.lost_by_stage), cuts_by_stage=dict(run.cut_in),
                        pending_povs=int(run.pending_povs), crossed=int(run.crossed),
                        state_of=truth_state_of, lights=lights, restarts=int(run.restarts),
-                       rows_lost_to_restart=int(run.rows_lost_to_restart))
+                       rows_lost_to_restart=int(run.rows_lost_to_restart),
+                       start_lost_rows=int(getattr(run, "start_lost_rows", 0)))
     return summarize_naive(run.exploration(world, events, 0.0), truth)
 
 

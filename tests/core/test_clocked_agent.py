@@ -88,6 +88,51 @@ def _agent_in_two_worlds(world, params, change_after: int, shift=(0.4, -0.3)):
     return agent, body
 
 
+def test_a_change_stops_the_start_at_its_next_call_and_the_start_is_made_again():
+    # The start watches its start state once its noise is measured: a change
+    # stops it within a call, not after all its rows, and the start made
+    # again in the new world is whole. Noisy receptors: a start of thousands of rows.
+    from sensorispace_ros.core.body import SensingOnly
+    from sensorispace_ros.core.clocked_run import start_clocked
+    from sensorispace_ros.core.naive.clocked_agent import ClockedAgent, WorldChanged
+    from sensorispace_ros.core.world_clock import ClockedBody
+
+    cfg = config.load_config(SMOKE, {"world.retina.noise": 1e-6})
+    world = run_world(cfg)
+    params = NaiveParams(**cfg["naive"])
+    lights = np.asarray(world.initial_lights, dtype=float)
+    worlds = [lights, lights + np.array([0.4, -0.3])]
+    calm = ClockedBody(world.body(lights=lights), worlds, np.array([10 ** 9]))
+    ClockedAgent(SensingOnly(calm), params).start(world.m0, seed=world.seed)
+    whole = calm.row                               # the start's rows in one world
+    change = 600
+    assert whole > 3 * change
+    cut = ClockedBody(world.body(lights=lights), worlds, np.array([change]))
+    with pytest.raises(WorldChanged):
+        ClockedAgent(SensingOnly(cut), params).start(world.m0, seed=world.seed)
+    assert change < cut.row < 2 * change
+    again = ClockedBody(world.body(lights=lights), worlds, np.array([change]))
+    agent, first_row, lost = start_clocked(again, world.m0, world.seed, params, 64)
+    assert first_row == lost < 2 * change
+    assert again.state_at(first_row) == again.state_at(again.row - 1) == 1
+    assert agent.structure.pose_rank == 3 and agent.points_of_view.shape[0] == 1
+
+
+def test_every_motor_state_the_body_executed_is_counted_cut_starts_included(clocked_smoke):
+    # The body's clock counts every row it executed; all but the holds were
+    # the agent's probes, those of the starts a change cut too.
+    cfg = config.load_config(SMOKE, {"seed": 1, "world.clock": "rows",
+                                     "world.change_interval": 2000.0,
+                                     "world.retina.noise": 1e-6})
+    world = run_world(cfg)
+    run = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows", interval=2000.0)
+    noisy = clock_metrics(run, world)
+    assert noisy["naive.clock.start_lost_rows"] > 0
+    for metrics in (noisy, clocked_smoke[2]):
+        moved = metrics["naive.clock.rows"] - metrics["naive.clock.held_rows"]
+        assert metrics["naive.queries_total"] == moved
+
+
 def test_a_walk_goes_on_through_a_change_to_the_same_pov():
     # The states of one eye pose sense alike in any world: a walk a change
     # cuts is walked again in the new world and gives the POV it would have

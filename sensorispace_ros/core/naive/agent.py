@@ -115,6 +115,7 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
         self._fd_step = self.params.fd_step     # every Jacobian's step, sized by start()
         self._repeats = 1                       # sensings averaged per anchor, sized by start()
         self._noisy = False                     # noise sized the tolerances (start())
+        self._noise_measured = None             # (center, noise): the clocked agent's
         self._store = PovStore(self.params.n_samples, self.n_motors)
         # One motor state of every POV whose walk came back split (remember_split_povs).
         self._split_states = np.zeros((0, self.n_motors))
@@ -233,18 +234,17 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
         return agent
 
     def _measure_body(self, m0: np.ndarray, seed: int) -> np.ndarray:
-        """Noise and structure at the start (``noise.measure_body``), the
-        start left for one of full measured rank where it is degenerate
-        (``start.choose_start``), the tolerances sized from both; returns
-        the start (phases)."""
+        """Noise and structure at the start (``noise.measure_body``), the start left for
+        one of full measured rank where it is degenerate (``start.choose_start``), the
+        tolerances sized from both; returns the start (phases)."""
         given = self.params
-        self.structure, self.params = measure_body(self._body, m0, given)
+        self.structure, self.params = measure_body(self._body, m0, given, self._noise_measured)
         # The step grows above the given one only where noise, not round-off, sized it.
         noisy = self.params.fd_step > given.fd_step
         m0, self.start_choice = choose_start(self._body, m0, self.structure, self.params, seed,
                                              self.structure.noise if noisy else None)
         if self.start_choice is not None and self.start_choice.moved:
-            self.structure, self.params = measure_body(self._body, m0, given)
+            self.structure, self.params = measure_body(self._body, m0, given, self._noise_measured)
         self._fd_step = finite_difference_step(self.params, self.structure,
                                                self._body.n_sensors)
         self.params = averaged_search_params(self.params, self.structure,

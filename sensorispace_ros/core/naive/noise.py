@@ -34,7 +34,7 @@ direction the averaging budget (``structure_max_repeats``) would count
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import chi2
@@ -61,7 +61,8 @@ class SensoryNoise:
     float64 round-off of the outputs. ``lost_fraction`` the share of
     sensed rows that came back non-finite; ``slope`` how fast the sensation
     changes along the ladder's line (sensation per phase radian, at its
-    coarser steps), a first measure of the sensory gain."""
+    coarser steps), a first measure of the sensory gain. ``center``: the
+    sensation of the state it was measured at (the median of its repeats)."""
 
     sd: float
     repeat_sd: float
@@ -69,6 +70,7 @@ class SensoryNoise:
     lost_fraction: float
     slope: float = 0.0
     quantum: float = 0.0
+    center: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def rounded(self) -> bool:
@@ -210,7 +212,9 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
         sd = max(repeat_sd, quantum / np.sqrt(12.0), roundoff)
     else:
         quantum = 0.0
-    return SensoryNoise(sd, repeat_sd, ladder_sd, lost, line_slope(lines), quantum)
+    with np.errstate(all="ignore"):
+        seen = np.nanmedian(np.where(np.isfinite(sensed[:repeats]), sensed[:repeats], np.nan), 0)
+    return SensoryNoise(sd, repeat_sd, ladder_sd, lost, line_slope(lines), quantum, seen)
 
 
 # Accepted sensory errors a match may add up: an anchor is an earlier
@@ -236,13 +240,16 @@ def sized_fd_step(params: NaiveParams, noise_sd: float, slope: float, n_sensors:
     return float(max(params.fd_step, min(params.fd_max_step, wanted)))
 
 
-def measure_body(body, center: np.ndarray, params: NaiveParams):
+def measure_body(body, center: np.ndarray, params: NaiveParams, noise_measured=None):
     """Noise, then structure (at the step sized from the noise, probes
     averaged while the noise hides the rank). Returns ``(BodyStructure,
-    sized NaiveParams)``; every row goes through ``body.sense``."""
+    sized NaiveParams)``; every row goes through ``body.sense``.
+    ``noise_measured(center, noise)``, if given, is called between the two."""
     n_sensors = int(body.n_sensors)
     noise = measure_noise(body, center, repeats=params.noise_repeats,
                           line_rows=params.noise_repeats)
+    if noise_measured is not None:
+        noise_measured(center, noise)
     step = sized_fd_step(params, noise.sd, noise.slope, n_sensors)
     if noise.rounded:
         structure = rounded_structure(body, center, params)
