@@ -164,9 +164,12 @@ def start_clocked(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_bu
     before and after ``start`` and compared by the noise the start measured,
     and watches every call of the start once that noise is known
     (``ClockedAgent.start``); a start the world changed under is made again
-    by a new agent (its rows counted as lost). Returns the agent, the start's
-    first row and the rows lost."""
-    lost = 0
+    by a new agent (its rows counted as lost). A start is kept only with at
+    least the highest pose rank a start cut after its structure measured:
+    a world that shows the start state less than another did gives a lower
+    rank, never a higher one. Returns the agent, the start's first row and
+    the rows lost."""
+    lost, rank_seen = 0, 0
     while True:
         first_row = body.row
         agent = ClockedAgent(SensingOnly(body), params, sweep_budget=sweep_budget)
@@ -175,11 +178,14 @@ def start_clocked(body, m0: np.ndarray, seed: int, params: NaiveParams, sweep_bu
             agent.start(m0, seed=seed)
         except WorldChanged:
             lost += agent.queries_total
+            if agent.structure is not None:         # measured before the cut, in one world
+                rank_seen = max(rank_seen, agent.structure.pose_rank)
             continue
         after = agent.sense_again(m0)[0]
         rest_now = agent.sense_again(agent.rest_motor_state)[0]
         if not (change_detection.differs(agent.noise_sd, before, after) or
-                change_detection.differs(agent.noise_sd, agent.anchor_sensation, rest_now)):
+                change_detection.differs(agent.noise_sd, agent.anchor_sensation, rest_now)) \
+                and agent.structure.pose_rank >= rank_seen:
             return agent, first_row, lost
         lost += agent.queries_total
 
