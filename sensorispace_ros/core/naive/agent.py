@@ -87,6 +87,7 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
     ``start``, then those sized from the noise it measured
     (``noise.measure_body``; unchanged on a noiseless body).
     """
+    _noise_measured = None      # called (center, noise) once the start measured its noise
 
     def __init__(self, body, params: NaiveParams | None = None):
         self.params = params if params is not None else NaiveParams()
@@ -115,7 +116,6 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
         self._fd_step = self.params.fd_step     # every Jacobian's step, sized by start()
         self._repeats = 1                       # sensings averaged per anchor, sized by start()
         self._noisy = False                     # noise sized the tolerances (start())
-        self._noise_measured = None             # (center, noise): the clocked agent's
         self._store = PovStore(self.params.n_samples, self.n_motors)
         # One motor state of every POV whose walk came back split (remember_split_povs).
         self._split_states = np.zeros((0, self.n_motors))

@@ -198,15 +198,14 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
 
     def start(self, initial_motor_state, seed: int = 0):
         """``NaiveAgent.start``, its rows after the noise call watched by the
-        start state (``_watch_start``): a change cuts it (``WorldChanged``)."""
+        start state (``_noise_measured``): a change cuts it (``WorldChanged``)."""
         self._seed = int(seed)
-        self._noise_measured = self._watch_start
         try:
             return super().start(initial_motor_state, seed=seed)
         finally:
             self._tripwire.disarm()
 
-    def _watch_start(self, center: np.ndarray, noise) -> None:
+    def _noise_measured(self, center: np.ndarray, noise) -> None:
         """Once the start measured its noise at ``center`` (phases): that state
         is the sentinel of every later call of the start, held to what its
         repeats in the noise call sensed. A start is made in one world; a
