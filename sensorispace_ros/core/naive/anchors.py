@@ -23,6 +23,7 @@ from scipy.stats import chi2
 from sensorispace_ros.core.naive.confirm import Provisional, settle_provisional, verify_matches
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     check_pose_rank, match_counted, match_noise)
+from sensorispace_ros.core.naive.match_discrepancy import sweep_discrepancy
 from sensorispace_ros.core.naive.neighbours import (Neighbours, held_by_neighbours,
     matched_neighbours)
 from sensorispace_ros.core.naive.points_of_view import jacobian_stencil
@@ -228,10 +229,13 @@ class SnapshotMatching:
         ``rank_now`` ``(K,)`` holds the ranks the matches carry over (a
         match senses the same relative pose in the same light layout)."""
         rank_now = np.full(len(current), RANK_UNKNOWN)
+        noise_sd = match_noise(self.structure.noise, self.structure.repeat_noise,
+                               self.structure.quantum) if self._noisy else 0.0
+        self._discrepancy = sweep_discrepancy(self._pool, current, noise_sd) \
+            if noise_sd > 0 and self.params.match_discrepancy else 0.0
         match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
                      ratio=self._tol.ratio, confidence=self.params.noise_confidence,
-                     noise_sd=match_noise(self.structure.noise, self.structure.repeat_noise,
-                                          self.structure.quantum) if self._noisy else 0.0)
+                     noise_sd=noise_sd, discrepancy=self._discrepancy)
         matches = []
         for snap in self._pool:
             before, after = match_counted(snap.sensations, current, counts=snap.counts, **match)
@@ -339,7 +343,8 @@ class SnapshotMatching:
                 self.structure.noise ** 2 / counts, noise_sd=self.structure.noise,
                 repeats=min(self._repeats, 4 * int(counts.max())), rank=self.structure.pose_rank,
                 fd_step=self._fd_step, confidence=self.params.noise_confidence, max_error=error,
-                max_step=_HIT_SHARE * error, min_singular=self._pinning_floor())
+                max_step=_HIT_SHARE * error, min_singular=self._pinning_floor(),
+                discrepancy=self._discrepancy)
             good = precise | (located & (self._repeats > 1))
             kept.append((before[good], after[good]))
         return kept

@@ -102,7 +102,7 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
 def verify_matches(body, states: np.ndarray, targets: np.ndarray,
                    target_variance: np.ndarray, *, noise_sd: float, repeats: int, rank: int,
                    fd_step: float, confidence: float, max_error: float, max_step: float,
-                   min_singular: float = 0.0):
+                   min_singular: float = 0.0, discrepancy: float = 0.0):
     """Known POVs ``states`` ``(K, M)`` matched by a sweep to the rows
     ``targets`` ``(K, S)`` of one snapshot (per-receptor variance
     ``target_variance`` ``(K,)``), each sensed ``repeats`` times with its
@@ -114,7 +114,9 @@ def verify_matches(body, states: np.ndarray, targets: np.ndarray,
     * ``located``: the POV is the one the row sensed, to what the noise of
       the row lets any test tell: its fresh average reproduces the target
       within the ``confidence`` quantile of chi-square with ``S`` degrees of
-      freedom, its Jacobian's ``rank``-th singular value stands above
+      freedom (the variance of the two plus ``discrepancy``, what matched
+      POVs differ by beyond their noise: ``match_discrepancy``), its
+      Jacobian's ``rank``-th singular value stands above
       ``min_singular``, and the located matches of the snapshot together
       pass the same test with ``S`` degrees of freedom per match, or none
       is located (``pooled_within_noise``): every row of one snapshot moved
@@ -138,7 +140,7 @@ def verify_matches(body, states: np.ndarray, targets: np.ndarray,
                            (max_error, min_singular), max_step)
     singular = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
     with np.errstate(invalid="ignore"):
-        statistic = np.sum(residual ** 2, axis=1) / variances[0]
+        statistic = np.sum(residual ** 2, axis=1) / (variances[0] + discrepancy)
     alone = whole & np.isfinite(statistic) & (singular > min_singular) & \
         (statistic <= chi2.ppf(confidence, n_sensors))
     return precise, pooled_within_noise(statistic, alone, n_sensors, confidence)

@@ -161,16 +161,19 @@ def noisy_matches(reference: np.ndarray, current: np.ndarray, *, reference_var: 
 
 
 def match_counted(reference: np.ndarray, current: np.ndarray, *, counts=None,
-                  noise_sd: float = 0.0, confidence: float = 0.999, tree=None, **tolerances):
+                  noise_sd: float = 0.0, confidence: float = 0.999, tree=None,
+                  discrepancy: float = 0.0, **tolerances):
     """``noisy_matches`` where the agent measured noise (``noise_sd > 0``;
     ``reference`` rows averaged ``counts`` sensings each, None: one, ``current``
-    rows one each), else ``match_sensations`` with ``tolerances``."""
+    rows one each; ``discrepancy`` the per-receptor variance matched POVs
+    differ by beyond it, ``match_discrepancy``), else ``match_sensations``
+    with ``tolerances``."""
     if noise_sd <= 0:
         return match_sensations(reference, current, tree=tree, **tolerances)
     sd2 = float(noise_sd) ** 2
     counts = np.ones(len(reference)) if counts is None else np.asarray(counts, dtype=float)
-    return noisy_matches(reference, current, reference_var=sd2 / counts, current_var=sd2,
-                         confidence=confidence, tree=tree)
+    return noisy_matches(reference, current, reference_var=sd2 / counts + discrepancy,
+                         current_var=sd2, confidence=confidence, tree=tree)
 
 
 def match_noise(noise: float, repeat_noise: float, quantum: float) -> float:
