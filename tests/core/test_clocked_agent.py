@@ -88,6 +88,15 @@ def _agent_in_two_worlds(world, params, change_after: int, shift=(0.4, -0.3)):
     return agent, body
 
 
+def _noisy_smoke_in_two_worlds():
+    """The smoke world with receptor noise 1e-6, its params, and its lights
+    before and after a shift (a start of thousands of rows)."""
+    cfg = config.load_config(SMOKE, {"world.retina.noise": 1e-6})
+    world = run_world(cfg)
+    lights = np.asarray(world.initial_lights, dtype=float)
+    return world, NaiveParams(**cfg["naive"]), [lights, lights + np.array([0.4, -0.3])]
+
+
 def test_a_change_stops_the_start_at_its_next_call_and_the_start_is_made_again():
     # The start watches its start state once its noise is measured: a change
     # stops it within a call, not after all its rows, and the start made
@@ -97,11 +106,8 @@ def test_a_change_stops_the_start_at_its_next_call_and_the_start_is_made_again()
     from sensorispace_ros.core.naive.clocked_agent import ClockedAgent, WorldChanged
     from sensorispace_ros.core.world_clock import ClockedBody
 
-    cfg = config.load_config(SMOKE, {"world.retina.noise": 1e-6})
-    world = run_world(cfg)
-    params = NaiveParams(**cfg["naive"])
-    lights = np.asarray(world.initial_lights, dtype=float)
-    worlds = [lights, lights + np.array([0.4, -0.3])]
+    world, params, worlds = _noisy_smoke_in_two_worlds()
+    lights = worlds[0]
     calm = ClockedBody(world.body(lights=lights), worlds, np.array([10 ** 9]))
     ClockedAgent(SensingOnly(calm), params).start(world.m0, seed=world.seed)
     whole = calm.row                               # the start's rows in one world
@@ -116,6 +122,30 @@ def test_a_change_stops_the_start_at_its_next_call_and_the_start_is_made_again()
     assert first_row == lost < 2 * change
     assert again.state_at(first_row) == again.state_at(again.row - 1) == 1
     assert agent.structure.pose_rank == 3 and agent.points_of_view.shape[0] == 1
+
+
+def test_a_change_among_the_start_states_repeats_is_not_taken_for_noise():
+    # The start senses its start state 16 times in its first call (rows 1-16
+    # after start_clocked's own look at it); a change after the eighth puts
+    # the repeats in two worlds, half and half. The noise measured is the receptors' (the
+    # last world's repeats), so start_clocked sees that the start state
+    # changed and makes the start again; a noise the size of the change
+    # would have hidden it and been kept.
+    from sensorispace_ros.core.body import SensingOnly
+    from sensorispace_ros.core.clocked_run import start_clocked
+    from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
+    from sensorispace_ros.core.world_clock import ClockedBody
+
+    world, params, worlds = _noisy_smoke_in_two_worlds()
+    lights = worlds[0]
+    calm = ClockedAgent(SensingOnly(ClockedBody(world.body(lights=lights), worlds,
+                                                np.array([10 ** 9]))), params)
+    calm.start(world.m0, seed=world.seed)
+    body = ClockedBody(world.body(lights=lights), worlds, np.array([9]))
+    agent, first_row, lost = start_clocked(body, world.m0, world.seed, params, 64)
+    assert lost > 0 and body.state_at(first_row) == 1
+    assert agent.noise_sd < 1.5 * calm.noise_sd
+    assert agent.structure.pose_rank == 3
 
 
 def test_a_start_made_again_where_the_start_state_sees_less_is_not_kept():

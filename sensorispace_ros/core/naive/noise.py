@@ -6,7 +6,8 @@ shows in the sensations as more noise. The agent is told none of this. It
 senses, once, in one ``sense`` call:
 
 * the start state several times: the spread of the repeats is the random
-  part of the noise (joint imprecision included);
+  part of the noise (joint imprecision included; of the repeats after a
+  change of the world among them, ``repeat_step``);
 * short straight lines through the start with steps on a ladder from tiny
   to coarse: second differences along a line remove the smooth signal (up
   to the step squared times its curvature) and keep the errors. A
@@ -41,12 +42,11 @@ from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.jacobians import AveragedStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.repeat_step import last_world_start, robust_sd
 from sensorispace_ros.core.naive.structure import (BodyStructure, measure_structure,
                                                    probe_rows, probe_structure,
                                                    repeat_variance, rounded_structure)
 
-# MAD -> standard deviation of a normal distribution.
-_MAD_TO_SD = 1.482602218505602
 # Fixed direction of the ladder's lines (any body's motor space).
 _GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
 
@@ -101,13 +101,6 @@ def noise_rows(center: np.ndarray, repeats: int, line_rows: int) -> np.ndarray:
     lines = center + ladder_steps()[:, None, None] * k * direction
     return np.vstack([np.repeat(center[None], repeats, axis=0),
                       lines.reshape(-1, len(center))])
-
-
-def robust_sd(deviations: np.ndarray) -> float:
-    """``1.4826 * median |deviation|`` of the finite entries (0 if none)."""
-    values = np.abs(np.asarray(deviations, dtype=float))
-    values = values[np.isfinite(values)]
-    return float(_MAD_TO_SD * np.median(values)) if len(values) else 0.0
 
 
 def repeat_spread(repeats: np.ndarray) -> float:
@@ -199,13 +192,15 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
             raise ValueError(f"{name} must be an integer >= 3, got {value}")
     sensed = np.asarray(body.sense(noise_rows(center, repeats, line_rows)), dtype=float)
     lost = float(np.mean(~np.all(np.isfinite(sensed), axis=1)))
-    repeat_sd = repeat_spread(sensed[:repeats])
+    quantum = output_lattice(sensed)
+    # A world that changed during the repeats: only its last world's count.
+    repeated = sensed[last_world_start(sensed[:repeats], quantum):repeats]
+    repeat_sd = repeat_spread(repeated)
     lines = sensed[repeats:].reshape(len(ladder_steps()), line_rows, -1)
     ladder_sd = ladder_spread(lines)
     finite = sensed[np.isfinite(sensed)]
     roundoff = np.finfo(float).eps * (float(np.max(np.abs(finite))) if len(finite) else 0.0)
     sd = max(repeat_sd, ladder_sd, roundoff)
-    quantum = output_lattice(sensed)
     if quantum > 0 and repeat_sd < 0.5 * sd:
         # Rounding to a lattice errs uniformly within half a step: sd
         # quantum / sqrt(12) (second differences of rounded values see more).
@@ -213,7 +208,7 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
     else:
         quantum = 0.0
     with np.errstate(all="ignore"):
-        seen = np.nanmedian(np.where(np.isfinite(sensed[:repeats]), sensed[:repeats], np.nan), 0)
+        seen = np.nanmedian(np.where(np.isfinite(repeated), repeated, np.nan), 0)
     return SensoryNoise(sd, repeat_sd, ladder_sd, lost, line_slope(lines), quantum, seen)
 
 
