@@ -98,7 +98,8 @@ class _Staged:
 
 def _matching_agent(repeats, noisy=True):
     """The parts of a NaiveAgent ``_verify_matches`` reads: 8 known POVs,
-    one snapshot whose rows sensed them once, matches row k -> POV k."""
+    one snapshot whose rows sensed them once, matches row k -> POV k; no
+    discrepancy measured beyond the noise (``naive.match_discrepancy`` off)."""
     exact = RankTwoBody()
     states = TARGET_STATE + np.outer(np.linspace(-0.2, 0.2, 8), [1.0, 0.0, 0.5])
     rows = ImperfectSensing(exact, seed=12, noise=1e-4).sense(states)
@@ -108,7 +109,7 @@ def _matching_agent(repeats, noisy=True):
         _store=SimpleNamespace(samples=states[:, None, :]),
         _body=_Staged(ImperfectSensing(exact, seed=13, noise=1e-4)),
         structure=SimpleNamespace(noise=1e-4, pose_rank=2), _fd_step=SymmetricStep(0.02),
-        _max_pose_error=lambda: 1e-3, _pinning_floor=lambda: 0.0)
+        _max_pose_error=lambda: 1e-3, _pinning_floor=lambda: 0.0, _discrepancy=0.0)
 
 
 def test_the_agent_keeps_located_matches_only_where_repeats_spread():

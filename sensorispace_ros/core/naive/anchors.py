@@ -222,6 +222,8 @@ class SnapshotMatching:
     ``_repeats``, ``_noisy``, ``_search_plan`` and ``_confirm`` (``searching``),
     ``_frontier_order`` and ``_frontier_budget`` (``frontier``)."""
 
+    _discrepancy = 0.0      # this sweep's, set by _match_snapshots (match_discrepancy)
+
     def _match_snapshots(self, current, tree):
         """Match every snapshot's sweep, and its anchor, with this sweep
         ``current``. Returns ``(matches [(before, after), ...], rest_hits
