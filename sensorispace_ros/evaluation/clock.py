@@ -37,9 +37,10 @@ def clock_metrics(run, world) -> dict:
     n_povs = len(run.povs)
     # Every motor state probed: the starts a change cut were moves too.
     probed = run.agent.queries_total + int(truth.start_lost_rows)
+    per_pov = probed / max(n_povs, 1)
     return {
         "naive.queries_total": int(probed),
-        "naive.queries_total_per_pov": probed / n_povs if n_povs else float(probed),
+        "naive.queries_total_per_pov": per_pov,
         "naive.accepted_across_change": int(np.sum(across)),
         "naive.clock.changes": int(len(truth.change_row)),
         "naive.clock.rows": int(truth.rows),
@@ -48,7 +49,7 @@ def clock_metrics(run, world) -> dict:
         "naive.clock.undone_reactions": int(truth.undone),
         "naive.clock.salvaged_povs": int(truth.salvaged),
         "naive.clock.reactions": int(len(truth.event_states) - 1),
-        "naive.clock.queries_per_pov": probed / max(n_povs, 1),
+        "naive.clock.queries_per_pov": per_pov,
         "naive.clock.start_lost_rows": int(truth.start_lost_rows),
         "naive.clock.pending_povs": int(truth.pending_povs),
         "naive.clock.crossed_reactions": int(truth.crossed),

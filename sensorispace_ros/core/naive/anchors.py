@@ -233,7 +233,7 @@ class SnapshotMatching:
         rank_now = np.full(len(current), RANK_UNKNOWN)
         noise_sd = match_noise(self.structure.noise, self.structure.repeat_noise,
                                self.structure.quantum) if self._noisy else 0.0
-        self._discrepancy = sweep_discrepancy(self._pool, current, noise_sd) \
+        self._discrepancy = sweep_discrepancy(self._pool, current, noise_sd, tree) \
             if noise_sd > 0 and self.params.match_discrepancy else 0.0
         match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
                      ratio=self._tol.ratio, confidence=self.params.noise_confidence,

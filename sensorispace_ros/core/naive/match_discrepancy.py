@@ -31,27 +31,31 @@ from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
+from sensorispace_ros.core.naive.equality_sets import finite_rows
+
 # A pair is clear of every other row when it lies this many times nearer.
 _CLEAR = 0.1
 # Clear pairs below which the excess is not measured.
 _MIN_PAIRS = 8
 
 
-def clear_pairs(reference: np.ndarray, current: np.ndarray):
+def clear_pairs(reference: np.ndarray, current: np.ndarray, tree: cKDTree | None = None):
     """Rows ``(i, j)`` of ``reference`` and ``current`` that are each
     other's nearest neighbour, ``_CLEAR`` times nearer each other than to
-    the next row on either side; finite rows only."""
+    the next row on either side; finite rows only. ``tree``: a ``cKDTree``
+    of ``finite_rows(current, -1)`` (``equality_sets``) to reuse across calls."""
     empty = np.zeros(0, dtype=int)
     ref_rows = np.flatnonzero(np.all(np.isfinite(reference), axis=1))
-    cur_rows = np.flatnonzero(np.all(np.isfinite(current), axis=1))
-    if len(ref_rows) < 2 or len(cur_rows) < 2:
+    if len(ref_rows) < 2 or np.sum(np.all(np.isfinite(current), axis=1)) < 2:
         return empty, empty
-    ref, cur = reference[ref_rows], current[cur_rows]
-    forward, nearest = cKDTree(cur).query(ref, k=2)
-    backward, back = cKDTree(ref).query(cur[nearest[:, 0]], k=2)
+    ref = reference[ref_rows]
+    # Lost rows of ``current`` lie at -LOST_ROW: never among a finite row's two nearest.
+    tree = cKDTree(finite_rows(current, -1.0)) if tree is None else tree
+    forward, nearest = tree.query(ref, k=2)
+    backward, back = cKDTree(ref).query(current[nearest[:, 0]], k=2)
     clear = (back[:, 0] == np.arange(len(ref))) & \
         (forward[:, 0] < _CLEAR * forward[:, 1]) & (forward[:, 0] < _CLEAR * backward[:, 1])
-    return ref_rows[clear], cur_rows[nearest[clear, 0]]
+    return ref_rows[clear], nearest[clear, 0]
 
 
 def match_discrepancy(differences: np.ndarray, noise_var: np.ndarray) -> float:
@@ -75,14 +79,16 @@ def match_discrepancy(differences: np.ndarray, noise_var: np.ndarray) -> float:
                         rtol=1e-6))
 
 
-def sweep_discrepancy(snapshots, current: np.ndarray, noise_sd: float) -> float:
+def sweep_discrepancy(snapshots, current: np.ndarray, noise_sd: float,
+                      tree: cKDTree | None = None) -> float:
     """``match_discrepancy`` of the clear pairs of every snapshot's rows
     (``sensations``; ``counts`` the sensings averaged in each, None: one)
-    with the sweep ``current`` (one sensing a row), ``noise_sd`` the noise
-    of one sensing per receptor."""
+    with the sweep ``current`` (one sensing a row; ``tree`` as ``clear_pairs``
+    takes it), ``noise_sd`` the noise of one sensing per receptor."""
     differences, variances = [], []
+    tree = cKDTree(finite_rows(current, -1.0)) if tree is None and len(current) else tree
     for snap in snapshots:
-        before, after = clear_pairs(snap.sensations, current)
+        before, after = clear_pairs(snap.sensations, current, tree)
         counts = np.ones(len(before)) if snap.counts is None else snap.counts[before]
         differences.append(snap.sensations[before] - current[after])
         variances.append(noise_sd ** 2 * (1.0 / counts + 1.0))

@@ -54,8 +54,9 @@ def last_world_start(repeats: np.ndarray, quantum: float = 0.0) -> int:
     splits = np.arange(_MIN_PART, n_rows - _MIN_PART + 1)
     if not len(splits):
         return 0
-    deviations = [np.concatenate([rows[:k] - np.median(rows[:k], axis=0),
-                                  rows[k:] - np.median(rows[k:], axis=0)]) for k in splits]
+    medians = [(np.median(rows[:k], axis=0), np.median(rows[k:], axis=0)) for k in splits]
+    deviations = [np.concatenate([rows[:k] - before, rows[k:] - after])
+                  for k, (before, after) in zip(splits, medians)]
     best = int(np.argmin([np.sum(np.abs(d)) for d in deviations]))
     k = int(splits[best])
     spread = robust_sd(deviations[best])
@@ -63,5 +64,5 @@ def last_world_start(repeats: np.ndarray, quantum: float = 0.0) -> int:
         return 0
     z = norm.isf(_FALSE_STEP / (2.0 * len(splits) * n_sensors))
     error = max(spread * np.sqrt(0.5 * np.pi * (1.0 / k + 1.0 / (n_rows - k))), quantum)
-    gap = np.max(np.abs(np.median(rows[k:], axis=0) - np.median(rows[:k], axis=0)))
+    gap = np.max(np.abs(medians[best][1] - medians[best][0]))
     return int(finite[k]) if gap > z * error else 0
