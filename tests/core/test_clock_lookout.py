@@ -7,6 +7,7 @@ import pytest
 from sensorispace_ros import config
 from sensorispace_ros.core.body import SensingOnly
 from sensorispace_ros.core.clocked_run import ClockedRun, drive
+from sensorispace_ros.core.naive.clock_witnesses import LOOKOUT_TRIES, brightest
 from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.run_world import run_world
@@ -98,3 +99,71 @@ def test_no_reaction_is_kept_across_the_unseen_change(blind_rest):
     # made again in world B.
     assert run.undone > seen["undone"]
     assert tuple(states[-1]) == (LEARN + 2, LEARN + 2)
+
+
+def test_the_brightest_sentinel_must_sense_something():
+    states = np.arange(6.0).reshape(3, 2)
+    dark = np.zeros((3, 4))
+    assert brightest(states, dark, 0.0) is None
+    # Within the noise of nothing is nothing; a NaN row is never chosen.
+    assert brightest(states, np.full((3, 4), 1e-4), 1e-3) is None
+    sensed = np.array([[0.1, 0, 0, 0], [np.nan, 5, 5, 5], [0.3, 0.2, 0, 0]])
+    state, sensation = brightest(states, sensed, 1e-3)
+    np.testing.assert_array_equal(state, states[2])
+    np.testing.assert_array_equal(sensation, sensed[2])
+
+
+class _Switched:
+    """The smoke world's body under light layouts the test switches between."""
+
+    def __init__(self, world, lights):
+        self.world, self.lights = world, lights
+        self.n_motors, self.n_sensors = 4, world.body(lights=lights).n_sensors
+
+    def sense(self, motor_states):
+        return _sensation(self.world, self.lights, motor_states)
+
+
+@pytest.fixture(scope="module")
+def started_agent():
+    """An agent started in the smoke world, then the lights moved where some
+    of its known POVs sense something and at least 5 random states nothing:
+    ``(world, agent, dark states, lit states, the moved lights)``."""
+    cfg = config.load_config(SMOKE)
+    world = run_world(cfg)
+    body = _Switched(world, np.asarray(world.initial_lights, dtype=float))
+    agent = ClockedAgent(SensingOnly(body), NaiveParams(**cfg["naive"]))
+    agent.start(world.m0, seed=world.seed)
+    known = agent._to_body(agent.points_of_view[:, 0])
+    states = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(400, agent.n_motors))
+    for dx in np.linspace(-6.0, 6.0, 13):
+        for dy in np.linspace(-6.0, 6.0, 13):
+            moved = body.lights + np.array([dx, dy])
+            sensed = _sensation(world, moved, states)
+            dark = ~np.any(sensed, axis=1)
+            if dark.sum() >= 5 and (~dark).sum() and \
+                    np.max(np.linalg.norm(_sensation(world, moved, known), axis=1)) > 0.05:
+                body.lights = moved
+                return world, agent, states[dark], states[~dark], moved
+    raise AssertionError("no light layout with dark states and lit known POVs")
+
+
+def test_sentinels_that_sense_nothing_take_a_known_pov_that_senses_something(started_agent):
+    world, agent, dark, _, lights = started_agent
+    assert len(dark) >= 5 and agent._store.count > 0
+    agent._lookouts = agent._phase.to_phase(dark[1:5])
+    rows = agent.queries_total
+    agent.sense_sentinels(dark[0])
+    state, held = agent._lookout
+    np.testing.assert_allclose(held, _sensation(world, lights, state)[0])
+    assert np.any(held)
+    # The rest and the 4 candidates, then the known POVs in turn, at most LOOKOUT_TRIES.
+    assert 5 < agent.queries_total - rows <= 5 + LOOKOUT_TRIES
+
+
+def test_a_resting_state_that_senses_something_needs_no_more_rows(started_agent):
+    _, agent, dark, lit, _ = started_agent
+    agent._lookouts = agent._phase.to_phase(dark[1:5])
+    rows = agent.queries_total
+    agent.sense_sentinels(lit[0])
+    assert agent.queries_total - rows == 5 and agent._lookout is None

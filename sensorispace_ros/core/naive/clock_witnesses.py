@@ -1,12 +1,16 @@
 """What a reaction of the agent on a clock senses again, once done, to tell
 whether the world changed while it worked.
 
-A change the resting state does not see (it senses nothing before and
-after) shows in the *witnesses*: the swept POVs that sensed most in the
-reaction's sweep (``ClockedAgent._sweep_known`` holds them) and, from what
-it sensed since the change, the states that sensed most in each half of the
-reaction. ``check_reaction`` senses them with the resting states in one
-call: one round trip in the graph.
+A reaction's sentinels (``ClockedAgent.sense_sentinels``) are its resting
+state and a *lookout* that senses something (``brightest``): where the
+resting state and every candidate sense nothing, known POVs are sensed in
+turn for one (``_lookout_among_known``). A change the resting state does
+not see (it senses nothing before and after) shows in the *witnesses*: the
+swept POVs that sensed most in the reaction's sweep
+(``ClockedAgent._sweep_known`` holds them) and, from what it sensed since
+the change, the states that sensed most in each half of the reaction.
+``check_reaction`` senses them with the resting states in one call: one
+round trip in the graph.
 """
 from __future__ import annotations
 
@@ -15,12 +19,47 @@ import numpy as np
 from sensorispace_ros.core.naive import change_detection
 
 WITNESSES = 4        # swept POVs sensed again after a reaction
+LOOKOUT_TRIES = 16   # known POVs sensed for a lookout when the sentinels sense nothing
+
+
+def brightest(states: np.ndarray, sensed: np.ndarray, noise_sd: float):
+    """``(state, sensation)`` of the state that sensed most, if its sensation
+    tells from nothing (``change_detection.differs`` from zero); else None:
+    a sentinel that senses nothing sees a change only when light comes into
+    its view."""
+    if not len(states):
+        return None
+    lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+    best = int(np.argmax(lit))
+    if lit[best] < 0 or not change_detection.differs(noise_sd, np.zeros_like(sensed[best]),
+                                                     sensed[best]):
+        return None
+    return states[best].copy(), sensed[best].copy()
+
+
+def senses_nothing(noise_sd: float, sensed: np.ndarray) -> bool:
+    """Whether ``sensed`` does not tell from nothing."""
+    return not change_detection.differs(noise_sd, np.zeros_like(sensed), sensed)
 
 
 class Witnesses:
     """Mixin of ``ClockedAgent``: needs its ``_body``, ``n_motors``,
-    ``noise_sd``, ``sense_again``, ``_to_body`` and ``_witnesses`` (the
-    sweep's, or None)."""
+    ``noise_sd``, ``sense_again``, ``_to_body``, ``_store`` and ``_witnesses``
+    (the sweep's, or None)."""
+
+    def _lookout_among_known(self):
+        """A lookout for a reaction whose resting state and lookout candidates
+        all sense nothing (a change there would pass unseen until the
+        reaction's end): the next ``LOOKOUT_TRIES`` known POVs in turn, sensed
+        in one call; the one that senses most (``brightest``), or None."""
+        count = self._store.count
+        if count == 0:
+            return None
+        start = getattr(self, "_lookout_cursor", 0) % count
+        chosen = (start + np.arange(min(LOOKOUT_TRIES, count))) % count
+        self._lookout_cursor = start + len(chosen)
+        states = self._to_body(self._store.samples[chosen, 0]).reshape(-1, self.n_motors)
+        return brightest(states, self.sense_again(states), self.noise_sd)
 
     def witnesses_moved(self) -> bool:
         """Sense again the witnesses of this reaction (``_witness_states``):

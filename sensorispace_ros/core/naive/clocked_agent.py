@@ -36,7 +36,8 @@ from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
 from sensorispace_ros.core.naive.clock_known import KnownNearby
 from sensorispace_ros.core.naive.clock_walks import BriefWalks
-from sensorispace_ros.core.naive.clock_witnesses import WITNESSES, Witnesses
+from sensorispace_ros.core.naive.clock_witnesses import (WITNESSES, Witnesses, brightest,
+                                                         senses_nothing)
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
 from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
 from sensorispace_ros.core.naive.params import NaiveParams
@@ -158,21 +159,18 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
     def sense_sentinels(self, rest) -> np.ndarray:
         """Sense the resting state ``rest`` (body units) afresh, with the
         lookout candidates (the last sweep's witnesses, else the first known
-        POVs) after it in the same call; the candidate
-        that sensed most becomes the lookout the next reaction watches beside
-        its resting state (``change_detection.Tripwire``): a resting state that senses nothing
-        sees no change. Returns the resting state's sensation."""
+        POVs) after it in the same call; the candidate that sensed most, if it
+        senses something, becomes the lookout the next reaction watches beside
+        its resting state (``change_detection.Tripwire``): a resting state that
+        senses nothing sees no change. Where both sense nothing, known POVs in
+        turn (``_lookout_among_known``). Returns the resting state's sensation."""
         candidates = self._lookouts if self._lookouts is not None else \
             self._store.samples[:WITNESSES, 0]
         candidates = self._to_body(candidates).reshape(-1, self.n_motors)
         sensed = self.sense_again(np.vstack([np.asarray(rest, float)[None], candidates]))
-        self._lookout = None
-        if len(candidates):
-            found = sensed[1:]
-            lit = np.where(np.all(np.isfinite(found), axis=1), np.linalg.norm(found, axis=1), -1.0)
-            best = int(np.argmax(lit))
-            if lit[best] >= 0:
-                self._lookout = (candidates[best].copy(), found[best].copy())
+        self._lookout = brightest(candidates, sensed[1:], self.noise_sd)
+        if self._lookout is None and senses_nothing(self.noise_sd, sensed[0]):
+            self._lookout = self._lookout_among_known()
         return sensed[0]
 
     def walk_pending(self, sensed_at_rest) -> int:
