@@ -11,7 +11,7 @@ and largest, phases on the torus) beside the median distance from a POV of
 the run to its nearest::
 
     .venv/bin/sensorispace reproduce --strategy naive --config config/smoke.yaml --out /tmp/smoke
-    .venv/bin/python bench/brief_walks.py /tmp/smoke [--knots 4]
+    .venv/bin/python bench/brief_walks.py /tmp/smoke [--knots 4] [--secant 2]
 """
 from __future__ import annotations
 
@@ -59,11 +59,15 @@ def main() -> None:
     parser.add_argument("run", help="a lockstep naive run's directory (arrays.npz)")
     parser.add_argument("--knots", type=int, default=0,
                         help="naive.clock_pov_knots_per_step of the brief walk (0: the run's)")
+    parser.add_argument("--secant", type=int, default=0,
+                        help="naive.clock_pov_secant_calls of the brief walk (0: the run's)")
     args = parser.parse_args()
     arrays = np.load(f"{args.run}/arrays.npz")
     cfg = json.loads(str(arrays["config_json"]))
     if args.knots:
         cfg["naive"]["clock_pov_knots_per_step"] = args.knots
+    if args.secant:
+        cfg["naive"]["clock_pov_secant_calls"] = args.secant
     world = run_world(cfg)
     params = NaiveParams(**cfg["naive"])
     full, brief = started(NaiveAgent, world, params), started(ClockedAgent, world, params)

@@ -67,7 +67,9 @@ def test_the_brief_walks_samples_lie_on_the_level_set(two_walks):
     body = world.body(lights=world.initial_lights)
     sensed = body.sense(agent._phase.to_body(brief))
     scale = np.max(np.abs(sensed[0]))
-    assert np.max(np.abs(sensed - sensed[0])) < 1e-5 * scale
+    # Its knots between two stencils were corrected with a secant Jacobian
+    # (clock_pov_secant_calls): they lie a little farther off than the stencil's.
+    assert np.max(np.abs(sensed - sensed[0])) < 1e-4 * scale
 
 
 def _pushed_brief_walk(agent, monkeypatch, push):
@@ -75,7 +77,7 @@ def _pushed_brief_walk(agent, monkeypatch, push):
     knot but the start pushed ``push`` times the walk's ``predictor_tol`` off
     the level set (along its Jacobian's strongest direction, one sign along
     the loop) before the samples are drawn from the knots."""
-    class Pushed(points_of_view.LoopWalk):
+    class Pushed:
         def resample(self, n_samples, polish_knots=True):
             for path, jacobians in zip(self.paths, self.jacobians_along):
                 along = None
@@ -85,7 +87,10 @@ def _pushed_brief_walk(agent, monkeypatch, push):
                         away = -away
                     path[k], along = path[k] + push * self.predictor_tol * away, away
             return super().resample(n_samples, polish_knots)
-    monkeypatch.setattr(points_of_view, "LoopWalk", Pushed)
+    # Whichever walk the agent takes (a stencil every call or secant knots).
+    for name in ("LoopWalk", "SecantLoopWalk"):
+        walk = getattr(points_of_view, name)
+        monkeypatch.setattr(points_of_view, name, type(name, (Pushed, walk), {}))
     state = agent.points_of_view[0, len(agent.points_of_view[0]) // 3][None]
     with agent._body.fresh():
         return agent._walk_povs(agent._phase.to_phase(state))

@@ -44,7 +44,8 @@ class BriefWalks:
             max_queries=self._walk_budget(), closure_tol=p.pov_closure_tol,
             checks=(p.rank_ratio, self._tol.min_singular, p.pattern_ratio),
             polish_iterations=p.clock_pov_polish_iterations,
-            checked_samples=p.clock_pov_checked_samples, noise_sd=self._walk_noise())
+            checked_samples=p.clock_pov_checked_samples, noise_sd=self._walk_noise(),
+            secant_calls=p.clock_pov_secant_calls)
 
     def _level_set_allowance(self, walk, n_samples: int, n_sensors: int) -> float:
         """``SearchAndSample._level_set_allowance``, and for a brief walk at

@@ -105,6 +105,7 @@ class NaiveParams:
     clock_pov_polish_iterations: int = _default("clock_pov_polish_iterations")
     clock_pov_checked_samples: int = _default("clock_pov_checked_samples")
     clock_pov_knots_per_step: int = _default("clock_pov_knots_per_step")
+    clock_pov_secant_calls: int = _default("clock_pov_secant_calls")
     clock_unconfirmed_when_lost: bool = _default("clock_unconfirmed_when_lost")
     clock_unconfirmed_min_rate: float = _default("clock_unconfirmed_min_rate")
 

@@ -26,6 +26,7 @@ from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, S
     UNSUPPORTED, VALID, SensoryPointsOfView, has_full_pose_rank, jacobian_stencil, jacobian_svd,
     minimum_norm_correction, sensory_jacobian)
 from sensorispace_ros.core.naive.loop_walk import LoopWalk, resample_loop_spline  # noqa: F401
+from sensorispace_ros.core.naive.secant_walk import SecantLoopWalk
 
 
 PERIOD = 2.0 * np.pi     # a joint's period in phases
@@ -231,7 +232,7 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
                      min_step: float, max_step: float, predictor_tol: float, max_queries: int,
                      closure_tol: float, checks: tuple, polish_iterations: int = 1,
                      knots_per_step: int = KNOTS_PER_STEP, min_loop_length: float = 0.3,
-                     checked_samples: int = 0, noise_sd: float = 0.0):
+                     checked_samples: int = 0, noise_sd: float = 0.0, secant_calls: int = 1):
     """1-D POVs of ``start`` ``(P, M)`` walked with fewer rows, for an agent
     whose world may change under a walk (``ClockedAgent``; docs/clock.md):
     the knots as the walk corrected them (``resample(polish_knots=False)``:
@@ -246,7 +247,9 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
     pattern_ratio)``; ``checked_samples`` > 0: only that many samples are
     sensed and stepped (``project``'s ``checked``); ``noise_sd``: the noise its
-    corrections leave alone, as the full walk's. Returns a ``SensoryPointsOfView``."""
+    corrections leave alone, as the full walk's; ``secant_calls`` > 1: a front
+    senses its stencil every that many calls (``secant_walk.SecantLoopWalk``).
+    Returns a ``SensoryPointsOfView``."""
     return _walk_loops(body, np.array(start, dtype=float, copy=True), rank=rank,
                        n_samples=n_samples, initial_step=initial_step, checks=checks,
                        polish=(polish_iterations, np.inf, predictor_tol, checked_samples),
@@ -254,16 +257,17 @@ def brief_loop_walks(body, start, *, rank: int, n_samples: int, fd_step, initial
                        fd_step=fd_step, min_step=min_step, max_step=max_step,
                        predictor_tol=predictor_tol, max_queries=max_queries,
                        min_loop_length=min_loop_length, knots_per_step=knots_per_step,
-                       closure_tol=closure_tol, noise_sd=noise_sd)
+                       closure_tol=closure_tol, noise_sd=noise_sd, secant_calls=secant_calls)
 
 
 def _walk_loops(body, start, *, rank, n_samples, initial_step, checks, polish,
-                polish_knots=True, **walk_parameters) -> SensoryPointsOfView:
+                polish_knots=True, secant_calls: int = 1, **walk_parameters) -> SensoryPointsOfView:
     """1-D POVs: ``LoopWalk`` from every start, resampled and polished.
     ``checks``: the start's rank test ``(rank_ratio, min_singular,
     pattern_ratio)``; ``polish``: ``(iterations, sample_tol[, step_tol[, checked]])``;
     ``polish_knots``: see ``LoopWalk.resample``."""
-    walk = LoopWalk(body, start, rank=rank, **walk_parameters)
+    walk = (SecantLoopWalk(body, start, rank=rank, refresh_calls=secant_calls, **walk_parameters)
+            if secant_calls > 1 else LoopWalk(body, start, rank=rank, **walk_parameters))
     walk.begin(*checks, initial_step)
     while len(walk.active):
         walk.advance()
