@@ -129,7 +129,8 @@ def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_react
           resume: bool = False) -> None:
     """The agent's life on the clock: it holds still at rest, walks the
     solutions a change cut, reacts to each change it detects; once
-    ``second_round()`` says the world replays its schedule, it spends
+    ``second_round()`` says the world replays its schedule, or the agent
+    finds that exploring no longer pays (``ClockedAgent.explored``), it spends
     ``equality_changes`` reactions on simulation 2 (``begin_equality_pass``).
     Ends when the body has no change left (a hold answers None). The loop's
     state is the run's (``reference``, ``reference_row``, ``equality_left``),
@@ -147,7 +148,8 @@ def drive(run: "ClockedRun", *, equality_changes: int, second_round, after_react
                 break
             if sensed is False:
                 continue
-        if agent.phase == EXPLORING and second_round() and run.equality_left:
+        if agent.phase == EXPLORING and (second_round() or agent.explored()) \
+                and run.equality_left:
             run.reference, run.reference_row = run.react(sensed, agent.begin_equality_pass)
             continue
         run.reference, run.reference_row = run.react(sensed)

@@ -39,6 +39,7 @@ from sensorispace_ros.core.naive.clock_walks import BriefWalks
 from sensorispace_ros.core.naive.clock_witnesses import (WITNESSES, Witnesses, brightest,
                                                          senses_nothing)
 from sensorispace_ros.core.naive.equality_sets import RANK_UNKNOWN, finite_rows
+from sensorispace_ros.core.naive.exploration_yield import ExplorationYield
 from sensorispace_ros.core.naive.jacobians import AveragedStep, CloudStep
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.searching import SearchAndSample
@@ -89,6 +90,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
         self.crossing = None        # a walk's change in this reaction (``_cross``)
         self.crossings = 0          # walks started again in a new world
         self._search_end = 0        # the tripwire's rows sent when the walks began
+        self._yield = ExplorationYield(self.params.clock_stop_ratio, self.params.clock_stop_window)
 
     # ------------------------------------------------------------ the clock
 
@@ -96,6 +98,11 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
     def noise_sd(self) -> float:
         """The per-receptor noise the agent measured (0 before ``start``)."""
         return 0.0 if self.structure is None else float(self.structure.noise)
+
+    def explored(self) -> bool:
+        """Whether exploring has stopped paying (``ExplorationYield``), from
+        the motor states probed and the POVs known now."""
+        return self._yield.explored(self.queries_total, self._store.count)
 
     @property
     def anchor_sensation(self) -> np.ndarray | None:

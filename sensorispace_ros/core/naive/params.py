@@ -108,6 +108,8 @@ class NaiveParams:
     clock_pov_secant_calls: int = _default("clock_pov_secant_calls")
     clock_unconfirmed_when_lost: bool = _default("clock_unconfirmed_when_lost")
     clock_unconfirmed_min_rate: float = _default("clock_unconfirmed_min_rate")
+    clock_stop_ratio: float = _default("clock_stop_ratio")
+    clock_stop_window: int = _default("clock_stop_window")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.
