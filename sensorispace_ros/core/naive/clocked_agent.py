@@ -5,7 +5,7 @@ driver (``core.clocked_run``) calls ``react`` when the agent's own test
 (``change_detection``) flags a change. What differs from the agent of a
 waiting world:
 
-* a reaction senses a bounded part of what it knows (``_sweep_known``):
+* a reaction senses a bounded part of what it knows (``clock_sweep``):
   its resting POV and ``sweep_budget`` more, in turn (a cursor walks
   through the known POVs); the others are unknowns this time, as a lost
   frame is. What a reaction costs does not grow with the POVs known. A
@@ -35,6 +35,7 @@ from sensorispace_ros.core.seeding import CounterStream
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
 from sensorispace_ros.core.naive.clock_known import KnownNearby
+from sensorispace_ros.core.naive.clock_sweep import BoundedSweep
 from sensorispace_ros.core.naive.clock_walks import BriefWalks
 from sensorispace_ros.core.naive.clock_witnesses import (WITNESSES, Witnesses, brightest,
                                                          senses_nothing)
@@ -66,7 +67,7 @@ class _CurrentTree:
         return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
 
 
-class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
+class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
@@ -283,36 +284,6 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, NaiveAgent):
             # Every call of the search before the walk passed its sentinel.
             self.pending = np.vstack([self.pending, cut])
         return kept
-
-    # ------------------------------------------------------ bounded sweeps
-
-    def _sweep_indices(self) -> np.ndarray:
-        """The known POVs this reaction senses: the resting one and the next
-        ``sweep_budget`` from the cursor (all when that is every one)."""
-        count = self._store.count
-        if count <= self.sweep_budget + 1:
-            return np.arange(count)
-        start = self._sweep_cursor % count
-        chosen = (start + np.arange(self.sweep_budget)) % count
-        self._sweep_cursor = start + self.sweep_budget
-        if self._rest_pov >= 0:
-            chosen = np.append(chosen, self._rest_pov)
-        return np.unique(chosen)
-
-    def _sweep_known(self) -> tuple[np.ndarray, np.ndarray]:
-        n_sensors = self._body.n_sensors
-        count = self._store.count
-        if count == 0:
-            return np.zeros((0, n_sensors)), np.zeros((0, n_sensors))
-        chosen = self._sweep_indices()
-        current = np.full((count, n_sensors), np.nan)
-        sensed = self._body.sense(self._store.samples[chosen, 0])
-        current[chosen] = sensed
-        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
-        top = np.argsort(-lit, kind="stable")[:WITNESSES]
-        self._witnesses = (self._store.samples[chosen[top], 0].copy(), sensed[top].copy())
-        self._lookouts = self._witnesses[0]
-        return current, np.zeros((0, n_sensors))
 
     def _anchor_requests(self, matches, rest_hits, rank_now, current=None):
         self._lost = not (np.any(np.asarray(rest_hits) >= 0) or

@@ -93,6 +93,7 @@ class NaiveParams:
     remember_sensations: bool = _default("remember_sensations")
     remember_split_povs: bool = _default("remember_split_povs")
     clock_sweep_budget: int = _default("clock_sweep_budget")
+    clock_sweep_first: int = _default("clock_sweep_first")
     clock_equality_changes: int = _default("clock_equality_changes")
     clock_equality_budget: int = _default("clock_equality_budget")
     clock_translated_pairs: int = _default("clock_translated_pairs")
