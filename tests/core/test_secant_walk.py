@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from sensorispace_ros import config
-from sensorispace_ros.core.naive import points_of_view
+from sensorispace_ros.core.naive import clock_walks, points_of_view
 from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
 from sensorispace_ros.core.naive.jacobians import VALID
 from sensorispace_ros.core.naive.secant_walk import SecantLoopWalk, _chord_tangent, secant_update
@@ -114,3 +114,17 @@ def test_the_clocked_agents_secant_walk_gives_its_pov_on_the_level_set():
 def test_clock_pov_secant_calls_is_checked_at_start_up():
     with pytest.raises(config.ConfigError, match=r"naive\.clock_pov_secant_calls"):
         config.load_config(SMOKE, {"naive.clock_pov_secant_calls": 0})
+
+
+def test_an_agent_whose_noise_sized_its_tolerances_keeps_every_stencil(monkeypatch):
+    _, ((agent, samples, _),) = _walks((ClockedAgent,),
+                                       walk_overrides=({"clock_pov_secant_calls": 3},))
+    asked = []
+    walk = clock_walks.brief_loop_walks
+    monkeypatch.setattr(clock_walks, "brief_loop_walks",
+                        lambda *a, **k: asked.append(k["secant_calls"]) or walk(*a, **k))
+    for noisy in (False, True):
+        agent._noisy = noisy
+        with agent._body.fresh():
+            agent._walk_povs(samples[:1])
+    assert asked == [3, 1]

@@ -23,13 +23,14 @@ __all__ = ["BriefWalks"]
 
 class BriefWalks:
     """Mixin of ``ClockedAgent``: needs its ``params``, ``structure``,
-    ``_body``, ``_fd_step``, ``_tol``, ``n_samples`` and the walk budget and
-    noise of ``SearchAndSample``."""
+    ``_body``, ``_fd_step``, ``_tol``, ``_noisy``, ``n_samples`` and the walk
+    budget and noise of ``SearchAndSample``."""
 
     def _walk_povs(self, motor_states):
         """1-D POVs walked briefly, with the noise the agent measured as the
-        full walk has it (its step, budget and corrections); other dimensions
-        as the lockstep agent."""
+        full walk has it (its step, budget and corrections); secant knots only
+        where noise sized none of its tolerances (a secant takes the noise of
+        two sensings for slope); other dimensions as the lockstep agent."""
         if not self._walks_briefly():
             return super()._walk_povs(motor_states)
         p = self.params
@@ -45,7 +46,7 @@ class BriefWalks:
             checks=(p.rank_ratio, self._tol.min_singular, p.pattern_ratio),
             polish_iterations=p.clock_pov_polish_iterations,
             checked_samples=p.clock_pov_checked_samples, noise_sd=self._walk_noise(),
-            secant_calls=p.clock_pov_secant_calls)
+            secant_calls=1 if self._noisy else p.clock_pov_secant_calls)
 
     def _level_set_allowance(self, walk, n_samples: int, n_sensors: int) -> float:
         """``SearchAndSample._level_set_allowance``, and for a brief walk at
