@@ -52,8 +52,7 @@ def clock_metrics(run, world) -> dict:
         "naive.clock.queries_per_pov": per_pov,
         "naive.clock.start_lost_rows": int(truth.start_lost_rows),
         # Motor states probed when the agent found exploring no longer paid (0: it never did).
-        "naive.clock.explored_at": int(getattr(getattr(run.agent, "_yield", None), "stopped_at",
-                                               None) or 0),
+        "naive.clock.explored_at": int(run.agent.explored_at),
         "naive.clock.pending_povs": int(truth.pending_povs),
         "naive.clock.crossed_reactions": int(truth.crossed),
         "naive.clock.walks_restarted": int(getattr(run.agent, "crossings", 0)),

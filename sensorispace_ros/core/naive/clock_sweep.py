@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sensorispace_ros.core.naive.clock_witnesses import WITNESSES
+from sensorispace_ros.core.naive.clock_witnesses import WITNESSES, lit
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 
 __all__ = ["BoundedSweep"]
@@ -34,12 +34,17 @@ class BoundedSweep:
         count = self._store.count
         if count <= self.sweep_budget + 1:
             return np.arange(count)
-        start = self._sweep_cursor % count
-        chosen = (start + np.arange(self.sweep_budget)) % count
-        self._sweep_cursor = start + self.sweep_budget
+        chosen = self._next_in_turn()
         if self._rest_pov >= 0:
             chosen = np.append(chosen, self._rest_pov)
         return np.unique(chosen)
+
+    def _next_in_turn(self) -> np.ndarray:
+        """The next ``sweep_budget`` known POVs from the cursor, in its
+        order; the cursor moves past them."""
+        start = self._sweep_cursor % self._store.count
+        self._sweep_cursor = start + self.sweep_budget
+        return (start + np.arange(self.sweep_budget)) % self._store.count
 
     def _sweep_parts(self) -> list[np.ndarray]:
         """The sweep's POVs in the calls that sense them: one, or with
@@ -49,10 +54,8 @@ class BoundedSweep:
         count = self._store.count
         if first <= 0 or count <= self.sweep_budget + 1 or first >= self.sweep_budget:
             return [self._sweep_indices()]
-        start = self._sweep_cursor % count
-        chosen = (start + np.arange(self.sweep_budget)) % count
-        self._sweep_cursor = start + self.sweep_budget
         rest = [self._rest_pov] if self._rest_pov >= 0 else []
+        chosen = self._next_in_turn()
         chosen = chosen[~np.isin(chosen, rest)]
         return [np.unique(np.append(chosen[:first], rest)).astype(int), chosen[first:]]
 
@@ -72,8 +75,7 @@ class BoundedSweep:
             else:
                 self._sweep_cursor -= len(parts[1])
         sensed = current[chosen]
-        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
-        top = np.argsort(-lit, kind="stable")[:WITNESSES]
+        top = np.argsort(-lit(sensed), kind="stable")[:WITNESSES]
         self._witnesses = (self._store.samples[chosen[top], 0].copy(), sensed[top].copy())
         self._lookouts = self._witnesses[0]
         return current, np.zeros((0, n_sensors))

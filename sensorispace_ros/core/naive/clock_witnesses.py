@@ -22,17 +22,21 @@ WITNESSES = 4        # swept POVs sensed again after a reaction
 LOOKOUT_TRIES = 16   # known POVs sensed for a lookout when the sentinels sense nothing
 
 
+def lit(sensed: np.ndarray) -> np.ndarray:
+    """How much each row of ``sensed`` ``(B, S)`` senses: its norm, -1 for a
+    row with a lost value."""
+    return np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+
+
 def brightest(states: np.ndarray, sensed: np.ndarray, noise_sd: float):
     """``(state, sensation)`` of the state that sensed most, if its sensation
-    tells from nothing (``change_detection.differs`` from zero); else None:
-    a sentinel that senses nothing sees a change only when light comes into
-    its view."""
+    tells from nothing (``senses_nothing``); else None: a sentinel that
+    senses nothing sees a change only when light comes into its view."""
     if not len(states):
         return None
-    lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
-    best = int(np.argmax(lit))
-    if lit[best] < 0 or not change_detection.differs(noise_sd, np.zeros_like(sensed[best]),
-                                                     sensed[best]):
+    amount = lit(sensed)
+    best = int(np.argmax(amount))
+    if amount[best] < 0 or senses_nothing(noise_sd, sensed[best]):
         return None
     return states[best].copy(), sensed[best].copy()
 
@@ -99,11 +103,11 @@ class Witnesses:
             return empty
         states = memory._motor_states[:memory.count]
         sensed = memory._sensations[:memory.count]
-        lit = np.where(np.all(np.isfinite(sensed), axis=1), np.linalg.norm(sensed, axis=1), -1.0)
+        amount = lit(sensed)
         half = memory.count // 2
         chosen = []
         for part in (np.arange(half), np.arange(half, memory.count)):
-            chosen.extend(part[np.argsort(-lit[part], kind="stable")[:WITNESSES // 2]])
+            chosen.extend(part[np.argsort(-amount[part], kind="stable")[:WITNESSES // 2]])
         chosen = np.asarray(chosen, dtype=int)
-        chosen = chosen[lit[chosen] > 0]
+        chosen = chosen[amount[chosen] > 0]
         return states[chosen].copy(), sensed[chosen].copy()

@@ -106,6 +106,13 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, NaiveAgent)
         return self._yield.explored(self.queries_total, self._store.count)
 
     @property
+    def explored_at(self) -> int:
+        """The motor states probed when exploring stopped paying (0: it never
+        did; an agent saved before the rule existed has none)."""
+        rule = getattr(self, "_yield", None)
+        return 0 if rule is None or rule.stopped_at is None else int(rule.stopped_at)
+
+    @property
     def anchor_sensation(self) -> np.ndarray | None:
         """The sensation recorded at the resting state in its last reaction
         (``_rest_after``; before any, the start's snapshot's). Not the newest

@@ -171,13 +171,8 @@ class LoopWalk:
             self._noise((len(self.active), 2, n_knots), averaged_last=True))
         correction = correction.reshape(predicted.shape)
         null = null.reshape(predicted.shape)
-        # A probe that lands where the sensation is blank or pins no pose
-        # has an infinite (or NaN) correction: too large, like any other.
-        with np.errstate(over="ignore", invalid="ignore"):
-            size = np.linalg.norm(correction, axis=-1)                       # (A, 2, K)
-        size = np.where(np.isfinite(size), size, np.inf)
-        heading = direction[:, :, None, :] + reach[..., None] * bend[:, :, None, :]
-        null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
+        size = _correction_size(correction)                                  # (A, 2, K)
+        _orient(null, direction[:, :, None, :] + reach[..., None] * bend[:, :, None, :])
         return jac, null, size, predicted + correction
 
     def _noise(self, shape, averaged_last: bool = False) -> np.ndarray | None:
@@ -399,6 +394,21 @@ class LoopWalk:
             np.add.at(self.queries, owner[rows], self.rows_per_state)
         for p in np.unique(owner[failed]):
             self.reason[p] = NOT_CLOSED
+
+
+def _correction_size(correction: np.ndarray) -> np.ndarray:
+    """The length of each correction (last axis). A probe that lands where
+    the sensation is blank or pins no pose has an infinite (or NaN)
+    correction: ``inf``, too large like any other."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        size = np.linalg.norm(correction, axis=-1)
+    return np.where(np.isfinite(size), size, np.inf)
+
+
+def _orient(null: np.ndarray, heading: np.ndarray) -> None:
+    """Turn each null vector (in place) along the walk's ``heading``: an SVD
+    null vector has an arbitrary sign."""
+    null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
 
 
 def _finite_or_zero(step: np.ndarray) -> np.ndarray:

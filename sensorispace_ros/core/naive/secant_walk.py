@@ -24,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from sensorispace_ros.core.naive.jacobians import jacobian_stencil, stencil_jacobian
-from sensorispace_ros.core.naive.loop_walk import LoopWalk, _correction_and_null
+from sensorispace_ros.core.naive.loop_walk import (LoopWalk, _correction_and_null,
+                                                   _correction_size, _orient)
 
 __all__ = ["SecantLoopWalk", "secant_update"]
 
@@ -85,11 +86,8 @@ class SecantLoopWalk(LoopWalk):
             jac.reshape((-1,) + jac.shape[2:]), (sensation - target).reshape(-1, target.shape[-1]),
             self.rank)
         correction, null = correction.reshape(predicted.shape), null.reshape(predicted.shape)
-        with np.errstate(over="ignore", invalid="ignore"):
-            size = np.linalg.norm(correction, axis=-1)
-        size = np.where(np.isfinite(size), size, np.inf)
-        heading = direction + spacing[..., None] * bend
-        null *= np.where(np.sum(null * heading, axis=-1) < 0.0, -1.0, 1.0)[..., None]
+        size = _correction_size(correction)
+        _orient(null, direction + spacing[..., None] * bend)
         knots = predicted + correction
         null[~measured], jac[~measured] = _chord_tangent(
             knots[~measured] - point[~measured], direction[~measured], jac[~measured])
