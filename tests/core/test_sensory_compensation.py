@@ -165,6 +165,55 @@ def test_in_turn_senses_a_stencil_only_for_the_starts_it_searches(world):
     assert one.queries[best] == alone.queries[0]
 
 
+@pytest.mark.parametrize("in_turn", [False, True])
+def test_trials_sensed_alone_first_take_the_same_steps_for_fewer_rows(world, in_turn):
+    # Reachable targets from far starts and redistributed lights (every search
+    # fails): a rejected trial costs one row instead of its stencil, and every
+    # search takes the same states, iterations and verdict.
+    target = _target(world)
+    lights = world.initial_center + draw_light_offsets(np.random.default_rng(0),
+                                                       len(world.initial_offsets))
+    starts = world.m0 + np.random.default_rng(7).normal(0.0, 0.5, (8, 4))
+    targets = np.repeat(target[None], len(starts), axis=0)
+    rows = {"whole": 0, "first": 0}
+    for lit in (world.initial_lights + [0.3, 0.3], lights):
+        sim = SimulatedBody(world.receptors, lit)
+        sensed_rows = []
+        body = types.SimpleNamespace(n_motors=4, n_sensors=6,
+                                     sense=lambda m: sensed_rows.append(len(m)) or sim.sense(m))
+        whole = compensate(sim, targets, starts, in_turn=in_turn)
+        first = compensate(body, targets, starts, in_turn=in_turn, probe_first=True)
+        np.testing.assert_array_equal(first.motor_states, whole.motor_states)
+        np.testing.assert_array_equal(first.iterations, whole.iterations)
+        np.testing.assert_array_equal(first.accepted, whole.accepted)
+        assert sum(sensed_rows) == first.queries.sum() <= whole.queries.sum()
+        assert first.calls >= whole.calls
+        rows["whole"] += whole.queries.sum()
+        rows["first"] += first.queries.sum()
+    assert rows["first"] < rows["whole"]
+
+
+def test_a_trial_whose_stencil_loses_a_row_is_not_taken(world):
+    # The trial senses better alone, then a row of its stencil comes back lost:
+    # no Jacobian there, so the search stays where it was.
+    target = _target(world)
+    sim = SimulatedBody(world.receptors, world.initial_lights + [0.3, 0.3])
+    calls = []
+
+    def sense(m):
+        calls.append(len(m))
+        out = sim.sense(m)
+        if len(calls) == 3:         # the first trial's stencil (after the start's, the trial's)
+            out[-1] = np.nan
+        return out
+
+    body = types.SimpleNamespace(n_motors=4, n_sensors=6, sense=sense)
+    start = world.m0[None] + 0.05
+    lost = compensate(body, target[None], start, probe_first=True, max_iterations=1)
+    np.testing.assert_array_equal(lost.motor_states, start)
+    assert calls == [5, 1, 4] and lost.queries[0] == 10 and np.isfinite(lost.sensory_error[0])
+
+
 def test_searches_at_a_local_minimum_stop_early_with_the_same_error(world):
     # Lights redistributed: the old sensation exists nowhere, the searches
     # end in local minima with a nonzero residual.

@@ -81,7 +81,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
                rank_ratio: float = 1e-3, max_step: float = 0.5, initial_damping: float = 1e-3,
                stall_iterations: int = 6, stall_factor: float = 0.5, stationary_ratio: float = 0.2,
                stop_found_targets: bool = True, noise_step: float = 0.0, in_turn: bool = False,
-               max_turns: int = 0) -> CompensationSearch:
+               max_turns: int = 0, probe_first: bool = False) -> CompensationSearch:
     """Batched Levenberg-Marquardt: drive ``sense(m)`` to ``target_sensations[k]``
     from ``starts[k]`` for every search ``k`` at once.
 
@@ -95,6 +95,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
     ``stall_iterations`` iterations earlier (a local minimum), or at the two
     stops of the module docstring. ``in_turn``: a target's searches one at a time (``_Turns``),
     its ``max_turns`` best starts at most (0: every one; the others are sensed, not searched).
+    ``probe_first``: the same searches, each trial sensed alone first (``_damped_step``).
     """
     targets, point = _checked_searches(
         body, target_sensations, starts, rank=rank, fd_step=fd_step, max_iterations=max_iterations,
@@ -103,7 +104,7 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         stall_factor=stall_factor, stationary_ratio=stationary_ratio)
     accept = dict(rank=int(rank), error_tol=error_tol, motor_tol=(motor_tol, noise_step),
                   rank_ratio=rank_ratio, min_singular=min_singular, pattern_ratio=pattern_ratio)
-    n_search, rows_per_state = len(point), stencil_rows(point.shape[1], fd_step)
+    n_search = len(point)
     iterations = np.zeros(n_search, dtype=int)
     if n_search == 0 or rank == 0:          # rank 0: no sensation pins anything
         return _none_accepted(point)
@@ -126,10 +127,9 @@ def compensate(body, target_sensations: np.ndarray, starts: np.ndarray, *, rank:
         if not active.any():
             break
         idx = np.flatnonzero(active)
-        _damped_step(body, idx, targets, point, jac, residual, error, damping,
-                     fd_step=fd_step, max_step=max_step)
-        calls += 1
-        queries[idx] += rows_per_state
+        rows, step_calls = _damped_step(body, idx, targets, point, jac, residual, error, damping,
+                                        fd_step=fd_step, max_step=max_step, alone=probe_first)
+        calls, queries[idx] = calls + step_calls, queries[idx] + rows
         iterations[idx] += 1
         history.append(error.copy())
     return _outcome(point, jac, residual + targets, residual, error, queries, iterations, calls,
@@ -293,7 +293,7 @@ def _stopping(jac, sensation, residual, error, history, iteration, target_id, ac
 
 
 def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd_step,
-                 max_step) -> None:
+                 max_step, alone=False) -> tuple[np.ndarray, int]:
     """One Levenberg-Marquardt iteration of the searches ``idx``, in one
     ``sense`` call: solve ``(J^T J + lambda I) dm = -J^T r`` (Levenberg's
     isotropic damping, ``lambda`` relative to the mean squared singular
@@ -301,7 +301,11 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     directions), cap the step, probe
     the trial state with its stencil; keep a better trial (``point``,
     ``jac``, ``residual``, ``error`` updated in place) and shrink its
-    damping, grow the damping of a worse one."""
+    damping, grow the damping of a worse one. With ``alone`` the trial
+    states are sensed alone and only the better ones' stencils after them
+    (a row instead of a stencil per rejected trial, two calls for an
+    accepted one; not with a step that senses a state more than once).
+    Returns the rows each search of ``idx`` probed and the calls made."""
     n_motors = point.shape[1]
     j = jac[idx]
     normal = np.swapaxes(j, 1, 2) @ j
@@ -313,10 +317,27 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     length = np.linalg.norm(step, axis=1)
     step *= np.minimum(1.0, max_step / np.maximum(length, 1e-300))[:, None]
     trial = point[idx] + step
-    trial_sensation, trial_jac, _ = sensory_jacobian(body, trial, fd_step)
+    stencil = stencil_rows(n_motors, fd_step)
+    probe_first = alone and not isinstance(fd_step, (AveragedStep, CloudStep))
+    if probe_first:
+        trial_sensation = np.asarray(body.sense(trial), dtype=float).reshape(len(idx), -1)
+        trial_jac = np.zeros(jac[idx].shape)
+    else:
+        trial_sensation, trial_jac, _ = sensory_jacobian(body, trial, fd_step)
     trial_residual = trial_sensation - targets[idx]
     trial_error = np.linalg.norm(trial_residual, axis=1)
     better = trial_error < error[idx]
+    rows, calls = np.full(len(idx), stencil), 1
+    if probe_first:
+        rows[:] = 1
+        if better.any():
+            fresh, trial_jac[better], _ = sensory_jacobian(body, trial[better], fd_step,
+                                                           sensed=trial_sensation[better])
+            trial_sensation[better] = fresh
+            trial_residual[better] = fresh - targets[idx[better]]
+            trial_error[better] = np.linalg.norm(trial_residual[better], axis=1)
+            rows[better], calls = stencil, 2
+            better &= np.isfinite(trial_error)      # a stencil row lost: no Jacobian there
     keep = idx[better]
     point[keep] = trial[better]
     jac[keep] = trial_jac[better]
@@ -325,6 +346,7 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     damping[keep] = np.maximum(damping[keep] / 3.0, 1e-12)
     worse = idx[~better]
     damping[worse] = damping[worse] * 4.0
+    return rows, calls
 
 
 def _motor_tolerance(singular, rank, motor_tol, noise_step):

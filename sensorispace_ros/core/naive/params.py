@@ -101,6 +101,7 @@ class NaiveParams:
     clock_brief_walk: bool = _default("clock_brief_walk")
     clock_search_in_turn: bool = _default("clock_search_in_turn")
     clock_search_turns: int = _default("clock_search_turns")
+    clock_search_probe_first: bool = _default("clock_search_probe_first")
     clock_sentinel_rows: int = _default("clock_sentinel_rows")
     clock_pov_predictor_tol: float = _default("clock_pov_predictor_tol")
     clock_pov_polish_iterations: int = _default("clock_pov_polish_iterations")
