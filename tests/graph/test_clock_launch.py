@@ -14,10 +14,14 @@ import signal
 import subprocess
 import sys
 import threading
+import time
+from pathlib import Path
 
 import pytest
 
 from sensorispace_ros import config
+from sensorispace_ros.protocol import CHECKPOINTS, PROGRESS_FILE
+from sensorispace_ros.state.environment_record import read_progress
 from sensorispace_ros.evaluation import run_files
 
 from shared import REPO, SMOKE, stop_by_pid
@@ -54,7 +58,8 @@ def _launched(tmp_path, domain_id, overrides, record, kill_after_s=None, node="b
         if kill_after_s is None:
             output, _ = proc.communicate(timeout=450)
         else:
-            output = _kill(proc, node, kill_after_s)
+            output = _kill(proc, node, kill_after_s, tmp_path / "results" / "clock" /
+                           CHECKPOINTS / PROGRESS_FILE)
     finally:
         stop_by_pid(proc)
     assert proc.returncode == 0, output[-3000:]
@@ -63,8 +68,10 @@ def _launched(tmp_path, domain_id, overrides, record, kill_after_s=None, node="b
     return cfg, metrics, output
 
 
-def _kill(proc, node: str, after_s: float) -> str:
-    """The launcher's output, its ``node`` process killed ``after_s`` after it started."""
+def _kill(proc, node: str, after_s: float, progress: Path) -> str:
+    """The launcher's output, its ``node`` process killed ``after_s`` after it started,
+    or, for the environment, ``after_s`` after its ``progress`` record shows a change
+    played (on a slow machine its start alone may take longer than ``after_s``)."""
     lines, killed = [], False
     timer = threading.Timer(450, proc.kill)
     timer.start()
@@ -73,13 +80,29 @@ def _kill(proc, node: str, after_s: float) -> str:
             lines.append(line)
             started = re.match(rf"\[launch\] started {node} \(pid (\d+)\)", line)
             if started and not killed:
-                pid = int(started[1])
-                threading.Timer(after_s, _sigkill, (pid,)).start()
+                arm = _kill_once_played if node == "environment" else _kill_after
+                threading.Thread(target=arm, args=(int(started[1]), after_s, progress),
+                                 daemon=True).start()
                 killed = True
         proc.wait()
     finally:
         timer.cancel()
     return "".join(lines)
+
+
+def _kill_after(pid: int, after_s: float, _progress: Path) -> None:
+    time.sleep(after_s)
+    _sigkill(pid)
+
+
+def _kill_once_played(pid: int, after_s: float, progress: Path) -> None:
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:
+        record = read_progress(progress)
+        if record is not None and record[0] >= 1:
+            break
+        time.sleep(0.1)
+    _kill_after(pid, after_s, progress)
 
 
 def _sigkill(pid: int) -> None:
@@ -144,7 +167,7 @@ def test_a_launched_run_on_the_wall_clock_whose_body_is_killed_ends_and_reports(
 
 def test_a_launched_run_on_the_wall_clock_whose_environment_is_killed_goes_on_and_ends(
         tmp_path, domain_id):
-    _, launched, output = _launched(tmp_path, domain_id, WALL, record=False, kill_after_s=6.0,
+    _, launched, output = _launched(tmp_path, domain_id, WALL, record=False, kill_after_s=1.0,
                                     node="environment")
     assert "environment was killed by signal 9; respawned" in output, output[-3000:]
     logs = "".join(p.read_text() for p in (tmp_path / "results" / "clock" / "logs").iterdir())
