@@ -17,17 +17,16 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from shared import REPO, SMOKE, free_port, stop_by_pid
+from shared import REPO, SMOKE, free_domain_id, free_port, stop_by_pid
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
-__all__ = ["REPO", "SMOKE", "free_port", "stop_by_pid"]
+__all__ = ["REPO", "SMOKE", "free_domain_id", "free_port", "stop_by_pid"]
 
 
 @pytest.fixture
 def domain_id() -> int:
     """A ROS domain id no other graph on this host uses now."""
-    from sensorispace_ros.graph.dds_environment import free_domain_id
     return free_domain_id()
 
 
@@ -67,3 +66,18 @@ def smoke_naive_run():
 
     cfg = config.load_config(SMOKE)
     return run_naive(run_world(cfg), NaiveParams(**cfg["naive"]))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Files with graph tests first, then files with slow tests, then the rest,
+    each file's tests in their own order: the workers of ``scripts/test.sh``
+    (pytest-xdist, a file per worker at a time) start on the long files and
+    end on short ones, instead of one worker finishing a long file alone."""
+    def weight(item) -> int:
+        return 0 if item.get_closest_marker("graph") else 1 if item.get_closest_marker("slow") \
+            else 2
+
+    files: dict = {}
+    for item in items:
+        files[item.path] = min(files.get(item.path, 2), weight(item))
+    items.sort(key=lambda item: files[item.path])

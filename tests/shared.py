@@ -1,7 +1,8 @@
 """Helpers every test folder shares (``tests/conftest.py`` puts this folder on
 ``sys.path`` and turns them into fixtures): the repository root, a free TCP
 port, stopping a process by its PID, a node run as a process of its own, and
-spinning an in-process graph whose agent runs in its ``step``."""
+spinning an in-process graph whose agent runs in its ``step``, and a ROS
+domain id of this test worker's own."""
 from __future__ import annotations
 
 import os
@@ -15,6 +16,21 @@ REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "config" / "smoke.yaml"
 # How long a stopped process gets to exit after SIGTERM before SIGKILL.
 GRACE_S = 10.0
+
+
+# Test processes run side by side (pytest-xdist, ``scripts/test.sh``): each
+# worker draws its graphs' domain ids from its own band of 1..100.
+_DOMAIN_BAND = 25
+
+
+def free_domain_id() -> int:
+    """A ROS domain id no graph on this host uses now, from this test
+    worker's band (``graph.dds_environment.free_domain_id`` probes from there)."""
+    from sensorispace_ros.graph.dds_environment import free_domain_id as probe
+
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    band = int(worker[2:]) if worker[2:].isdigit() else 0
+    return probe(start=(band * _DOMAIN_BAND + os.getpid() % _DOMAIN_BAND) % 100 + 1)
 
 
 def free_port() -> int:

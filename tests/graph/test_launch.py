@@ -77,7 +77,7 @@ def _subscriptions_of(domain_id: int, names, deadline_s: float = 60.0) -> dict:
 @pytest.fixture(scope="module")
 def smoke_launch(tmp_path_factory):
     """One recorded `sensorispace launch` of the smoke config for the module."""
-    from sensorispace_ros.graph.dds_environment import free_domain_id
+    from shared import free_domain_id
 
     tmp_path, domain_id = tmp_path_factory.mktemp("launch"), free_domain_id()
     lines: list = []
@@ -140,7 +140,7 @@ PARITY_KEYS = ("pov.count", "naive.coverage", "naive.wrong_poses", "naive.state_
 @pytest.fixture(scope="module")
 def unrecorded_launch(tmp_path_factory):
     """One `sensorispace launch --no-record` of the smoke config: evaluated without a bag."""
-    from sensorispace_ros.graph.dds_environment import free_domain_id
+    from shared import free_domain_id
 
     tmp_path = tmp_path_factory.mktemp("launch_no_record")
     proc = _launch(tmp_path, free_domain_id(), "smoke", _launcher_env(), record=False)

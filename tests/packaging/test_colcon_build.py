@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from packaging_support import CONFIG_DIR, PACKAGE, REPO, console_scripts
 
-from sensorispace_ros.graph.dds_environment import free_domain_id
+from shared import free_domain_id
 
 COLCON = Path(sys.prefix) / "bin" / "colcon"
 pytestmark = pytest.mark.slow

@@ -32,7 +32,7 @@ RUNTIME_KEYS = {
 # runtime requirements rosdistro has no key for (installed with pip)
 WITHOUT_ROSDEP_KEY = {"ripser", "distributed", "foxglove-sdk", "zstandard", "mujoco"}
 TEST_KEYS = {"pytest": "python3-pytest", "pytest-timeout": "python3-pytest-timeout",
-             "websockets": "python3-websockets"}
+             "pytest-xdist": "python3-pytest-xdist", "websockets": "python3-websockets"}
 # building and testing tools of the venv, not dependencies of the package
 TOOLS = {"colcon-core", "colcon-ros", "colcon-python-setup-py", "coverage", "setuptools",
          "wheel"}

@@ -7,7 +7,10 @@ import time
 
 import pytest
 
-from sensorispace_ros.graph.dds_environment import free_domain_id, graph_environment
+from sensorispace_ros.graph.dds_environment import free_domain_id as probe_domain_id
+from sensorispace_ros.graph.dds_environment import graph_environment
+
+from shared import free_domain_id
 
 pytestmark = [pytest.mark.graph]
 
@@ -33,9 +36,9 @@ def test_a_graph_on_another_domain_sees_nothing():
     from std_msgs.msg import String
 
     home = free_domain_id()
-    # A second free id, not the first one (free_domain_id only tests ports, so
+    # A second free id, not the first one (the probe only tests ports, so
     # two calls may return the same id until a participant binds it).
-    other = free_domain_id(home % 100 + 1)
+    other = probe_domain_id(home % 100 + 1)
     assert other != home
     home_ctx, talker = _participant(home, "isolation_talker")
     same_ctx, same_listener = _participant(home, "isolation_same_domain")
