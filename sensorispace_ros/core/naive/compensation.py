@@ -238,17 +238,24 @@ class _Turns:
     def stencils(self, started, point, sensation, jac, residual, error, targets, queries) -> int:
         """Where only the starts were sensed (``body`` given), sense the
         stencils of the searches ``started`` (their states already sensed:
-        ``sensation``), filling ``jac`` (and a lost row's sensation, residual
-        and error) in place. Returns the calls made (0 or 1)."""
+        ``sensation``), filling ``jac``, ``residual`` and ``error`` in place.
+        Returns the calls made (0 or 1)."""
         idx = np.flatnonzero(started)
         if self.body is None or not len(idx):
             return 0
-        fresh, jac[idx], rows = sensory_jacobian(self.body, point[idx], self.fd_step,
-                                                 sensed=sensation[idx])
-        residual[idx] = fresh - targets[idx]
-        error[idx] = np.linalg.norm(residual[idx], axis=1)
-        queries[idx] += rows // len(idx)
+        jac[idx], residual[idx], error[idx] = _stencils_of_sensed(
+            self.body, point[idx], sensation[idx], targets[idx], self.fd_step)
+        queries[idx] += stencil_rows(point.shape[1], self.fd_step) - 1
         return 1
+
+
+def _stencils_of_sensed(body, states, sensed, targets, fd_step):
+    """The stencils of ``states`` just sensed giving ``sensed``, in one call:
+    ``(jac, residual, error)`` toward ``targets`` (a state with a lost row:
+    J = 0 and a NaN residual and error)."""
+    sensation, jac, _ = sensory_jacobian(body, states, fd_step, sensed=sensed)
+    residual = sensation - targets
+    return jac, residual, np.linalg.norm(residual, axis=1)
 
 
 def _outcome(point, jac, sensation, residual, error, queries, iterations, calls, *, rank,
@@ -317,27 +324,8 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     length = np.linalg.norm(step, axis=1)
     step *= np.minimum(1.0, max_step / np.maximum(length, 1e-300))[:, None]
     trial = point[idx] + step
-    stencil = stencil_rows(n_motors, fd_step)
-    probe_first = alone and not isinstance(fd_step, (AveragedStep, CloudStep))
-    if probe_first:
-        trial_sensation = np.asarray(body.sense(trial), dtype=float).reshape(len(idx), -1)
-        trial_jac = np.zeros(jac[idx].shape)
-    else:
-        trial_sensation, trial_jac, _ = sensory_jacobian(body, trial, fd_step)
-    trial_residual = trial_sensation - targets[idx]
-    trial_error = np.linalg.norm(trial_residual, axis=1)
-    better = trial_error < error[idx]
-    rows, calls = np.full(len(idx), stencil), 1
-    if probe_first:
-        rows[:] = 1
-        if better.any():
-            fresh, trial_jac[better], _ = sensory_jacobian(body, trial[better], fd_step,
-                                                           sensed=trial_sensation[better])
-            trial_sensation[better] = fresh
-            trial_residual[better] = fresh - targets[idx[better]]
-            trial_error[better] = np.linalg.norm(trial_residual[better], axis=1)
-            rows[better], calls = stencil, 2
-            better &= np.isfinite(trial_error)      # a stencil row lost: no Jacobian there
+    trial_jac, trial_residual, trial_error, better, rows, calls = _sense_trials(
+        body, trial, targets[idx], error[idx], fd_step, alone)
     keep = idx[better]
     point[keep] = trial[better]
     jac[keep] = trial_jac[better]
@@ -347,6 +335,31 @@ def _damped_step(body, idx, targets, point, jac, residual, error, damping, *, fd
     worse = idx[~better]
     damping[worse] = damping[worse] * 4.0
     return rows, calls
+
+
+def _sense_trials(body, trial, targets, error, fd_step, alone):
+    """Sense a step's ``trial`` states with their stencils in one call or,
+    with ``alone`` (not for a step that senses a state more than once), the
+    trials alone and then the stencils of those better than ``error``.
+    Returns ``(jac, residual, error, better, rows, calls)``: ``better`` the
+    trials below ``error`` with a Jacobian, ``rows`` each trial's."""
+    stencil = stencil_rows(trial.shape[1], fd_step)
+    if not alone or isinstance(fd_step, (AveragedStep, CloudStep)):
+        sensation, jac, _ = sensory_jacobian(body, trial, fd_step)
+        residual = sensation - targets
+        trial_error = np.linalg.norm(residual, axis=1)
+        return jac, residual, trial_error, trial_error < error, np.full(len(trial), stencil), 1
+    sensation = np.asarray(body.sense(trial), dtype=float).reshape(len(trial), -1)
+    residual = sensation - targets
+    trial_error = np.linalg.norm(residual, axis=1)
+    better = trial_error < error
+    jac = np.zeros((*sensation.shape, trial.shape[1]))
+    if not better.any():
+        return jac, residual, trial_error, better, np.ones(len(trial), dtype=int), 1
+    jac[better], residual[better], trial_error[better] = _stencils_of_sensed(
+        body, trial[better], sensation[better], targets[better], fd_step)
+    rows = np.where(better, stencil, 1)
+    return jac, residual, trial_error, better & np.isfinite(trial_error), rows, 2
 
 
 def _motor_tolerance(singular, rank, motor_tol, noise_step):
