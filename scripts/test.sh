@@ -10,5 +10,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export AMENT_PREFIX_PATH="$ROOT/.venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
 # One worker process per core, at most 4 (pytest-xdist; each worker's graphs take
 # domain ids from a band of their own, tests/shared.py), a file's tests on one
-# worker (they share module fixtures). `-n 0` runs them in this process (with -s).
-exec "$ROOT/.venv/bin/python" -m pytest -n auto --maxprocesses 4 --dist loadfile "$@"
+# worker (they share module fixtures), files in tests/conftest.py's order (long
+# ones first). `-n 0` runs them in this process (with -s).
+exec "$ROOT/.venv/bin/python" -m pytest -n auto --maxprocesses 4 --dist loadfile \
+  --no-loadscope-reorder "$@"

@@ -109,6 +109,7 @@ def _ring_times_circle(n_ring=16, n_turn=12, inner=2.0, outer=3.0):
                             2 * np.cos(t).ravel(), 2 * np.sin(t).ravel()])
 
 
+@pytest.mark.slow
 def test_betti_numbers_up_to_h2_read_a_circle_a_sphere_and_a_ring_times_circle():
     t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
     circle = np.column_stack([np.cos(t), np.sin(t)])

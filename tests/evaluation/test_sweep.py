@@ -17,6 +17,9 @@ from sensorispace_ros.evaluation.sweep import (PARTIAL_PREFIX, connect, parse_se
 from sensorispace_ros.evaluation.sweep_summary import SUMMARY_JSON, SUMMARY_MD
 
 from shared import SMOKE, free_port, stop_by_pid
+
+pytestmark = pytest.mark.slow
+
 SEEDS = [0, 1, 2, 3]
 BIN = Path(sys.executable).parent
 

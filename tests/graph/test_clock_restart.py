@@ -146,7 +146,10 @@ def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, 
     assert run.rows_lost_to_restart == rows_at_kill - at_kill.body.rows_sent >= 0
     povs = run.agent.points_of_view
     np.testing.assert_array_equal(povs[:kill_povs], at_kill.agent.points_of_view)
-    assert len(povs) > kill_povs and len(run.event_states) - 1 > kill_reactions
+    # It went on reacting; on the row clock it finds more (on the wall clock what it finds
+    # after the kill depends on the machine's load: the world does not wait for it).
+    assert len(run.event_states) - 1 > kill_reactions
+    assert len(povs) > kill_povs or cfg["world"]["clock"] == "wall"
     # The representation has what the restarted agent published.
     np.testing.assert_array_equal(representation.result["povs"], povs)
 

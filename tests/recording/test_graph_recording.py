@@ -24,6 +24,8 @@ from sensorispace_ros.recording.bag_reader import bag_info, read_bag_messages
 
 from shared import REPO, count_world_builds
 
+pytestmark = pytest.mark.slow
+
 TINY = """/**:
   ros__parameters:
     seed: 0

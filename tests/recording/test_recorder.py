@@ -7,6 +7,7 @@ import signal
 import time
 
 import numpy as np
+import pytest
 import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -18,6 +19,8 @@ from sensorispace_ros.recording.bag_recovery import recover_bag
 from sensorispace_ros.recording.bag_verify import verify_bag
 
 from bag_test_support import PARAMS_FILE, wait_for
+
+pytestmark = pytest.mark.slow
 
 SENSATION, SETTLED, JOINTS = "/body/sensation", "/agent/settled", "/body/joint_states"
 STORE = get_typestore(Stores.ROS2_JAZZY)
