@@ -20,9 +20,9 @@ from pathlib import Path
 import pytest
 
 from sensorispace_ros import config
+from sensorispace_ros.evaluation import run_files
 from sensorispace_ros.protocol import CHECKPOINTS, PROGRESS_FILE
 from sensorispace_ros.state.environment_record import read_progress
-from sensorispace_ros.evaluation import run_files
 
 from shared import REPO, SMOKE, stop_by_pid
 
@@ -80,8 +80,8 @@ def _kill(proc, node: str, after_s: float, progress: Path) -> str:
             lines.append(line)
             started = re.match(rf"\[launch\] started {node} \(pid (\d+)\)", line)
             if started and not killed:
-                arm = _kill_once_played if node == "environment" else _kill_after
-                threading.Thread(target=arm, args=(int(started[1]), after_s, progress),
+                played = progress if node == "environment" else None
+                threading.Thread(target=_kill_after, args=(int(started[1]), after_s, played),
                                  daemon=True).start()
                 killed = True
         proc.wait()
@@ -90,19 +90,17 @@ def _kill(proc, node: str, after_s: float, progress: Path) -> str:
     return "".join(lines)
 
 
-def _kill_after(pid: int, after_s: float, _progress: Path) -> None:
-    time.sleep(after_s)
-    _sigkill(pid)
-
-
-def _kill_once_played(pid: int, after_s: float, progress: Path) -> None:
+def _kill_after(pid: int, after_s: float, played: Path | None) -> None:
+    """SIGKILL ``pid`` ``after_s`` from now or, with ``played``, from when that
+    progress record first shows a change played."""
     deadline = time.monotonic() + 300
-    while time.monotonic() < deadline:
-        record = read_progress(progress)
+    while played is not None and time.monotonic() < deadline:
+        record = read_progress(played)
         if record is not None and record[0] >= 1:
             break
         time.sleep(0.1)
-    _kill_after(pid, after_s, progress)
+    time.sleep(after_s)
+    _sigkill(pid)
 
 
 def _sigkill(pid: int) -> None:

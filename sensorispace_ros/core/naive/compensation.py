@@ -344,16 +344,17 @@ def _sense_trials(body, trial, targets, error, fd_step, alone):
     Returns ``(jac, residual, error, better, rows, calls)``: ``better`` the
     trials below ``error`` with a Jacobian, ``rows`` each trial's."""
     stencil = stencil_rows(trial.shape[1], fd_step)
-    if not alone or isinstance(fd_step, (AveragedStep, CloudStep)):
+    whole = not alone or isinstance(fd_step, (AveragedStep, CloudStep))
+    if whole:
         sensation, jac, _ = sensory_jacobian(body, trial, fd_step)
-        residual = sensation - targets
-        trial_error = np.linalg.norm(residual, axis=1)
-        return jac, residual, trial_error, trial_error < error, np.full(len(trial), stencil), 1
-    sensation = np.asarray(body.sense(trial), dtype=float).reshape(len(trial), -1)
+    else:
+        sensation = np.asarray(body.sense(trial), dtype=float).reshape(len(trial), -1)
+        jac = np.zeros((*sensation.shape, trial.shape[1]))
     residual = sensation - targets
     trial_error = np.linalg.norm(residual, axis=1)
     better = trial_error < error
-    jac = np.zeros((*sensation.shape, trial.shape[1]))
+    if whole:
+        return jac, residual, trial_error, better, np.full(len(trial), stencil), 1
     if not better.any():
         return jac, residual, trial_error, better, np.ones(len(trial), dtype=int), 1
     jac[better], residual[better], trial_error[better] = _stencils_of_sensed(
