@@ -26,9 +26,12 @@ import socket
 import tempfile
 from pathlib import Path
 
-# Fast DDS binds the unicast metatraffic port 7410 + 250 * domain for the first
-# participant of a domain (RTPS port mapping): a bound port = domain in use.
-_RTPS_PORT_BASE, _RTPS_DOMAIN_GAIN = 7410, 250
+# Fast DDS binds the unicast metatraffic port 7410 + 250 * domain + 2 * id for
+# participant id of a domain (RTPS port mapping): a bound port = domain in use.
+# Ids go to the lowest free port, so the first ones are probed: a graph whose
+# first participant exited still holds the next.
+_RTPS_PORT_BASE, _RTPS_DOMAIN_GAIN, _RTPS_PARTICIPANT_GAIN = 7410, 250, 2
+_PROBED_PARTICIPANTS = 8
 
 LEASE_DURATION_S = 3
 LEASE_ANNOUNCEMENT_S = 1
@@ -70,13 +73,21 @@ def free_domain_id(start: int | None = None) -> int:
     start = (os.getpid() % 100) + 1 if start is None else start
     for offset in range(100):
         domain = (start - 1 + offset) % 100 + 1
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            try:
-                probe.bind(("127.0.0.1", _RTPS_PORT_BASE + _RTPS_DOMAIN_GAIN * domain))
-            except OSError:
-                continue
-        return domain
+        if not any(_port_bound(_RTPS_PORT_BASE + _RTPS_DOMAIN_GAIN * domain +
+                               _RTPS_PARTICIPANT_GAIN * participant)
+                   for participant in range(_PROBED_PARTICIPANTS)):
+            return domain
     raise RuntimeError("no free ROS_DOMAIN_ID in 1..100")
+
+
+def _port_bound(port: int) -> bool:
+    """Does a socket on this host hold UDP ``port``?"""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.bind(("127.0.0.1", port))
+        except OSError:
+            return True
+    return False
 
 
 def fastdds_profile_file(directory: str | Path | None = None) -> Path:
