@@ -14,7 +14,15 @@ metric again (the run's configuration and seed, ``offline.representation``'s
   grid positions: perfect sets, so what is left is the POVs' own pose errors;
 * ``own + segments`` / ``right + segments`` (``--segments N``): those sets
   and the sets of segments they imply (``clock_equality.translated_sets``,
-  N changes a set, as the agent on the row clock takes them).
+  N changes a set, as the agent on the row clock takes them);
+* ``truth, within X`` (``--within X ...``): perfect sets of the POVs whose
+  true position lies within X grid steps of the lattice (the one whose phase
+  is the positions' circular mean);
+* ``truth, samples on their pose`` and ``truth, samples on the lattice``
+  (``--ideal``): perfect sets, every POV sample moved by the forward model
+  onto its POV's own pose, then onto that pose snapped to the lattice (the
+  Hausdorff metric computed again): what the walks' drift and what the POVs'
+  offsets each leave.
 
 Each line: pairs, sets, wrong pairs, the 2-D after affine residual, and the
 largest offset of a POV's true position from the lattice of the first POV's
@@ -33,6 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from sensorispace_ros.core import quality
+from sensorispace_ros.core.arm import Arm, wrap_angle
+from sensorispace_ros.core.hausdorff import hausdorff_matrix
 from sensorispace_ros.core.naive.clock_equality import translated_sets
 from sensorispace_ros.core.seeding import CounterStream
 from sensorispace_ros.offline.representation import _dimension_chain
@@ -78,6 +88,48 @@ def with_segments(pairs, set_ids, n_povs, per_set, seed):
     return np.concatenate([pairs, extra]), np.concatenate([set_ids, extra_ids + first])
 
 
+def lattice_offsets(positions, step):
+    """(P,) distance in grid steps of each position from the lattice whose phase
+    is the positions' circular mean, and the positions snapped to it."""
+    units = positions / step
+    phase = np.angle(np.exp(2j * np.pi * units).mean(axis=0)) / (2.0 * np.pi)
+    snapped = np.rint(units - phase) + phase
+    return np.linalg.norm(units - snapped, axis=1), snapped * step
+
+
+def moved_onto(arm, povs, poses, iterations=6):
+    """Each POV's samples moved by the least joint change (Gauss-Newton on the
+    forward model) onto its pose in ``poses`` (P, 3)."""
+    motor = np.array(povs, dtype=float)
+    for _ in range(iterations):
+        diff = arm.forward(motor) - poses[:, None, :]
+        diff[..., 2] = wrap_angle(diff[..., 2])
+        motor -= np.einsum("...ij,...j->...i", np.linalg.pinv(arm.jacobian(motor)), diff)
+    return motor
+
+
+def ideal_variants(arrays, cfg, step, within):
+    """The ``--within`` and ``--ideal`` variants: (name, pairs, set_ids, arrays)."""
+    offsets, snapped = lattice_offsets(arrays["true_positions"], step)
+    variants = []
+    for limit in within:
+        keep = np.flatnonzero(offsets <= limit)
+        subset = dict(arrays, hausdorff=arrays["hausdorff"][np.ix_(keep, keep)],
+                      true_positions=arrays["true_positions"][keep])
+        variants.append((f"truth, within {limit}",
+                         *true_sets(subset["true_positions"], step), subset))
+    if cfg is not None:
+        arm, poses = Arm.from_config(cfg["arm"]), np.array(arrays["true_poses"], dtype=float)
+        on_pose = dict(arrays, hausdorff=hausdorff_matrix(moved_onto(arm, arrays["povs"], poses)))
+        poses[:, :2] += snapped - arrays["true_positions"]
+        on_lattice = dict(arrays, true_positions=snapped,
+                          hausdorff=hausdorff_matrix(moved_onto(arm, arrays["povs"], poses)))
+        variants += [("truth, samples on their pose", *true_sets(on_pose["true_positions"], step),
+                      on_pose),
+                     ("truth, samples on the lattice", *true_sets(snapped, step), on_lattice)]
+    return variants
+
+
 def residual(arrays, cfg, pairs, set_ids) -> float:
     chain = _dimension_chain(arrays["hausdorff"], pairs, set_ids, cfg, int(arrays["seed"]),
                              "2d", 2)
@@ -89,11 +141,16 @@ def main() -> None:
     parser.add_argument("run", help="a naive run's output directory (its arrays.npz)")
     parser.add_argument("--sample", type=int, nargs="*", default=[])
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--within", type=float, nargs="*", default=[],
+                        help="also perfect sets of the POVs this near the lattice (grid steps)")
+    parser.add_argument("--ideal", action="store_true",
+                        help="also perfect sets of the samples moved onto their pose, "
+                             "then onto the lattice")
     parser.add_argument("--segments", type=int, default=0,
                         help="also each of own and right with its sets of segments "
                              "(this many changes a set; 0: not)")
     args = parser.parse_args()
-    arrays = np.load(Path(args.run) / "arrays.npz")
+    arrays = dict(np.load(Path(args.run) / "arrays.npz"))
     cfg = json.loads(str(arrays["config_json"]))
     positions, step = arrays["true_positions"], float(arrays["grid_spacing"])
     pairs, set_ids = arrays["pairs"], arrays["set_ids"]
@@ -108,11 +165,13 @@ def main() -> None:
                      for name, p, s in variants[:2]]
     variants += [(f"sample {n}", *sampled_sets(pairs, set_ids, n, rng)) for n in args.sample]
     variants.append(("truth", *true_sets(positions, step)))
-    for name, p, s in variants:
+    variants = [(*v, arrays) for v in variants] + \
+        ideal_variants(arrays, cfg if args.ideal else None, step, args.within)
+    for name, p, s, run in variants:
         print(json.dumps({"sets": name, "pairs": int(len(p)), "set_count": int(len(np.unique(s))),
-                          "wrong_pairs": int(wrong_pairs(positions, p, s, step).sum()),
-                          "affine_residual_2d_after": residual(arrays, cfg, p, s),
-                          "povs": int(len(positions)), "max_lattice_offset": lattice}),
+                          "wrong_pairs": int(wrong_pairs(run["true_positions"], p, s, step).sum()),
+                          "affine_residual_2d_after": residual(run, cfg, p, s),
+                          "povs": int(len(run["true_positions"])), "max_lattice_offset": lattice}),
               flush=True)
 
 

@@ -63,3 +63,28 @@ def test_sets_with_their_segments_keep_the_sets_and_number_the_segments_after():
     vector = positions[segments[:, 1]] - positions[segments[:, 0]]
     for s in np.unique(segment_ids):
         assert np.allclose(vector[segment_ids == s], vector[segment_ids == s][0])
+
+
+def test_lattice_offsets_measure_each_position_from_the_lattice_of_their_mean_phase():
+    rng = np.random.default_rng(2)
+    jitter = rng.uniform(-0.05, 0.05, (25, 2)) * STEP
+    jitter -= jitter.mean(axis=0)                   # the lattice's phase is the shift's alone
+    positions = _lattice() + 0.37 * STEP + jitter
+    offsets, snapped = noisy_sets.lattice_offsets(positions, STEP)
+    np.testing.assert_allclose(offsets, np.linalg.norm(jitter, axis=1) / STEP, atol=1e-3)
+    steps = (snapped - snapped[0]) / STEP
+    np.testing.assert_allclose(steps, np.rint(steps), atol=1e-12)
+    np.testing.assert_allclose(snapped[0] % STEP, 0.37 * STEP, atol=5e-3 * STEP)
+
+
+def test_samples_moved_onto_a_pose_sense_from_it_and_move_little():
+    from sensorispace_ros.core.arm import PAPER_ARM
+
+    rng = np.random.default_rng(3)
+    start = np.array([0.1, -1.5, 2.2, -3.0])
+    povs = start + rng.normal(0.0, 0.02, (3, 10, 4))
+    poses = PAPER_ARM.forward(start + rng.normal(0.0, 0.01, (3, 4)))
+    moved = noisy_sets.moved_onto(PAPER_ARM, povs, poses)
+    np.testing.assert_allclose(PAPER_ARM.pose_error(PAPER_ARM.forward(moved), poses[:, None]), 0.0,
+                               atol=1e-9)
+    assert np.max(np.linalg.norm(moved - povs, axis=-1)) < 0.2
