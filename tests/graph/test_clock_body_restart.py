@@ -152,9 +152,10 @@ def test_a_body_without_a_checkpoint_starts_its_clock_at_row_zero(context, tmp_p
         again.destroy_node()
 
 
-# As tests/graph/test_clock_graph.py: simulation 2 until the world ends the run.
+# As tests/graph/test_clock_graph.py (its 12 x 12 grid): simulation 2 until the world ends
+# the run.
 ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
-        "naive.clock_equality_changes": 400}
+        "naive.clock_equality_changes": 400, "world.grid_count": 12}
 KILL_AT_COMMAND = 300
 TIMEOUT_S = 400.0
 

@@ -29,10 +29,11 @@ from shared import REPO, SMOKE, stop_by_pid
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
-# As tests/graph/test_clock_graph.py: simulation 2 until the world ends the run (an agent
-# that ends it itself tells the body with one row more, which the offline driver does not play).
+# As tests/graph/test_clock_graph.py (its 12 x 12 grid): simulation 2 until the world ends the
+# run (an agent that ends it itself tells the body with one row more, which the offline driver
+# does not play).
 ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
-        "naive.clock_equality_changes": 400}
+        "naive.clock_equality_changes": 400, "world.grid_count": 12}
 WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
 # Metrics that time the run, not what it did.
 TIMED = ("timings", "seconds", "_s")
