@@ -119,11 +119,12 @@ def ideal_variants(arrays, cfg, step, within):
         variants.append((f"truth, within {limit}",
                          *true_sets(subset["true_positions"], step), subset))
     if cfg is not None:
-        arm, poses = Arm.from_config(cfg["arm"]), np.array(arrays["true_poses"], dtype=float)
+        arm, poses = Arm.from_config(cfg["arm"]), np.asarray(arrays["true_poses"], dtype=float)
+        lattice_poses = poses.copy()
+        lattice_poses[:, :2] += snapped - arrays["true_positions"]
         on_pose = dict(arrays, hausdorff=hausdorff_matrix(moved_onto(arm, arrays["povs"], poses)))
-        poses[:, :2] += snapped - arrays["true_positions"]
-        on_lattice = dict(arrays, true_positions=snapped,
-                          hausdorff=hausdorff_matrix(moved_onto(arm, arrays["povs"], poses)))
+        on_lattice = dict(arrays, true_positions=snapped, hausdorff=hausdorff_matrix(
+            moved_onto(arm, arrays["povs"], lattice_poses)))
         variants += [("truth, samples on their pose", *true_sets(on_pose["true_positions"], step),
                       on_pose),
                      ("truth, samples on the lattice", *true_sets(snapped, step), on_lattice)]

@@ -27,7 +27,7 @@ from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.messages.clouds import FloatCloud
 from sensorispace_ros.state.clock_truth import read_clock_truth
 
-from shared import SMOKE, NodeProcess, spin_graph, stop_by_pid
+from shared import SMOKE, SMOKE_ROW_CLOCK, NodeProcess, spin_graph, stop_by_pid
 
 pytestmark = [pytest.mark.graph]
 
@@ -152,10 +152,6 @@ def test_a_body_without_a_checkpoint_starts_its_clock_at_row_zero(context, tmp_p
         again.destroy_node()
 
 
-# As tests/graph/test_clock_graph.py (its 12 x 12 grid): simulation 2 until the world ends
-# the run.
-ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
-        "naive.clock_equality_changes": 400, "world.grid_count": 12}
 KILL_AT_COMMAND = 300
 TIMEOUT_S = 400.0
 
@@ -176,7 +172,7 @@ def test_the_body_killed_on_the_row_clock_changes_nothing_the_agent_finds(
 
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     monkeypatch.delenv("ROS_STATIC_PEERS", raising=False)
-    cfg = config.load_config(SMOKE, overrides=ROWS)
+    cfg = config.load_config(SMOKE, overrides=SMOKE_ROW_CLOCK)
     path = tmp_path / "clock.yaml"
     path.write_text(config.to_parameter_file(cfg))
     offline = run_on_clock(run_world(cfg), NaiveParams(**cfg["naive"]), "rows",

@@ -14,17 +14,10 @@ import pytest
 from sensorispace_ros import config
 from sensorispace_ros.graph import in_process
 
-from shared import SMOKE
+from shared import SMOKE, SMOKE_ROW_CLOCK
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
-# Simulation 2 longer than the replayed schedule: the world ends the run, its
-# end answering a hold (an agent that ends simulation 2 itself tells the body
-# with one row more, ``end_run``, that the offline driver does not play).
-# A 12 x 12 grid, not the smoke world's 16 x 16: the graph makes every call of the offline
-# run on either, and this one is half as long.
-ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
-        "naive.clock_equality_changes": 400, "world.grid_count": 12}
 # Metrics that time the run, not what it did.
 TIMED = ("timings", "seconds", "_s")
 
@@ -61,7 +54,7 @@ def test_the_graph_on_the_row_clock_gives_the_offline_metrics(tmp_path, domain_i
     from sensorispace_ros.evaluation.graph_clock import graph_clocked_run
     from sensorispace_ros.core.world_clock import clock_events
 
-    cfg, path = _config(tmp_path, ROWS)
+    cfg, path = _config(tmp_path, SMOKE_ROW_CLOCK)
     world = run_world(cfg)
     offline = run_on_clock(world, NaiveParams(**cfg["naive"]), "rows",
                            interval=cfg["world"]["change_interval"])

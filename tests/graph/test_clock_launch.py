@@ -25,15 +25,10 @@ from sensorispace_ros.evaluation import run_files
 from sensorispace_ros.protocol import CHECKPOINTS, PROGRESS_FILE
 from sensorispace_ros.state.environment_record import read_progress
 
-from shared import REPO, SMOKE, stop_by_pid
+from shared import REPO, SMOKE, SMOKE_ROW_CLOCK, stop_by_pid
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
-# As tests/graph/test_clock_graph.py (its 12 x 12 grid): simulation 2 until the world ends the
-# run (an agent that ends it itself tells the body with one row more, which the offline driver
-# does not play).
-ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
-        "naive.clock_equality_changes": 400, "world.grid_count": 12}
 WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
 # Metrics that time the run, not what it did.
 TIMED = ("timings", "seconds", "_s")
@@ -121,7 +116,7 @@ def test_a_launched_run_on_the_row_clock_reports_the_offline_naive_numbers(tmp_p
     from sensorispace_ros.evaluation.clock import clock_metrics
     from sensorispace_ros.evaluation.naive import evaluate_naive_run
 
-    cfg, launched, output = _launched(tmp_path, domain_id, ROWS, record=True)
+    cfg, launched, output = _launched(tmp_path, domain_id, SMOKE_ROW_CLOCK, record=True)
     assert (tmp_path / "bags" / "clock" / "metadata.yaml").is_file()    # evaluated from its bag
     assert "[launch] row " in output                                    # progress on this clock
     world = run_world(cfg)

@@ -24,4 +24,3 @@ def test_a_domain_held_by_any_of_its_first_participants_is_not_free(participant)
     with _held(domain, participant):
         assert dds_environment.free_domain_id(domain) != domain
     assert dds_environment.free_domain_id(domain) == domain
-
