@@ -20,6 +20,10 @@ SMOKE = REPO / "config" / "smoke.yaml"
 # the body with one row more, ``end_run``, that the offline driver does not play).
 SMOKE_ROW_CLOCK = {"world.clock": "rows", "world.change_interval": 2000.0,
                    "naive.clock_equality_changes": 400, "world.grid_count": 12}
+# The smoke world on the wall clock: a change every 0.15 s on average, the schedule once
+# (no simulation 2), about 45 s of world on the 16 x 16 grid.
+SMOKE_WALL_CLOCK = {"world.clock": "wall", "world.change_period_s": 0.15,
+                    "naive.clock_equality_changes": 0}
 # How long a stopped process gets to exit after SIGTERM before SIGKILL.
 GRACE_S = 10.0
 

@@ -14,7 +14,7 @@ import pytest
 from sensorispace_ros import config
 from sensorispace_ros.graph import in_process
 
-from shared import SMOKE, SMOKE_ROW_CLOCK
+from shared import SMOKE, SMOKE_ROW_CLOCK, SMOKE_WALL_CLOCK
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
@@ -91,8 +91,6 @@ def test_the_graph_on_the_row_clock_gives_the_offline_metrics(tmp_path, domain_i
                                          "naive.clock.undone_reactions")})
 
 
-# Changes every 0.15 s on average, the schedule once (no simulation 2): about 45 s.
-WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
 
 
 def test_the_graph_on_the_wall_clock_ends_by_itself_and_is_evaluated(tmp_path, domain_id):
@@ -100,7 +98,7 @@ def test_the_graph_on_the_wall_clock_ends_by_itself_and_is_evaluated(tmp_path, d
     from sensorispace_ros.evaluation.graph_clock import graph_clocked_run
     from sensorispace_ros.core.world_clock import clock_events
 
-    cfg, path = _config(tmp_path, WALL)
+    cfg, path = _config(tmp_path, SMOKE_WALL_CLOCK)
     world = run_world(cfg)
     result, nodes = _graph(tmp_path, domain_id, path)
     agent_node, body_node, environment = nodes["agent"], nodes["body"], nodes["environment"]

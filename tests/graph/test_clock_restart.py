@@ -26,21 +26,20 @@ from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.protocol import SNAPSHOT_FILE
 from sensorispace_ros.state.agent_journal import read_snapshot
 
-from shared import SMOKE, NodeProcess, spin_graph, stop_by_pid
+from shared import SMOKE, SMOKE_WALL_CLOCK, NodeProcess, spin_graph, stop_by_pid
 
 pytestmark = [pytest.mark.graph]
 
 # As tests/graph/test_clock_graph.py: simulation 2 until the world ends the run.
 ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
         "naive.clock_equality_changes": 400}
-WALL = {"world.clock": "wall", "world.change_period_s": 0.15, "naive.clock_equality_changes": 0}
 # The dead agent works on this long after its first snapshot holding a POV (its rows are lost).
 KILL_AFTER_SNAPSHOT_S = 0.5
 TIMEOUT_S = 400.0
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("overrides", [ROWS, WALL], ids=["rows", "wall"])
+@pytest.mark.parametrize("overrides", [ROWS, SMOKE_WALL_CLOCK], ids=["rows", "wall"])
 def test_the_agent_killed_on_its_own_clock_resumes_from_its_snapshot(overrides, tmp_path,
                                                                      domain_id, monkeypatch):
     import rclpy
