@@ -28,10 +28,15 @@ clocked agent's methods, which change nothing it does, and writes
   ``new`` (kept, added a POV), ``compensated`` (kept, compensated toward
   known POVs only), ``nothing`` (kept, neither), ``undone`` (a change cut
   it; the POVs it salvaged not told apart);
-* ``clock_trace.json``: (motor states, POVs, clock row) after each kept reaction::
+* ``clock_trace.json``: (motor states, POVs, clock row, motor states by
+  stage) after each kept reaction::
 
     nice -n 10 .venv/bin/python bench/clock_rows.py reproduce --strategy naive \\
         --config config/paper-clock.yaml --no-figures --quiet --out /tmp/clock_rows
+
+``bench/clock_rows.py windows DIR [POVS ...]`` prints from DIR's trace the
+motor states, kept reactions and rows by stage spent while the POVs known
+went from one mark to the next (default marks 0, 100, ..., 500, 550, 584, 600, 620).
 """
 from __future__ import annotations
 
@@ -49,7 +54,7 @@ if str(HERE.parent) not in sys.path:
 from bench.instrumented import run_instrumented  # noqa: E402
 
 COUNTS: collections.Counter = collections.Counter()
-TRACE: list = []        # (motor states, POVs, clock row) after each kept reaction
+TRACE: list = []        # (motor states, POVs, clock row, by stage) after each kept reaction
 
 
 def _kinds(agent, requests, matches) -> list:
@@ -172,7 +177,8 @@ def instrument() -> None:
             for stage, rows in getattr(agent, "_bench_stages", {}).items():
                 COUNTS[f"reaction_stage.{outcome}.{stage}"] += rows
         agent._bench_outcome = None
-        TRACE.append((int(agent.queries_total), int(agent._store.count), int(self.body.row)))
+        TRACE.append((int(agent.queries_total), int(agent._store.count), int(self.body.row),
+                      {k: int(v) for k, v in agent.queries_by_stage.items()}))
         return out
 
     AllPairsSweep._test = counted_test
@@ -184,7 +190,39 @@ def instrument() -> None:
     Agent._sweep_known = rows_of(sweep_known, "sweep", "sweep_rows.known")
 
 
+MARKS = (0, 100, 200, 300, 400, 500, 550, 584, 600, 620)
+
+
+def windows(trace: list, marks=MARKS) -> list:
+    """``[(first POVs, last POVs, motor states, kept reactions, {stage: rows})]``:
+    what the agent spent while its POVs went from each mark to the next (the last
+    window runs to the end of the trace)."""
+    rows, previous = [], (0, 0, 0, {})
+    for low, high in zip(marks, list(marks[1:]) + [float("inf")]):
+        inside = [entry for entry in trace if low <= entry[1] < high]
+        if not inside:
+            continue
+        last = inside[-1]
+        stages = {k: v - previous[3].get(k, 0) for k, v in last[3].items()}
+        rows.append((low, last[1], last[0] - previous[0], len(inside), stages))
+        previous = last
+    return rows
+
+
+def print_windows(directory: str, marks=MARKS) -> None:
+    trace = json.loads((Path(directory) / "clock_trace.json").read_text())
+    stages = sorted({k for entry in trace for k in entry[3]})
+    print("POVs       motor states  reactions  " + "  ".join(f"{k:>9}" for k in stages))
+    for low, high, states, reactions, by_stage in windows(trace, marks):
+        print(f"{low:>4}-{high:<4}  {states:>12,}  {reactions:>9}  " +
+              "  ".join(f"{by_stage.get(k, 0):>{max(len(k), 9)},}" for k in stages))
+
+
 def main() -> None:
+    if sys.argv[1:2] == ["windows"]:
+        marks = [int(m) for m in sys.argv[3:]] or MARKS
+        print_windows(sys.argv[2], marks)
+        return
     def write(out: Path):
         (out / "clock_rows.json").write_text(json.dumps(dict(COUNTS), indent=1, sort_keys=True))
         (out / "clock_trace.json").write_text(json.dumps(TRACE))
