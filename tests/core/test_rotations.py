@@ -100,9 +100,8 @@ def test_paper_strategy_compensates_exactly_the_compensable_poses(turning_world)
 
 
 def _ring_times_circle(n_ring=14, n_turn=10, inner=2.0, outer=3.0):
-    """Annulus x circle, sampled: (x, y, cos a, sin a). 280 points: H2 by ripser
-    takes a third of the 384 points' time, and the Betti numbers still clear their
-    threshold by x1.2."""
+    """Annulus x circle, sampled: (x, y, cos a, sin a); few points, as ripser's H2
+    grows as the cube of them."""
     radius = np.linspace(inner, outer, 2)
     phi = np.linspace(0, 2 * np.pi, n_ring, endpoint=False)
     a = np.linspace(0, 2 * np.pi, n_turn, endpoint=False)

@@ -91,8 +91,6 @@ def test_the_graph_on_the_row_clock_gives_the_offline_metrics(tmp_path, domain_i
                                          "naive.clock.undone_reactions")})
 
 
-
-
 def test_the_graph_on_the_wall_clock_ends_by_itself_and_is_evaluated(tmp_path, domain_id):
     from sensorispace_ros.core.run_world import run_world
     from sensorispace_ros.evaluation.graph_clock import graph_clocked_run

@@ -26,13 +26,13 @@ from sensorispace_ros.graph.dds_environment import graph_environment
 from sensorispace_ros.protocol import SNAPSHOT_FILE
 from sensorispace_ros.state.agent_journal import read_snapshot
 
-from shared import SMOKE, SMOKE_WALL_CLOCK, NodeProcess, spin_graph, stop_by_pid
+from shared import SMOKE, SMOKE_ROW_CLOCK, SMOKE_WALL_CLOCK, NodeProcess, spin_graph, stop_by_pid
 
 pytestmark = [pytest.mark.graph]
 
-# As tests/graph/test_clock_graph.py: simulation 2 until the world ends the run.
-ROWS = {"world.clock": "rows", "world.change_interval": 2000.0,
-        "naive.clock_equality_changes": 400}
+# The shared row-clock world on the smoke config's own 16 x 16 grid: the kill below is
+# timed against that world's run.
+ROWS = {**SMOKE_ROW_CLOCK, "world.grid_count": 16}
 # The dead agent works on this long after its first snapshot holding a POV (its rows are lost).
 KILL_AFTER_SNAPSHOT_S = 0.5
 TIMEOUT_S = 400.0
