@@ -369,7 +369,7 @@ def _motor_tolerance(singular, rank, motor_tol, noise_step):
     value (``noise_step`` in sensation units)."""
     if noise_step <= 0:
         return motor_tol
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):
         return np.maximum(motor_tol, noise_step / singular[:, rank - 1])
 
 
