@@ -37,8 +37,8 @@ SETTINGS = [
     ("combined", {"noise": 1e-3, "quantum": 1e-3, "motor_noise": 1e-3, "dropout": 1e-3}),
 ]
 
-COLUMNS = [("rank, POV dim, space dim", "structure"), ("POVs", "pov.count"), ("coverage", "naive.coverage"),
-           ("paper's positions", "naive.coverage_of_paper_positions"),
+COLUMNS = [("rank, POV dim, space dim", "structure"), ("POVs", "pov.count"),
+           ("coverage", "naive.coverage"), ("paper's positions", "naive.coverage_of_paper_positions"),
            ("wrong", "naive.wrong_poses"), ("changes accepted", "naive.state_changes_accepted"),
            ("pose error median", "naive.pose_error_median"),
            ("pose error p95", "naive.pose_error_p95"),
@@ -46,7 +46,7 @@ COLUMNS = [("rank, POV dim, space dim", "structure"), ("POVs", "pov.count"), ("c
            ("trust", "quality.2d.after.trustworthiness"),
            ("β0/β1", "betti"), ("searches and walks / POV", "naive.queries_per_pov"),
            ("motor states / POV", "naive.queries_total_per_pov"),
-           ("queries", "naive.queries_total"), ("wall (s)", "wall_s")]
+           ("motor states", "naive.queries_total"), ("wall (s)", "wall_s")]
 
 
 BETTI_KEYS = ("topology.2d.after.betti0", "topology.2d.after.betti1")
@@ -64,8 +64,7 @@ def row_of(folder: str, name: str, wall_s: float) -> dict:
     flat = config_mod.flatten(json.loads(Path(folder, "metrics.json").read_text()))
     row = {key: flat.get(key) for _, key in COLUMNS if key in flat}
     row.update({key: flat.get(key) for key in BETTI_KEYS})
-    row["betti"] = (f"{flat.get('topology.2d.after.betti0', '—')}/"
-                    f"{flat.get('topology.2d.after.betti1', '—')}")
+    row["betti"] = "/".join(str(flat.get(key, "—")) for key in BETTI_KEYS)
     row["structure"] = ", ".join(str(flat.get(f"naive.{key}", "—"))
                                  for key in ("pose_rank", "pov_dim", "space_dim"))
     if not flat.get("pov.count"):            # no POV: nothing per POV, no pose to err

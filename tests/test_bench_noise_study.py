@@ -1,6 +1,7 @@
 """bench/noise_study.py's rows and table: what each run's metrics.json says,
 one row a setting, and nothing per POV where no POV was found."""
 import json
+import subprocess
 import sys
 
 import pytest
@@ -58,7 +59,6 @@ def test_cells(value, text):
 
 
 def test_no_job_to_run_on_is_refused_before_any_run(tmp_path):
-    import subprocess
     done = subprocess.run([sys.executable, str(REPO / "bench" / "noise_study.py"), "--jobs", "0",
                            "--out", str(tmp_path / "out")], capture_output=True, text=True)
     assert done.returncode == 2 and "--jobs: must be >= 1, got 0" in done.stderr
