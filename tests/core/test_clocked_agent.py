@@ -429,3 +429,32 @@ def test_the_checks_after_a_reaction_take_one_call():
     body.change_row = np.array([body.row])      # the lights move now
     _, moved = agent.check_reaction([rest])
     assert moved
+
+
+def test_a_clocked_agent_senses_a_call_with_a_new_row_whole():
+    # A row remembered from before a change the sentinels have not flagged
+    # yet must not join rows of the new world in one call (the lockstep agent
+    # senses only a call's new rows: its world waits for it).
+    from sensorispace_ros.core.naive.agent import NaiveAgent
+    from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
+
+    class Recording:
+        n_motors, n_sensors = 2, 3
+
+        def __init__(self):
+            self.sent = []
+
+        def sense(self, rows):
+            rows = np.asarray(rows, dtype=float)
+            self.sent.append(len(rows))
+            return np.cos(rows @ np.ones((2, 3)))
+
+    known, new = np.zeros((1, 2)), np.ones((1, 2))
+    sent = {}
+    for kind in (ClockedAgent, NaiveAgent):
+        body = Recording()
+        agent = kind(body, NaiveParams())
+        agent._body.sense(known)
+        agent._body.sense(np.vstack([known, new]))
+        sent[kind] = body.sent
+    assert sent[ClockedAgent] == [1, 2] and sent[NaiveAgent] == [1, 1]

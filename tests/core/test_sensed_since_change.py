@@ -1,5 +1,5 @@
 """The naive agent answers a call from what it sensed since the last change
-(``remember_sensations``): same results, fewer calls, the arm still rests."""
+(``remember_sensations``): same results, fewer calls and rows, the arm still rests."""
 import contextlib
 import types
 
@@ -8,6 +8,7 @@ import pytest
 
 from sensorispace_ros.core.body import SensingOnly, SimulatedBody
 from sensorispace_ros.core.paper.exploration import build_world
+from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.run import run_naive
 from sensorispace_ros.core.naive.sense_memory import CountingBody, SensedSinceChange
@@ -76,8 +77,26 @@ def test_keys_that_collide_are_not_taken_for_the_row():
     stored = np.array([[1.0, 2.0, 3.0, 4.0]])
     memory.store(stored, np.ones((1, 6)))
     other = np.array([[5.0, 6.0, 7.0, 8.0]])
-    memory._keys[0] = (other.view(np.uint64) @ memory._mix)[0]   # force a collision
+    memory._index[int((other.view(np.uint64) @ memory._mix)[0])] = 0   # force a collision
     assert memory.recall(other) is None
+    assert not memory.lookup(other)[1].any()
+
+
+def test_lookup_tells_row_by_row_which_were_sensed():
+    rng = np.random.default_rng(3)
+    memory = SensedSinceChange(4, 6)
+    rows, sensations = rng.normal(size=(5, 4)), rng.normal(size=(5, 6))
+    memory.store(rows, sensations)
+    memory.store(rows[:1], sensations[:1] + 1.0)        # sensed again: the first is kept
+    nudged = rows[2].copy()
+    nudged[1] = np.nextafter(nudged[1], -np.inf)
+    asked = np.vstack([rows[3], rng.normal(size=4), rows[0], nudged])
+    got, found = memory.lookup(asked)
+    np.testing.assert_array_equal(found, [True, False, True, False])
+    np.testing.assert_array_equal(got[found], sensations[[3, 0]])
+    assert np.isnan(got[~found]).all()
+    memory.clear()
+    assert not memory.lookup(rows)[1].any()
 
 
 def test_memory_grows_and_keeps_the_first_rows():
@@ -105,6 +124,57 @@ def test_counting_body_sends_a_call_once_per_change():
     body.forget()                                                   # the environment moved
     body.sense(rows)
     assert len(fake.sent) == 3 and body.calls == {"rank": 3}
+
+
+def test_partial_recall_sends_only_the_rows_not_sensed_since_the_change():
+    fake = CountingFake(with_move=False)
+    body = CountingBody(fake, partial=True)
+    body.stage = "rank"
+    rows = np.arange(8.0).reshape(2, 4)
+    body.sense(rows)
+    asked = np.vstack([rows[1], rows[0] + 1.0, rows[0], rows[0] + 2.0])
+    got = body.sense(asked)
+    np.testing.assert_array_equal(fake.sent[-1], asked[[1, 3]])     # the new rows alone
+    np.testing.assert_array_equal(got, fake.sense(asked))
+    assert body.rows == {"rank": 4} and body.calls == {"rank": 2}
+    assert body.recalled == {"rank": 2} and body.remembered == {}
+    body.sense(asked[[2, 0]])                                       # all known: not sent
+    assert body.calls == {"rank": 2} and body.remembered == {"rank": 1}
+    with body.fresh():                                              # averaging: all sent
+        body.sense(asked)
+    assert len(fake.sent[-2]) == 4 and body.rows == {"rank": 8}
+    body.forget()
+    body.sense(asked)
+    assert len(fake.sent[-2]) == 4 and body.rows == {"rank": 12}
+
+
+def test_partial_recall_retries_lost_rows_and_carries_the_lookahead():
+    truth = CountingFake(with_move=False)
+    sent, lost_once = [], [True]
+
+    def sense(rows):
+        rows = np.asarray(rows, dtype=float)
+        sent.append(rows.copy())
+        out = np.sin(rows @ np.arange(1.0, 25.0).reshape(4, 6))
+        if lost_once[0] and len(rows) > 1:
+            lost_once[0] = False
+            out[0] = np.nan                                         # a lost frame
+        return out
+
+    truth.sense = sense
+    body = CountingBody(truth, partial=True, retries=1)
+    body.stage = "compensation"
+    known = np.full((1, 4), 0.5)
+    body.sense(known)
+    ahead = np.full((1, 4), 0.9)
+    new = np.array([[0.1, 0.2, 0.3, 0.4], [0.2, 0.3, 0.4, 0.5]])
+    with body.lookahead(ahead):
+        got = body.sense(np.vstack([known, new]))
+    expected = np.sin(np.vstack([known, new]) @ np.arange(1.0, 25.0).reshape(4, 6))
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(sent[1], np.vstack([new, ahead]))   # the known row left out
+    np.testing.assert_array_equal(sent[2], new[:1])                   # the lost row again
+    assert body.recalled == {"compensation": 1} and body.rows == {"compensation": 5}
 
 
 @pytest.mark.parametrize("with_move", [True, False])
@@ -150,6 +220,18 @@ def test_remembering_changes_no_result_only_the_calls():
     assert off.agent.calls_total - on.agent.calls_total == remembered
     # every rest is still a command: as many as changes (+ the start)
     assert on.agent.calls_by_stage["rest"] == off.agent.calls_by_stage["rest"]
+
+
+def test_partial_recall_changes_no_result_only_the_rows(monkeypatch):
+    world = build_world(0, {"grid_count": 12})
+    partial = run_naive(world, NaiveParams())
+    monkeypatch.setattr(NaiveAgent, "_partial_recall", False)      # whole calls only
+    whole = run_naive(world, NaiveParams())
+    assert assert_same_results(partial, whole) > 10
+    recalled = sum(partial.agent.recalled_by_stage.values())
+    assert recalled > 1000 and whole.agent.recalled_by_stage == {}
+    assert whole.agent.queries_total - partial.agent.queries_total == recalled
+    assert whole.agent.calls_by_stage == partial.agent.calls_by_stage
 
 
 def test_lookahead_rows_ride_on_the_next_call_and_answer_a_later_one():

@@ -2,10 +2,9 @@
 
 ``NaiveAgent`` is event driven so the ROS agent node can wrap it unchanged:
 ``start(m0)`` once, then ``react(passive_sensation)`` after every change of
-the environment. Its only access to the world is ``body.sense`` (a batch of
-motor states in, their sensations out, in the current static environment):
-no forward model, no displacement, no event kind. It never imports the arm,
-the retina or the world.
+the environment. Its only access to the world is ``body.sense`` (motor
+states in, their sensations out, in the current static environment): no
+forward model, no displacement, no event kind, no arm, retina or world.
 
 Anchors. The paper compensates toward "the pose at the last successful
 compensation plus the displacement since", knowing the displacement. The
@@ -39,14 +38,13 @@ Every anchor is recorded at a resting arm that is the start or a
 compensating state, and compensation keeps the eye's orientation, so every
 accepted POV is a spatial relative of the start's (the set {M*}_0). A
 compensating state sensing what a known POV senses is that POV (dedupe).
-The passive sensation handed to ``react`` is checked but not needed: the
-sweep senses the resting POV again.
+The passive sensation given to ``react`` is checked, not used (the sweep
+senses the resting POV again).
 
 Before anything else ``start`` measures the body's structure (``structure``):
 the pose rank, the POV dimension and the sensory gain every sensation
 tolerance is scaled by. The agent works in phases (each joint's period, as
-the body's description states it, is 2 pi); what it reports is in the
-body's own units.
+the body's description states it, is 2 pi); it reports in the body's units.
 """
 from __future__ import annotations
 
@@ -65,8 +63,7 @@ from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noq
 from sensorispace_ros.core.naive.searching import SearchAndSample
 from sensorispace_ros.core.naive.sense_memory import CountingBody, MotorPhase
 from sensorispace_ros.core.naive.noise import (averaged_search_params, averaging_repeats,
-    finite_difference_step,
-    jacobian_noise, measure_body, noise_residual, noise_step)
+    finite_difference_step, jacobian_noise, measure_body, noise_residual, noise_step)
 from sensorispace_ros.core.naive.start import choose_start
 from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 
@@ -88,6 +85,7 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
     (``noise.measure_body``; unchanged on a noiseless body).
     """
     _noise_measured = None      # called (center, noise) once the start measured its noise
+    _partial_recall = True      # a call senses only its rows not sensed since the change
 
     def __init__(self, body, params: NaiveParams | None = None):
         self.params = params if params is not None else NaiveParams()
@@ -109,7 +107,7 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
         self.description = description
         self._phase = MotorPhase(description.periods)
         self._body = CountingBody(body, bool(self.params.remember_sensations), self._phase,
-                                  self.params.lost_row_retries)
+                                  self.params.lost_row_retries, self._partial_recall)
         self.n_motors = self._body.n_motors
         self.structure: BodyStructure | None = None     # measured by start()
         self._tol: Tolerances | None = None
@@ -139,8 +137,7 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
 
     @property
     def points_of_view(self) -> np.ndarray:
-        """``(P, N, M)`` samples of every POV found so far (a copy, in the
-        body's units)."""
+        """``(P, N, M)`` samples of every POV found so far (a copy, body's units)."""
         return self._to_body(self._store.samples)
 
     @property
@@ -188,9 +185,13 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
         return dict(self._body.remembered)
 
     @property
+    def recalled_by_stage(self) -> dict:
+        """Rows of sent calls answered from memory, per stage: not in ``queries_by_stage``."""
+        return dict(self._body.recalled)
+
+    @property
     def seconds_by_stage(self) -> dict:
-        """Wall time spent in each stage (sense calls and the agent's own
-        computation between them)."""
+        """Wall time per stage (sense calls and the agent's own computation)."""
         return dict(self._body.seconds)
 
     def equality_sets(self):
@@ -211,9 +212,8 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
         if sweep is not None:           # its body is the counting body: rebound on restore
             attributes["_sweep"] = {name: value for name, value in vars(sweep).items()
                                     if name != "body"}
-        counters = {"rows": dict(self._body.rows), "calls": dict(self._body.calls),
-                    "seconds": dict(self._body.seconds),
-                    "remembered": dict(self._body.remembered)}
+        counters = {name: dict(getattr(self._body, name))
+                    for name in ("rows", "calls", "seconds", "remembered", "recalled")}
         return {"attributes": attributes, "counters": counters}
 
     @classmethod

@@ -70,6 +70,10 @@ class _CurrentTree:
 class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
+    # A row remembered from before a change the sentinels have not flagged yet
+    # would join rows of the new world in one call: only whole calls are recalled.
+    _partial_recall = False
+
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
         self._tripwire = Tripwire(body)
         super().__init__(self._tripwire, params)

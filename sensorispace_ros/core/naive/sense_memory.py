@@ -26,12 +26,13 @@ class SensedSinceChange:
     """The motor states sensed since the environment last changed, with their
     sensations. The environment is static between two changes and the body
     answers each row on its own, so a state sensed again would sense the same
-    bits: ``recall`` gives them without a ``sense`` call. Such calls are the
-    resting state after every change, rank tests and walk starts at states
-    the search just probed (how many: docs/benchmarks.md). Rows are matched
-    bit for bit: a key mixes a row's uint64 views (integer arithmetic, so a
-    row has the same key in any batch; a float dot product does not),
-    candidates must then have the same bits (-0.0 is not 0.0 here)."""
+    bits: ``recall`` gives them without a ``sense`` call, ``lookup`` row by
+    row. Whole calls so answered: the resting state after every change, rank
+    tests and walk starts at states the search just probed; rows of a call:
+    the centre of a rank test the sweep just sensed (docs/benchmarks.md). Rows are
+    matched bit for bit: a key mixes a row's uint64 views (integer
+    arithmetic, so a row has the same key in any batch; a float dot product
+    does not), candidates must then have the same bits (-0.0 is not 0.0 here)."""
 
     # Odd 64-bit constants (splitmix64's); rows whose keys collide are caught
     # by the bitwise check.
@@ -40,41 +41,49 @@ class SensedSinceChange:
 
     def __init__(self, n_motors: int, n_sensors: int):
         self._mix = np.resize(self._MIX, n_motors)
-        self._keys = np.empty(1024, dtype=np.uint64)
+        self._index: dict[int, int] = {}         # key -> the first stored row with it
         self._motor_states = np.empty((1024, n_motors))
         self._sensations = np.empty((1024, n_sensors))
         self.count = 0
 
     def clear(self) -> None:
         self.count = 0
+        self._index.clear()
 
     def recall(self, motor_states: np.ndarray) -> np.ndarray | None:
         """Sensations of ``motor_states`` if every row was sensed, else None."""
         if self.count == 0 or len(motor_states) == 0:
             return None
-        keys = self._keys[:self.count]
-        wanted = motor_states.view(np.uint64) @ self._mix
-        if not (keys == wanted[0]).any():
-            return None                          # the usual case: a new state
-        equal = keys[None, :] == wanted[:, None]
-        if not equal.any(axis=1).all():
-            return None
-        where = equal.argmax(axis=1)
-        if not np.array_equal(self._motor_states[where].view(np.uint64),
-                              motor_states.view(np.uint64)):
-            return None
-        return self._sensations[where]
+        sensations, found = self.lookup(motor_states)
+        return sensations if found.all() else None
+
+    def lookup(self, motor_states: np.ndarray):
+        """Row by row: ``(sensations (K, S), found (K,) bool)``, the stored
+        bits of each row sensed since the last change (NaN where not)."""
+        sensations = np.full((len(motor_states), self._sensations.shape[1]), np.nan)
+        if self.count == 0 or len(motor_states) == 0:
+            return sensations, np.zeros(len(motor_states), dtype=bool)
+        keys = (motor_states.view(np.uint64) @ self._mix).tolist()
+        where = np.fromiter((self._index.get(k, -1) for k in keys), dtype=np.int64,
+                            count=len(keys))
+        found = where >= 0
+        found[found] = np.all(self._motor_states[where[found]].view(np.uint64) ==
+                              motor_states[found].view(np.uint64), axis=1)
+        sensations[found] = self._sensations[where[found]]
+        return sensations, found
 
     def store(self, motor_states: np.ndarray, sensations: np.ndarray) -> None:
         end = self.count + len(motor_states)
-        if end > len(self._keys):
-            size = max(2 * len(self._keys), end)
-            for name in ("_keys", "_motor_states", "_sensations"):
+        if end > len(self._motor_states):
+            size = max(2 * len(self._motor_states), end)
+            for name in ("_motor_states", "_sensations"):
                 old = getattr(self, name)
                 grown = np.empty((size,) + old.shape[1:], dtype=old.dtype)
                 grown[:self.count] = old[:self.count]
                 setattr(self, name, grown)
-        self._keys[self.count:end] = motor_states.view(np.uint64) @ self._mix
+        keys = (motor_states.view(np.uint64) @ self._mix).tolist()
+        for row, key in enumerate(keys, start=self.count):
+            self._index.setdefault(key, row)
         self._motor_states[self.count:end] = motor_states
         self._sensations[self.count:end] = sensations
         self.count = end
@@ -106,14 +115,16 @@ class CountingBody:
     what the body exposes. A stage lasts from its ``stage = name`` to the
     next one (or to ``pause()``). With ``remember``, a call whose motor
     states were all sensed since the last ``forget()`` is answered from
-    ``SensedSinceChange`` (counted in ``remembered``, not in ``calls``).
+    ``SensedSinceChange`` (counted in ``remembered``, not in ``calls``);
+    with ``partial`` too, a call sends only its rows not sensed since then
+    (the others counted in ``recalled``, not in ``rows``).
     Rows in and out are phases (``phase``, identity by default); the body is
     sent its own units. A row that comes back non-finite (a lost frame) is
     sensed again, ``retries`` times at most (each a call of the lost rows);
     one still lost is returned as it came (its users leave it out)."""
 
     def __init__(self, body, remember: bool = True, phase: MotorPhase | None = None,
-                 retries: int = 0):
+                 retries: int = 0, partial: bool = False):
         self._body = body
         self.n_motors = int(body.n_motors)
         self.n_sensors = int(body.n_sensors)
@@ -124,6 +135,8 @@ class CountingBody:
         self.calls: dict[str, int] = {}
         self.seconds: dict[str, float] = {}
         self.remembered: dict[str, int] = {}
+        self.recalled: dict[str, int] = {}
+        self.partial = bool(partial)
         self._sensed = SensedSinceChange(self.n_motors, self.n_sensors) if remember else None
         self._lookahead: np.ndarray | None = None
         self.phase = phase if phase is not None else MotorPhase([2.0 * np.pi] * self.n_motors)
@@ -184,9 +197,24 @@ class CountingBody:
 
     def sense(self, motor_states):
         motor_states = np.ascontiguousarray(motor_states, dtype=float)
+        if self.partial and self._sensed is not None and not self._fresh:
+            return self._sense_new_rows(motor_states)
         known = self._recall(motor_states)
         if known is not None:
             self.remembered[self.stage] = self.remembered.get(self.stage, 0) + 1
+            return known
+        return self._command(motor_states)
+
+    def _sense_new_rows(self, motor_states: np.ndarray) -> np.ndarray:
+        """``sense`` with ``partial``: the rows sensed since the last change
+        from memory, the others from the body (one call)."""
+        known, found = self._sensed.lookup(motor_states)
+        if found.all() and len(found):
+            self.remembered[self.stage] = self.remembered.get(self.stage, 0) + 1
+            return known
+        if found.any():
+            self.recalled[self.stage] = self.recalled.get(self.stage, 0) + int(found.sum())
+            known[~found] = self._command(np.ascontiguousarray(motor_states[~found]))
             return known
         return self._command(motor_states)
 
