@@ -54,6 +54,8 @@ class SensedSinceChange:
         """Sensations of ``motor_states`` if every row was sensed, else None."""
         if self.count == 0 or len(motor_states) == 0:
             return None
+        if int(motor_states[0].view(np.uint64) @ self._mix) not in self._index:
+            return None                          # the usual case: a new state
         sensations, found = self.lookup(motor_states)
         return sensations if found.all() else None
 
