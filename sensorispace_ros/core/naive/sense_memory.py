@@ -17,6 +17,7 @@ converts; ``CountingBody`` sends the body its own units. With periods of 2 pi
 from __future__ import annotations
 
 import contextlib
+import itertools
 import time
 
 import numpy as np
@@ -66,8 +67,8 @@ class SensedSinceChange:
         if self.count == 0 or len(motor_states) == 0:
             return sensations, np.zeros(len(motor_states), dtype=bool)
         keys = (motor_states.view(np.uint64) @ self._mix).tolist()
-        where = np.fromiter((self._index.get(k, -1) for k in keys), dtype=np.int64,
-                            count=len(keys))
+        where = np.array(list(map(self._index.get, keys, itertools.repeat(-1, len(keys)))),
+                         dtype=np.int64)
         found = where >= 0
         found[found] = np.all(self._motor_states[where[found]].view(np.uint64) ==
                               motor_states[found].view(np.uint64), axis=1)
@@ -84,8 +85,12 @@ class SensedSinceChange:
                 grown[:self.count] = old[:self.count]
                 setattr(self, name, grown)
         keys = (motor_states.view(np.uint64) @ self._mix).tolist()
-        for row, key in enumerate(keys, start=self.count):
-            self._index.setdefault(key, row)
+        # Each key's first row: within the batch (reversed, so the first
+        # overwrites), then against what was stored before.
+        first = dict(zip(reversed(keys), range(end - 1, self.count - 1, -1)))
+        for key in first.keys() & self._index.keys():
+            del first[key]
+        self._index.update(first)
         self._motor_states[self.count:end] = motor_states
         self._sensations[self.count:end] = sensations
         self.count = end
