@@ -77,7 +77,7 @@ def test_keys_that_collide_are_not_taken_for_the_row():
     stored = np.array([[1.0, 2.0, 3.0, 4.0]])
     memory.store(stored, np.ones((1, 6)))
     other = np.array([[5.0, 6.0, 7.0, 8.0]])
-    memory._index[int((other.view(np.uint64) @ memory._mix)[0])] = 0   # force a collision
+    memory._index[memory._keys(other)[0]] = 0                       # force a collision
     assert memory.recall(other) is None
     assert not memory.lookup(other)[1].any()
 

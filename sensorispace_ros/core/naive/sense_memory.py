@@ -55,7 +55,7 @@ class SensedSinceChange:
         """Sensations of ``motor_states`` if every row was sensed, else None."""
         if self.count == 0 or len(motor_states) == 0:
             return None
-        if int(motor_states[0].view(np.uint64) @ self._mix) not in self._index:
+        if self._keys(motor_states[:1])[0] not in self._index:
             return None                          # the usual case: a new state
         sensations, found = self.lookup(motor_states)
         return sensations if found.all() else None
@@ -66,7 +66,7 @@ class SensedSinceChange:
         sensations = np.full((len(motor_states), self._sensations.shape[1]), np.nan)
         if self.count == 0 or len(motor_states) == 0:
             return sensations, np.zeros(len(motor_states), dtype=bool)
-        keys = (motor_states.view(np.uint64) @ self._mix).tolist()
+        keys = self._keys(motor_states)
         where = np.array(list(map(self._index.get, keys, itertools.repeat(-1, len(keys)))),
                          dtype=np.int64)
         found = where >= 0
@@ -74,6 +74,10 @@ class SensedSinceChange:
                               motor_states[found].view(np.uint64), axis=1)
         sensations[found] = self._sensations[where[found]]
         return sensations, found
+
+    def _keys(self, motor_states: np.ndarray) -> list[int]:
+        """Each row's key: its uint64 views mixed (the same in any batch)."""
+        return (motor_states.view(np.uint64) @ self._mix).tolist()
 
     def store(self, motor_states: np.ndarray, sensations: np.ndarray) -> None:
         end = self.count + len(motor_states)
@@ -84,7 +88,7 @@ class SensedSinceChange:
                 grown = np.empty((size,) + old.shape[1:], dtype=old.dtype)
                 grown[:self.count] = old[:self.count]
                 setattr(self, name, grown)
-        keys = (motor_states.view(np.uint64) @ self._mix).tolist()
+        keys = self._keys(motor_states)
         # Each key's first row: within the batch (reversed, so the first
         # overwrites), then against what was stored before.
         first = dict(zip(reversed(keys), range(end - 1, self.count - 1, -1)))
