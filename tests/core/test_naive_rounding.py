@@ -10,7 +10,8 @@ import pytest
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.jacobians import (CloudStep, SymmetricStep, jacobian_stencil,
                                                    sensory_jacobian, stencil_rows)
-from sensorispace_ros.core.naive.noise import measure_body, measure_noise, output_lattice
+from sensorispace_ros.core.naive.noise import measure_body, measure_noise
+from sensorispace_ros.core.naive.noise_spread import output_lattice
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.paper.exploration import build_world
 

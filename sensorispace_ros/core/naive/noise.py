@@ -18,9 +18,10 @@ senses, once, in one ``sense`` call:
   rounding step) say nothing and are skipped; the finest informative line
   step gives the estimate.
 
-Every spread is robust (median absolute deviation): heavy tails, a few wild
-outputs and lost rows (non-finite, left out and counted) do not move it.
-The estimate is a per-receptor standard deviation in the units of the
+Every spread is robust (``noise_spread``): heavy tails, a few wild outputs
+and lost rows (non-finite, left out and counted) do not move it. Where the
+repeats and the lines see one random noise their two estimates are pooled;
+elsewhere the larger stands. The estimate is a per-receptor standard deviation in the units of the
 sensations; float64 round-off of the outputs is its floor, so a noiseless
 body measures 1e-16 to 1e-14 and nothing the agent sizes from it changes.
 
@@ -42,23 +43,23 @@ from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.jacobians import AveragedStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.repeat_step import last_world_start, robust_sd
+from sensorispace_ros.core.naive.noise_spread import (ladder_spread, ladder_steps, line_slope,
+                                                      noise_rows, output_lattice, random_noise,
+                                                      repeat_spread)
+from sensorispace_ros.core.naive.repeat_step import last_world_start
 from sensorispace_ros.core.naive.structure import (BodyStructure, measure_structure,
                                                    probe_rows, probe_structure,
                                                    repeat_variance, rounded_structure)
-
-# Fixed direction of the ladder's lines (any body's motor space).
-_GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
-
 
 @dataclass(frozen=True)
 class SensoryNoise:
     """The agent's measure of its sensory noise (``measure_noise``).
 
     ``sd`` per-receptor standard deviation of one sensation (sensation
-    units): the larger of ``repeat_sd`` (the same motor state sensed again)
-    and ``ladder_sd`` (second differences along short lines), at least the
-    float64 round-off of the outputs. ``lost_fraction`` the share of
+    units): ``repeat_sd`` (the same motor state sensed again) and
+    ``ladder_sd`` (second differences along short lines) pooled where they
+    agree on one random noise, else the larger (``noise_spread``), at least
+    the float64 round-off of the outputs. ``lost_fraction`` the share of
     sensed rows that came back non-finite; ``slope`` how fast the sensation
     changes along the ladder's line (sensation per phase radian, at its
     coarser steps), a first measure of the sensory gain. ``center``: the
@@ -86,102 +87,6 @@ class SensoryNoise:
                 "naive.lost_fraction": float(self.lost_fraction)}
 
 
-def ladder_steps() -> np.ndarray:
-    """Line steps (phase) of the ladder: half decades from 1e-8 to 0.1."""
-    return 10.0 ** np.arange(-8.0, -0.99, 0.5)
-
-
-def noise_rows(center: np.ndarray, repeats: int, line_rows: int) -> np.ndarray:
-    """The rows ``measure_noise`` senses: ``repeats`` copies of ``center``,
-    then one line of ``line_rows`` states per ladder step."""
-    center = np.asarray(center, dtype=float).reshape(-1)
-    direction = np.cos(2.0 * np.pi * ((np.arange(1, len(center) + 1) * _GOLDEN) % 1.0))
-    direction /= np.linalg.norm(direction)
-    k = np.arange(line_rows)[None, :, None]
-    lines = center + ladder_steps()[:, None, None] * k * direction
-    return np.vstack([np.repeat(center[None], repeats, axis=0),
-                      lines.reshape(-1, len(center))])
-
-
-def repeat_spread(repeats: np.ndarray) -> float:
-    """Robust sd of sensations of one motor state sensed ``R`` times ``(R, S)``
-    (non-finite rows left out), corrected for the median's own spread."""
-    rows = repeats[np.all(np.isfinite(repeats), axis=1)]
-    if len(rows) < 3:
-        return 0.0
-    spread = robust_sd(rows - np.median(rows, axis=0))
-    return spread * np.sqrt(len(rows) / (len(rows) - 1.0))
-
-
-def ladder_spread(lines: np.ndarray) -> float:
-    """The noise seen by second differences along the ladder's lines
-    ``(L, K, S)``: for each step, ``robust_sd(d2) / sqrt(6)`` over the
-    outputs that move along the line; steps where most of those second
-    differences are 0 (outputs within one rounding step) are skipped. The
-    finest informative step's value; 0 if none is."""
-    d2 = lines[:, 2:] - 2.0 * lines[:, 1:-1] + lines[:, :-2]
-    for step in range(len(lines)):
-        line = lines[step]
-        finite = np.all(np.isfinite(line), axis=1)
-        moving = np.ptp(line[finite], axis=0) > 0 if finite.sum() >= 3 else np.zeros(0, bool)
-        if not moving.any():
-            continue
-        values = d2[step][:, moving]
-        values = values[np.all(np.isfinite(values), axis=1)]
-        # "Unchanged" up to the round-off of the subtraction itself.
-        tiny = 16.0 * np.finfo(float).eps * np.max(np.abs(line[finite]))
-        if len(values) == 0 or np.mean(np.abs(values) <= tiny) > 0.5:
-            continue
-        return robust_sd(values) / np.sqrt(6.0)
-    return 0.0
-
-
-# A lattice finer than this share of the outputs' size is rounding of the
-# float kind (float32's relative step is 6e-8): the finite-difference path
-# sized from the ladder already lives with it.
-_FINEST_LATTICE = 2.0 ** -20
-# Share of the gaps between a receptor's values that must be whole
-# multiples of the smallest one for the outputs to lie on a lattice.
-_ON_LATTICE = 0.95
-
-
-def output_lattice(sensed: np.ndarray) -> float:
-    """The step of the lattice the outputs ``(N, S)`` lie on, 0 if none: the
-    median over receptors (with at least three distinct finite values) of
-    the smallest gap between two of its values, when the gaps between the
-    values of every receptor are whole multiples of it (``_ON_LATTICE`` of
-    them) and it is coarser than float rounding (``_FINEST_LATTICE``)."""
-    values = np.asarray(sensed, dtype=float)
-    smallest, gaps = [], []
-    for column in values.T:
-        distinct = np.unique(column[np.isfinite(column)])
-        if len(distinct) >= 3:
-            step = np.diff(distinct)
-            smallest.append(step.min())
-            gaps.append(step)
-    if not smallest:
-        return 0.0
-    quantum = float(np.median(smallest))
-    finite = values[np.isfinite(values)]
-    if quantum <= _FINEST_LATTICE * float(np.max(np.abs(finite))):
-        return 0.0
-    ratio = np.concatenate(gaps) / quantum
-    on = np.abs(ratio - np.round(ratio)) <= 1e-3
-    return quantum if np.mean(on) >= _ON_LATTICE else 0.0
-
-
-def line_slope(lines: np.ndarray) -> float:
-    """Largest ``|y_last - y_0| / length`` of the ladder's lines ``(L, K, S)``
-    with steps of at least 1e-3 (finite ends only; 0 if none)."""
-    slopes = [0.0]
-    for step, line in zip(ladder_steps(), lines):
-        finite = np.flatnonzero(np.all(np.isfinite(line), axis=1))
-        if step >= 1e-3 and len(finite) >= 2:
-            slopes.append(float(np.linalg.norm(line[finite[-1]] - line[finite[0]])
-                                / (step * (finite[-1] - finite[0]))))
-    return max(slopes)
-
-
 def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
                   line_rows: int = 16) -> SensoryNoise:
     """``SensoryNoise`` of ``body`` around ``center`` (phases), from ONE
@@ -201,6 +106,9 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
     finite = sensed[np.isfinite(sensed)]
     roundoff = np.finfo(float).eps * (float(np.max(np.abs(finite))) if len(finite) else 0.0)
     sd = max(repeat_sd, ladder_sd, roundoff)
+    pooled = random_noise(repeated, lines)
+    if pooled is not None:          # one random noise: the sharper pooled estimate
+        sd, repeat_sd, ladder_sd = max(pooled[0], roundoff), pooled[1], pooled[2]
     if quantum > 0 and repeat_sd < 0.5 * sd:
         # Rounding to a lattice errs uniformly within half a step: sd
         # quantum / sqrt(12) (second differences of rounded values see more).
