@@ -22,7 +22,7 @@ from scipy.stats import f as f_distribution
 
 from sensorispace_ros.core.naive.repeat_step import robust_sd
 
-__all__ = ["informative_d2", "ladder_spread", "ladder_steps", "line_slope", "noise_rows",
+__all__ = ["clipped_variance", "informative_d2", "ladder_spread", "ladder_steps", "line_slope", "noise_rows",
            "output_lattice", "random_noise", "repeat_spread"]
 
 # Fixed direction of the ladder's lines (any body's motor space).
