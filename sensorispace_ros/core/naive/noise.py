@@ -21,9 +21,10 @@ senses, once, in one ``sense`` call:
 Every spread is robust (``noise_spread``): heavy tails, a few wild outputs
 and lost rows (non-finite, left out and counted) do not move it. Where the
 repeats and the lines see one random noise their two estimates are pooled;
-elsewhere the larger stands. The estimate is a per-receptor standard deviation in the units of the
-sensations; float64 round-off of the outputs is its floor, so a noiseless
-body measures 1e-16 to 1e-14 and nothing the agent sizes from it changes.
+elsewhere the larger stands. The estimate is a per-receptor standard
+deviation in the units of the sensations; float64 round-off of the outputs
+is its floor, so a noiseless body measures 1e-16 to 1e-14 and nothing the
+agent sizes from it changes.
 
 ``measure_body`` then measures the structure at a finite-difference step
 sized from the noise, and every tolerance that would expect exact repeats

@@ -22,8 +22,8 @@ from scipy.stats import f as f_distribution
 
 from sensorispace_ros.core.naive.repeat_step import robust_sd
 
-__all__ = ["clipped_variance", "informative_d2", "ladder_spread", "ladder_steps", "line_slope", "noise_rows",
-           "output_lattice", "random_noise", "repeat_spread"]
+__all__ = ["clipped_variance", "informative_d2", "ladder_spread", "ladder_steps", "line_slope",
+           "noise_rows", "output_lattice", "random_noise", "repeat_spread"]
 
 # Fixed direction of the ladder's lines (any body's motor space).
 _GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
