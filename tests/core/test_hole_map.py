@@ -67,7 +67,7 @@ def test_a_found_pov_is_placed_at_its_point_and_is_no_target_any_more():
     index = {p: i for i, p in enumerate(points)}
     targets = [(0, [index[(1, 2)]], np.array([1, 0]))]
     holes.place(len(points), (2, 2))
-    assert holes.unplaced == 0
+    assert holes.unplaced == 0 and holes.found == 1
     assert holes.candidates(targets, max_fails=2) == []
 
 
@@ -82,7 +82,7 @@ def test_failures_follow_the_points_when_the_lattice_is_measured_again():
     again = holes.remeasured(Lattice(ij=moved, placed=np.ones(len(points), bool),
                                      residual=0.0), n_sets=10)
     point = tuple((np.array([5, 0]) @ unimodular + (3, -2)).tolist())
-    assert again.fails == {point: 2} and again.n_sets == 10
+    assert again.fails == {point: 2} and again.n_sets == 10 and again.found == 0
     index = {p: i for i, p in enumerate(points)}
     step = np.array([1, 0]) @ unimodular
     targets = [(0, [index[(4, 0)]], step)]

@@ -45,6 +45,7 @@ class HoleMap:
         self.ij = lattice.ij.copy()
         self.placed = lattice.placed.copy()
         self.fails: dict[tuple, int] = {}
+        self.found = 0              # POVs placed where a search toward an empty point found them
         self.n_sets = int(n_sets)
         self._offsets = np.array([o for o in itertools.product((-1, 0, 1), repeat=lattice.dim)
                                   if any(o)], dtype=int)
@@ -66,6 +67,7 @@ class HoleMap:
         self.grow(pov + 1)
         self.ij[pov] = point
         self.placed[pov] = True
+        self.found += 1
 
     def failed(self, point) -> None:
         """A search toward ``point`` found no new POV there."""
@@ -75,7 +77,7 @@ class HoleMap:
     def remeasured(self, lattice: Lattice, n_sets: int) -> "HoleMap":
         """A map on ``lattice`` (measured again) with these failures carried over."""
         fresh = HoleMap(lattice, n_sets)
-        fresh.fails = self._regauge(fresh)
+        fresh.fails, fresh.found = self._regauge(fresh), self.found
         return fresh
 
     def _regauge(self, fresh: "HoleMap") -> dict:
