@@ -458,3 +458,25 @@ def test_a_clocked_agent_senses_a_call_with_a_new_row_whole():
         agent._body.sense(np.vstack([known, new]))
         sent[kind] = body.sent
     assert sent[ClockedAgent] == [1, 2] and sent[NaiveAgent] == [1, 1]
+
+
+def test_the_agent_places_its_povs_on_the_true_lattice_and_finds_povs_at_its_holes(clocked_smoke):
+    # The lattice the clocked agent measured from its own equality sets is the
+    # world's grid: the POVs it places have integer coordinates that an
+    # integer map of determinant +-1 takes to their true grid offsets. Some of
+    # its POVs were found by searching an empty point of that lattice, and
+    # each sits at the point searched (the map stays exact with them placed).
+    world, run, _ = clocked_smoke
+    agent = run.agent
+    holes = agent._hole_map
+    assert holes is not None and np.count_nonzero(holes.placed) > agent._store.count // 2
+    true_poses = np.asarray(evaluate_naive_run(run, world).true_poses)
+    placed = np.flatnonzero(holes.placed[:agent._store.count])
+    offsets = (true_poses[placed, :2] - true_poses[placed[0], :2]) / world.spacing
+    truth = np.round(offsets).astype(int)
+    np.testing.assert_allclose(offsets, truth, atol=1e-6)
+    design = np.c_[holes.ij[placed], np.ones(len(placed))]
+    coef = np.round(np.linalg.lstsq(design, truth.astype(float), rcond=None)[0])
+    np.testing.assert_array_equal(design @ coef, truth)
+    assert abs(round(np.linalg.det(coef[:2]))) == 1
+    assert holes.found > 0 and holes.fails

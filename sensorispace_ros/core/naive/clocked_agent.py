@@ -12,6 +12,9 @@ waiting world:
   search's solution is compared with the known POVs nearest to it in motor
   space, sensed in this world (``_sense_near``): a solution sensing what one senses is
   that POV, swept or not;
+* once its equality sets imply a lattice, a reaction searches the empty
+  lattice points its confirmed snapshots point at, not their frontier rows
+  (``clock_holes``): the holes in what it knows, not targets known already;
 * every call a reaction sends ends with its *sentinels*, the resting state
   of before and a lookout, whose sensations in this world the agent holds
   (``change_detection.Tripwire``; ``sense_sentinels``): when one moved, the world changed
@@ -34,6 +37,7 @@ from scipy.spatial import cKDTree
 from sensorispace_ros.core.seeding import CounterStream
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.clock_equality import AllPairsSweep, translated_sets
+from sensorispace_ros.core.naive.clock_holes import HoleTargets
 from sensorispace_ros.core.naive.clock_known import KnownNearby
 from sensorispace_ros.core.naive.clock_sweep import BoundedSweep
 from sensorispace_ros.core.naive.clock_walks import BriefWalks
@@ -67,7 +71,7 @@ class _CurrentTree:
         return cKDTree(finite_rows(self._current, -1.0)).query(x, k=k, **kwargs)
 
 
-class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, NaiveAgent):
+class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, HoleTargets, NaiveAgent):
     """``NaiveAgent`` with a bounded sweep and undoable reactions (module docstring)."""
 
     # A row remembered from before a change the sentinels have not flagged yet
@@ -301,6 +305,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, NaiveAgent)
                           any(len(before) for before, _ in matches))
         known_comp, requests = super()._anchor_requests(matches, rest_hits, rank_now, current)
         if current is not None:     # this reaction's requests (not the rank tests' guess)
+            requests = self._hole_requests(matches, requests)
             self._unconfirmed_asked = [
                 i for i, r in enumerate(requests) if r.row < 0 and not len(matches[r.snapshot][0])
                 and self._store.count >= self.params.unconfirmed_max_povs]
@@ -358,6 +363,7 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, NaiveAgent)
         finally:
             self._search_current = None
         found = {asked[i]: value for i, value in found.items()}
+        self._track_holes(found, new_povs)
         for i in getattr(self, "_unconfirmed_asked", ()):
             self._unconfirmed_found(i in found)
         self._unconfirmed_asked = []

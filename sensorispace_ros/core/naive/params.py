@@ -112,6 +112,8 @@ class NaiveParams:
     clock_unconfirmed_min_rate: float = _default("clock_unconfirmed_min_rate")
     clock_stop_ratio: float = _default("clock_stop_ratio")
     clock_stop_window: int = _default("clock_stop_window")
+    clock_hole_targets: bool = _default("clock_hole_targets")
+    clock_hole_attempts: int = _default("clock_hole_attempts")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.
