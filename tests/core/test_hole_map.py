@@ -87,3 +87,18 @@ def test_failures_follow_the_points_when_the_lattice_is_measured_again():
     step = np.array([1, 0]) @ unimodular
     targets = [(0, [index[(4, 0)]], step)]
     assert again.candidates(targets, max_fails=2) == []
+
+
+def test_a_set_that_moves_placed_povs_by_two_steps_contradicts_the_map():
+    holes, points = _block_with_a_hole()
+    index = {p: i for i, p in enumerate(points)}
+    agree = [(index[(0, 0)], index[(1, 0)]), (index[(3, 3)], index[(4, 3)]),
+             (index[(0, 1)], index[(0, 3)]), (index[(1, 1)], index[(1, 3)])]
+    ids = [0, 0, 1, 1]
+    assert not holes.contradicted(np.array(agree), np.array(ids))
+    # The same pair in another set moved by another step: a wrong equality.
+    wrong = agree + [(index[(2, 1)], index[(3, 1)])]
+    assert holes.contradicted(np.array(wrong), np.array(ids + [1]))
+    # A pair with a POV the map does not place says nothing about the map.
+    unplaced = agree + [(index[(2, 1)], len(points))]
+    assert not holes.contradicted(np.array(unplaced), np.array(ids + [1]))

@@ -17,7 +17,8 @@ agent searches up to ``frontier_attempts`` empty points, those with the
 most known neighbours first (a hole inside what it knows), each from the
 known POV next to it, and gives a point up after ``clock_hole_attempts``
 searches that found no new POV there. Until the sets imply a lattice, and
-where they stop implying one, the frontier rows are searched as before.
+from when a set contradicts it (under noise, a wrong match), the frontier
+rows are searched as before.
 """
 from __future__ import annotations
 
@@ -58,9 +59,14 @@ class HoleTargets:
         if self._event - self._hole_tried < REMEASURE_EVENTS:
             return holes
         self._hole_tried = self._event
-        lattice = lattice_coordinates(self._sets.pairs, self._sets.set_ids, self._store.count)
+        pairs, set_ids = self._sets.pairs, self._sets.set_ids
+        lattice = lattice_coordinates(pairs, set_ids, self._store.count)
         if lattice is None:
-            return holes
+            # Sets that no longer imply a lattice may still agree with the map
+            # (POVs tied too loosely yet); a set the map contradicts ends it.
+            if holes is not None and holes.contradicted(pairs, set_ids):
+                self._hole_map = None
+            return self._hole_map
         n_sets = self._sets.n_sets
         self._hole_map = HoleMap(lattice, n_sets) if holes is None else \
             holes.remeasured(lattice, n_sets)

@@ -95,6 +95,21 @@ class HoleMap:
         moved = np.round(np.c_[points, np.ones(len(points))] @ coef).astype(int)
         return {tuple(int(v) for v in p): n for p, n in zip(moved, self.fails.values())}
 
+    def contradicted(self, pairs: np.ndarray, set_ids: np.ndarray) -> bool:
+        """Whether an equality set ``pairs`` ``(K, 2)`` / ``set_ids`` holds two
+        pairs of POVs the map places that it moves by different lattice steps."""
+        pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+        set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
+        self.grow(int(pairs.max()) + 1 if len(pairs) else 0)
+        both = self.placed[pairs[:, 0]] & self.placed[pairs[:, 1]]
+        pairs, set_ids = pairs[both], set_ids[both]
+        if not len(pairs):
+            return False
+        order = np.argsort(set_ids, kind="stable")
+        steps = (self.ij[pairs[:, 1]] - self.ij[pairs[:, 0]])[order]
+        same_set = set_ids[order][1:] == set_ids[order][:-1]
+        return bool(np.any(same_set & np.any(steps[1:] != steps[:-1], axis=1)))
+
     def displacement(self, before: np.ndarray, after: np.ndarray):
         """The lattice step of a snapshot's matches ``before -> after`` (POV
         indices), where every pair the map places agrees; else None."""
