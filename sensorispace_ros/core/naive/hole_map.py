@@ -20,7 +20,7 @@ import itertools
 
 import numpy as np
 
-from sensorispace_ros.core.naive.lattice import Lattice
+from sensorispace_ros.core.naive.lattice import Lattice, consecutive_pairs
 
 __all__ = ["Candidate", "HoleMap"]
 
@@ -100,15 +100,11 @@ class HoleMap:
         pairs of POVs the map places that it moves by different lattice steps."""
         pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
         set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
-        self.grow(int(pairs.max()) + 1 if len(pairs) else 0)
-        both = self.placed[pairs[:, 0]] & self.placed[pairs[:, 1]]
-        pairs, set_ids = pairs[both], set_ids[both]
-        if not len(pairs):
-            return False
-        order = np.argsort(set_ids, kind="stable")
-        steps = (self.ij[pairs[:, 1]] - self.ij[pairs[:, 0]])[order]
-        same_set = set_ids[order][1:] == set_ids[order][:-1]
-        return bool(np.any(same_set & np.any(steps[1:] != steps[:-1], axis=1)))
+        known = np.all(pairs < len(self.placed), axis=1)
+        known[known] = np.all(self.placed[pairs[known]], axis=1)
+        first, second = consecutive_pairs(pairs[known], set_ids[known])
+        steps = self.ij[first[:, 1]] - self.ij[first[:, 0]]
+        return bool(np.any(steps != self.ij[second[:, 1]] - self.ij[second[:, 0]]))
 
     def displacement(self, before: np.ndarray, after: np.ndarray):
         """The lattice step of a snapshot's matches ``before -> after`` (POV

@@ -26,7 +26,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 from scipy.spatial import cKDTree
 
-__all__ = ["Lattice", "constraint_normal_matrix", "lattice_coordinates",
+__all__ = ["Lattice", "consecutive_pairs", "constraint_normal_matrix", "lattice_coordinates",
            "null_space_positions", "reduced_basis"]
 
 NULL_TOL = 1e-8         # an eigenvalue this small (relative to the largest entry) is null
@@ -51,20 +51,26 @@ class Lattice:
         return self.ij.shape[1]
 
 
-def constraint_normal_matrix(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int):
-    """Sparse ``(P, P)`` normal matrix ``A^T A`` of the rows
-    ``x[j2] - x[i2] - x[j1] + x[i1] = 0``, one per consecutive pairs
-    ``i1 -> j1``, ``i2 -> j2`` of a set."""
+def consecutive_pairs(pairs: np.ndarray, set_ids: np.ndarray):
+    """``(first, second)`` ``(C, 2)`` each: the pairs ``i1 -> j1``, ``i2 -> j2``
+    that follow each other in one set (sets in order of their ids, each
+    set's pairs in their order): one equality of steps per row."""
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
     order = np.argsort(set_ids, kind="stable")
     ids, ordered = set_ids[order], pairs[order]
     consecutive = np.flatnonzero(ids[1:] == ids[:-1])
-    first, second = ordered[consecutive], ordered[consecutive + 1]
-    rows = np.repeat(np.arange(len(consecutive)), 4)
+    return ordered[consecutive], ordered[consecutive + 1]
+
+
+def constraint_normal_matrix(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int):
+    """Sparse ``(P, P)`` normal matrix ``A^T A`` of the rows
+    ``x[j2] - x[i2] - x[j1] + x[i1] = 0``, one per ``consecutive_pairs``."""
+    first, second = consecutive_pairs(pairs, set_ids)
+    rows = np.repeat(np.arange(len(first)), 4)
     cols = np.stack([second[:, 1], second[:, 0], first[:, 1], first[:, 0]], axis=1).ravel()
-    values = np.tile([1.0, -1.0, -1.0, 1.0], len(consecutive))
-    a = coo_matrix((values, (rows, cols)), shape=(len(consecutive), n_povs)).tocsr()
+    values = np.tile([1.0, -1.0, -1.0, 1.0], len(first))
+    a = coo_matrix((values, (rows, cols)), shape=(len(first), n_povs)).tocsr()
     return (a.T @ a).tocsr()
 
 
@@ -86,11 +92,11 @@ def null_space_positions(pairs, set_ids, n_povs: int, max_dim: int = 3):
     scale = float(abs(sub).max())
     k = min(max_dim + 2, len(group) - 1)
     # Shift-invert about a point just below zero: the smallest eigenvalues of a
-    # positive semi-definite matrix, from a sparse factorisation.
-    # A fixed start vector (ARPACK's own is drawn from a state the process
-    # carries): the same sets give the same positions in any process. The
-    # shift lies far below the gap a null space must show, so the null
-    # directions stand apart from the others after the inversion.
+    # positive semi-definite matrix, from a sparse factorisation. The shift lies
+    # far below the gap a null space must show, so the null directions stand
+    # apart from the others after the inversion. A fixed start vector (ARPACK's
+    # own is drawn from a state the process carries): the same sets give the
+    # same positions in any process.
     start = np.sin(1.0 + np.arange(len(group)))
     try:
         values, vectors = eigsh(sub, k=k, sigma=-SHIFT * scale, which="LM", v0=start)
