@@ -15,6 +15,9 @@ from pathlib import Path
 from sensorispace_ros.core.world import REDISTRIBUTION, TRANSLATION
 
 FRAME_KINDS = ("change", "end", "cmd", "next", "hold", "equality")
+# /agent/compensations: a reaction's rows (change/<k>), then the sets the
+# agent's lattice implies, once the run is over (end/<k>).
+EQUALITY_ROW_KINDS = ("change", "end")
 # Numbers count changes and commands and travel as int64/uint64 elsewhere.
 MAX_FRAME_NUMBER = 2 ** 63 - 1
 

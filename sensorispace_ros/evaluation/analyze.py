@@ -60,7 +60,7 @@ from sensorispace_ros.evaluation.runs import evaluate_graph_run
 from sensorispace_ros.offline.pov_assembly import MIN_POVS, assemble_points_of_view, equality_pairs
 from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
-from sensorispace_ros.protocol import CHECKPOINTS, KIND_OF_CODE, parse_frame
+from sensorispace_ros.protocol import CHECKPOINTS, EQUALITY_ROW_KINDS, KIND_OF_CODE, parse_frame
 from sensorispace_ros.recording.bag_format import SESSION_CONFIG_TOPIC, BagError
 from sensorispace_ros.recording.bag_reader import (
     bag_info,
@@ -126,7 +126,7 @@ def agent_data(bag_dir, description=None) -> dict:
     ``description``: the body's (``body_description`` by default)."""
     description = body_description(bag_dir) if description is None else description
     pov_tables = _tables(bag_dir, POVS, description=description)
-    row_tables = _tables(bag_dir, ROWS)
+    row_tables = _tables(bag_dir, ROWS, kinds=EQUALITY_ROW_KINDS)
     ids, povs = assemble_points_of_view(list(pov_tables.values()), description.n_motors)
     rows = (np.concatenate(list(row_tables.values())) if row_tables
             else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))

@@ -45,6 +45,17 @@ def reaction_tables(agent, reaction) -> dict[str, dict]:
     return tables
 
 
+def publish_implied_sets(agent, publish, header) -> int:
+    """Publish (``publish(topic, table, header)``) the ``/agent/compensations``
+    rows of the sets the agent's lattice implies (``ImpliedSets.implied_rows``),
+    once its run is over; returns how many."""
+    rows = agent.implied_rows()
+    if len(rows):
+        publish("/agent/compensations",
+                {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]}, header)
+    return len(rows)
+
+
 def initial_posture(configured, n_motors: int) -> tuple[np.ndarray, str]:
     """The agent's first motor state (proprioception, nothing of the world) and
     what to say of it: ``arm.initial_motor_state`` when it has a value per

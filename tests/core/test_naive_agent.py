@@ -233,3 +233,20 @@ def test_remembered_split_povs_change_no_result_only_the_walks():
     assert np.min(gap + np.eye(len(split))) > 1e-3
     pov_poses = arm.forward(on.povs[:, 0])
     assert np.min(np.linalg.norm(poses[:, None, :2] - pov_poses[None, :, :2], axis=-1)) > 1e-3
+
+
+def test_the_lattice_adds_true_sets_after_the_found_ones(small_run):
+    # The run's sets are the agent's found sets, then the lattice's, numbered
+    # after them; every implied set moves its POVs by one true displacement.
+    _, result, evaluated, _ = small_run
+    agent = result.exploration.agent
+    found_pairs, found_ids = agent._found_sets()
+    implied = agent.lattice_sets()
+    assert implied.placed == len(result.povs) and len(implied.pairs) > len(found_pairs) / 10
+    np.testing.assert_array_equal(result.pairs, np.vstack([found_pairs, implied.pairs]))
+    assert result.set_ids[len(found_ids):].min() == found_ids.max() + 1
+    positions = np.asarray(evaluated.true_poses)[:, :2]
+    shift = positions[implied.pairs[:, 1]] - positions[implied.pairs[:, 0]]
+    for s in np.unique(implied.set_ids):
+        members = shift[implied.set_ids == s]
+        assert np.abs(members - members[0]).max() < 1e-6

@@ -56,6 +56,7 @@ from sensorispace_ros.core.naive.anchors import Snapshot, SnapshotMatching
 from sensorispace_ros.core.naive.equality_sets import (RANK_DEFICIENT, RANK_FULL, RANK_UNKNOWN,
     EqualitySetCollection, EqualitySetSweep, check_pose_rank, finite_rows)
 from sensorispace_ros.core.naive.frontier import FrontierChoice
+from sensorispace_ros.core.naive.lattice_sets import ImpliedSets
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import PovStore
 from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
@@ -70,7 +71,7 @@ from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 EXPLORING = "exploring"
 
 
-class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
+class NaiveAgent(ImpliedSets, SnapshotMatching, FrontierChoice, SearchAndSample):
     """Event-driven naive explorer (see the module docstring).
 
     ``body`` needs ``sense(motor_states (B, M)) -> (B, S)``, ``n_motors`` and
@@ -193,11 +194,6 @@ class NaiveAgent(SnapshotMatching, FrontierChoice, SearchAndSample):
     def seconds_by_stage(self) -> dict:
         """Wall time per stage (sense calls and the agent's own computation)."""
         return dict(self._body.seconds)
-
-    def equality_sets(self):
-        """``(pairs (K, 2), set_ids (K,))`` found so far (exploration sweeps,
-        then the equality pass if one ran), for ``core.regularize``."""
-        return self._sets.pairs, self._sets.set_ids
 
     # ---------------------------------------------------------- persistence
 

@@ -72,6 +72,12 @@ class HoleTargets:
             holes.remeasured(lattice, n_sets)
         return self._hole_map
 
+    def _vouched_places(self):
+        """Where the hole map places the POVs (``ImpliedSets``): the searches
+        toward its empty points place the POVs they found, set or no set."""
+        holes = self._hole_map
+        return None if holes is None else (holes.ij, holes.placed)
+
     def _hole_requests(self, matches, requests: list) -> list:
         """``requests`` with their frontier rows replaced by searches toward
         the holes the confirmed snapshots point at (module docstring); as

@@ -242,10 +242,10 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, HoleTargets
         sweep.stream = CounterStream(getattr(self, "_seed", 0), "naive.clock_equality")
         return sweep
 
-    def equality_sets(self):
+    def _found_sets(self):
         """The sets of changes, then the sets of segments they imply
         (``clock_equality.translated_sets``, ``clock_translated_pairs`` changes a set)."""
-        pairs, set_ids = super().equality_sets()
+        pairs, set_ids = super()._found_sets()
         per_set = self.params.clock_translated_pairs
         if per_set < 2 or not len(pairs):
             return pairs, set_ids

@@ -114,6 +114,8 @@ class NaiveParams:
     clock_stop_window: int = _default("clock_stop_window")
     clock_hole_targets: bool = _default("clock_hole_targets")
     clock_hole_attempts: int = _default("clock_hole_attempts")
+    lattice_sets: bool = _default("lattice_sets")
+    lattice_support: int = _default("lattice_support")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.

@@ -13,8 +13,8 @@ serialized bytes (``messages.CloudCdrPacker``).
 Passive sensations (``change/<k>``) are queued by the subscription callback;
 ``step()``, called by the spinning loop between callbacks (never inside
 one), lets the agent react, publishes the new points of view and equality
-rows, then ``/agent/settled`` = k. ``end/<k>`` ends the run:
-``/agent/done`` carries the totals.
+rows, then ``/agent/settled`` = k. ``end/<k>`` ends the run: the equality
+sets the agent's lattice implies, then ``/agent/done`` with the totals.
 
 For the evaluator (recorded, read by ``sensorispace analyze``) it also
 publishes its own bookkeeping, never anything of the world:
@@ -24,15 +24,14 @@ end, ``/agent/stage_counters``: together ``core.naive.records.
 NaiveAgentRecords``, also written to ``<run directory>/agent_records.npz``
 (``protocol.run_directory``) for a run evaluated without a bag.
 
-It logs what it measured of its body (pose rank, POV dimension, the start
-it chose for a degenerate one: ``core.naive.start``) and, at the end, what
-it found (``graph.agent_outputs``); then it exits unless
-``graph.exit_when_done`` is false. Restart after a kill -9 (with
-``graph.checkpoint_dir``): ``graph.nodes.agent_restart``.
+It logs what it measured of its body (pose rank, POV dimension, the start it
+chose for a degenerate one: ``core.naive.start``) and, at the end, what it
+found (``graph.agent_outputs``); then it exits unless ``graph.exit_when_done``
+is false. Restart after a kill -9: ``graph.nodes.agent_restart``.
 
 Retransmit: a command unanswered after ``graph.command_timeout_s`` is re-sent
 (``BodyOverTopics``); a late duplicate answer is dropped. A passive of the change
-last settled makes it settle again (a restarted environment lost the settle).
+last settled settles it again (a restarted environment lost the settle).
 """
 from __future__ import annotations
 
@@ -228,6 +227,7 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
         records written, what the agent found said; the node exits unless
         ``graph.exit_when_done`` is false."""
         self.run_over = True
+        self.n_rows += agent_outputs.publish_implied_sets(self.agent, self.publish_table, header)
         counters, unknown = agent_outputs.stage_counters(self.agent)
         if unknown:
             self.get_logger().error(f"stages {unknown} have no /agent/stage_counters column")

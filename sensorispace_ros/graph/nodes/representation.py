@@ -39,7 +39,7 @@ import numpy as np
 from sensorispace_ros import contracts, messages
 from sensorispace_ros.graph.framework import GraphNode, run_node
 from sensorispace_ros.graph.nodes.growing_hausdorff import GrowingHausdorff
-from sensorispace_ros.protocol import RESULT_FILE, run_directory
+from sensorispace_ros.protocol import EQUALITY_ROW_KINDS, RESULT_FILE, run_directory
 from sensorispace_ros.offline.pov_assembly import (  # noqa: F401  (re-exported)
     MIN_POVS, assemble_points_of_view, embedding_arrays, equality_pairs)
 
@@ -127,7 +127,7 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
         self.maybe_start()
 
     def on_compensations(self, msg) -> None:
-        table = self._decode("/agent/compensations", msg)
+        table = self._decode("/agent/compensations", msg, kinds=EQUALITY_ROW_KINDS)
         if table is None or not len(table):
             return
         if msg.header.frame_id in self.row_tables:

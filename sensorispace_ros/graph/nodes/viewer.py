@@ -34,6 +34,7 @@ from sensor_msgs.msg import JointState
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core import scene
 from sensorispace_ros.graph.framework import GraphNode, build_world, run_node
+from sensorispace_ros.protocol import EQUALITY_ROW_KINDS
 
 VIEW_PERIOD_S = 0.1
 # The body's topics carry ~63,000 messages each in a paper run; the viewer wants
@@ -158,7 +159,7 @@ class ViewerNode(GraphNode):
         self.scene_changed = True
 
     def on_compensations(self, msg) -> None:
-        decoded = self.decode("/agent/compensations", msg, ("change",), as_table=True)
+        decoded = self.decode("/agent/compensations", msg, EQUALITY_ROW_KINDS, as_table=True)
         if decoded is None or msg.header.frame_id in self.compensation_frames:
             return                          # a re-delivered reaction counts once
         self.compensation_frames.add(msg.header.frame_id)

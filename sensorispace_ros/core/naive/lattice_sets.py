@@ -1,0 +1,245 @@
+"""The lattice of equality sets that hold a few wrong pairs, and the sets it
+implies.
+
+Under noise a few matches pair two POVs that the displacement does not
+relate: one such pair leaves no exact null space, so ``lattice`` finds no
+lattice. Where it finds none, ``trimmed_lattice`` embeds the POVs by the
+smallest eigenvectors of the constraints all the same (the dimension where
+the eigenvalues jump most), reads every pair's step in the reduced basis
+against its set's median step, drops the pairs farthest from a whole step,
+and embeds again, until every pair agrees; the lattice of the pairs kept
+must then pass ``lattice_coordinates``'s exact test.
+
+Any two POVs the lattice places are related by the lattice step between
+them: ``implied_sets`` gives one set per step, the pairs of POVs that
+enough sets tie (a POV whose place rests on one or two pairs may rest
+on a wrong one). ``ImpliedSets``, a mixin of the agents, hands the
+representation the found sets and then these (in the graph the agent
+publishes them at the end of its run, so both regularise with the same sets).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import ArpackNoConvergence, eigsh
+
+from sensorispace_ros.core.naive.lattice import (SHIFT, Lattice, constraint_normal_matrix,
+                                                 lattice_coordinates, reduced_basis)
+
+__all__ = ["ImpliedSets", "LatticeSets", "implied_sets", "lattice_equalities", "pair_support",
+           "set_medians", "trimmed_lattice", "with_vouched"]
+
+MAX_ROUNDS = 24         # embeddings before the pairs must agree
+HALF_STEP = 0.5         # a pair farther than this from its set's step (lattice units) is dropped
+
+
+def set_medians(values: np.ndarray, set_ids: np.ndarray) -> np.ndarray:
+    """``(K, d)``: each row's set's median of ``values`` ``(K, d)``, per column."""
+    values = np.asarray(values, dtype=float)
+    out = np.empty_like(values)
+    for col in range(values.shape[1]):
+        order = np.lexsort((values[:, col], set_ids))
+        ids = set_ids[order]
+        starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+        sizes = np.diff(np.r_[starts, len(ids)])
+        low = values[order[starts + (sizes - 1) // 2], col]
+        high = values[order[starts + sizes // 2], col]
+        out[order, col] = np.repeat(0.5 * (low + high), sizes)
+    return out
+
+
+def _embedding(pairs, set_ids, n_povs: int, max_dim: int):
+    """``(P, d)`` lattice units of the largest tied group (NaN elsewhere) from the
+    smallest eigenvectors, ``d`` where the eigenvalues jump most; None when
+    there is too little to embed."""
+    normal = constraint_normal_matrix(pairs, set_ids, n_povs)
+    tied = np.flatnonzero(normal.diagonal() > 0)
+    if len(tied) < 2 * (max_dim + 2):
+        return None
+    _, label = connected_components(normal[tied][:, tied] != 0, directed=False)
+    group = tied[label == np.bincount(label).argmax()]
+    if len(group) < 2 * (max_dim + 2):
+        return None
+    sub = normal[group][:, group]
+    scale = float(abs(sub).max())
+    try:
+        values, vectors = eigsh(sub, k=max_dim + 2, sigma=-SHIFT * scale, which="LM",
+                                v0=np.sin(1.0 + np.arange(len(group))))
+    except ArpackNoConvergence:
+        return None
+    order = np.argsort(values)
+    values, vectors = np.maximum(values[order], 1e-300 * scale), vectors[:, order]
+    dim = 1 + int(np.argmax(values[2:] / values[1:-1]))
+    coords = vectors[:, 1:dim + 1] - vectors[:, 1:dim + 1].mean(axis=0)
+    variance, axes = np.linalg.eigh(np.atleast_2d(np.cov(coords.T)))
+    points = coords @ axes / np.sqrt(np.maximum(variance, 1e-300))
+    basis = reduced_basis(points)
+    if basis is None:
+        return None
+    units = np.full((n_povs, dim), np.nan)
+    units[group] = np.linalg.solve(basis.T, (points - points[0]).T).T
+    return units
+
+
+def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
+    """``(Lattice, kept)``: the lattice of the pairs ``kept`` ``(K,)`` bool after
+    the pairs that disagree with it were dropped (module docstring), or
+    ``(None, kept)`` where no lattice holds."""
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
+    kept = np.ones(len(pairs), dtype=bool)
+    exact = lattice_coordinates(pairs, set_ids, n_povs)
+    if exact is not None:
+        return exact, kept
+    for _ in range(MAX_ROUNDS):
+        units = _embedding(pairs[kept], set_ids[kept], n_povs, max_dim)
+        if units is None:
+            return None, kept
+        steps = units[pairs[:, 1]] - units[pairs[:, 0]]
+        live = kept & np.all(np.isfinite(steps), axis=1)
+        gap = np.full(len(pairs), 0.0)
+        gap[live] = np.linalg.norm(
+            steps[live] - np.round(set_medians(steps[live], set_ids[live])), axis=1)
+        worst = gap.max()
+        if worst <= HALF_STEP:
+            break
+        kept &= gap < max(HALF_STEP, 0.5 * worst)
+    lattice = lattice_coordinates(pairs[kept], set_ids[kept], n_povs)
+    return lattice, kept
+
+
+def pair_support(pairs, set_ids, n_povs: int) -> np.ndarray:
+    """``(P,)``: the number of distinct sets each POV has a pair in."""
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
+    members = np.unique(np.stack([np.r_[pairs[:, 0], pairs[:, 1]],
+                                  np.r_[set_ids, set_ids]], axis=1), axis=0)
+    return np.bincount(members[:, 0], minlength=n_povs)
+
+
+def implied_sets(lattice: Lattice, usable: np.ndarray):
+    """``(pairs (K, 2), set_ids (K,))``: every two ``usable`` POVs the lattice
+    places, one set per lattice step between them (steps two pairs or more
+    share), the step's sets numbered from 0."""
+    index = np.flatnonzero(lattice.placed & usable)
+    first, second = np.triu_indices(len(index), 1)
+    first, second = index[first], index[second]
+    _, set_ids = np.unique(lattice.ij[second] - lattice.ij[first], axis=0, return_inverse=True)
+    set_ids = set_ids.reshape(-1)
+    shared = np.bincount(set_ids)[set_ids] >= 2
+    _, set_ids = np.unique(set_ids[shared], return_inverse=True)
+    return np.stack([first, second], axis=1)[shared], set_ids.reshape(-1)
+
+
+@dataclass
+class LatticeSets:
+    """What ``lattice_equalities`` found: the sets ``pairs`` / ``set_ids`` the
+    lattice implies, the POVs it ``placed`` and took (``usable``), and the
+    found pairs it ``dropped``."""
+
+    pairs: np.ndarray
+    set_ids: np.ndarray
+    placed: int = 0
+    usable: int = 0
+    dropped: int = 0
+
+    def metrics(self) -> dict:
+        return {"naive.lattice.placed": self.placed, "naive.lattice.usable": self.usable,
+                "naive.lattice.dropped_pairs": self.dropped,
+                "naive.lattice.implied_pairs": int(len(self.pairs))}
+
+
+def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
+                       vouched=None) -> LatticeSets:
+    """The sets the lattice of ``pairs`` / ``set_ids`` implies among the POVs
+    with a kept pair in ``support`` distinct sets or more (none where no
+    lattice holds). ``vouched``: ``(ij, placed)``, where a search toward an
+    empty lattice point found a POV (``HoleMap``): those POVs are taken
+    whatever their support (``with_vouched``)."""
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
+    lattice, kept = trimmed_lattice(pairs, set_ids, n_povs) if len(pairs) else (None, None)
+    if lattice is None:
+        return LatticeSets(np.zeros((0, 2), dtype=int), np.zeros(0, dtype=int))
+    usable = pair_support(pairs[kept], set_ids[kept], n_povs) >= support
+    if vouched is not None:
+        lattice, usable = with_vouched(lattice, usable, *vouched)
+    implied, implied_ids = implied_sets(lattice, usable)
+    return LatticeSets(implied, implied_ids, placed=int(np.count_nonzero(lattice.placed)),
+                       usable=int(np.count_nonzero(usable & lattice.placed)),
+                       dropped=int(np.count_nonzero(~kept)))
+
+
+def with_vouched(lattice: Lattice, usable: np.ndarray, ij: np.ndarray, placed: np.ndarray):
+    """``(lattice, usable)`` with the POVs another placement ``ij`` / ``placed``
+    puts on the lattice: mapped by the integer affine map between the two
+    (fitted on the POVs both place and ``usable``, every one of them agreeing),
+    those it places where the lattice does, or that the lattice does not
+    place, are usable. Unchanged where no such map holds."""
+    n = min(len(placed), len(lattice.placed))
+    ij, placed = np.asarray(ij[:n], dtype=int), np.asarray(placed[:n], dtype=bool)
+    both = np.flatnonzero(lattice.placed[:n] & placed & usable[:n])
+    if ij.shape[1] != lattice.dim or len(both) <= 2 * (lattice.dim + 1):
+        return lattice, usable
+    design = np.c_[ij, np.ones(n, dtype=int)]
+    coef = np.round(np.linalg.lstsq(design[both].astype(float), lattice.ij[both].astype(float),
+                                    rcond=None)[0]).astype(int)
+    mapped = design @ coef
+    if np.any(mapped[both] != lattice.ij[both]):
+        return lattice, usable
+    alone = placed & ~lattice.placed[:n]
+    agree = placed & (alone | np.all(mapped == lattice.ij[:n], axis=1))
+    grown = Lattice(ij=lattice.ij.copy(), placed=lattice.placed.copy(), residual=lattice.residual)
+    grown.ij[:n][alone], grown.placed[:n][alone] = mapped[alone], True
+    usable = usable.copy()
+    usable[:n] |= agree
+    return grown, usable
+
+
+class ImpliedSets:
+    """``equality_sets``: the found sets, then the lattice's (module docstring)."""
+
+    def equality_sets(self):
+        """``(pairs (K, 2), set_ids (K,))`` found so far (exploration sweeps,
+        then the equality pass if one ran), then, with ``lattice_sets``, the
+        sets their lattice implies (``lattice_sets.lattice_equalities``),
+        numbered after them: for ``core.regularize``."""
+        pairs, set_ids = self._found_sets()
+        implied = self.lattice_sets()
+        if not len(implied.pairs):
+            return pairs, set_ids
+        first = int(set_ids.max()) + 1 if len(set_ids) else 0
+        return (np.concatenate([pairs, implied.pairs]),
+                np.concatenate([set_ids, implied.set_ids + first]))
+
+    def _found_sets(self):
+        """The equality sets the agent found itself."""
+        return self._sets.pairs, self._sets.set_ids
+
+    def lattice_sets(self) -> LatticeSets:
+        """The sets the lattice of the found sets implies (none without
+        ``lattice_sets``); measured once for the sets and POVs known now."""
+        key = (self._sets.n_sets, self._sets.n_pairs, self._store.count)
+        cached = getattr(self, "_lattice_cache", None)
+        if cached is None or cached[0] != key:
+            if self.params.lattice_sets:
+                found = lattice_equalities(*self._found_sets(), self._store.count,
+                                           self.params.lattice_support, self._vouched_places())
+            else:
+                found = lattice_equalities(np.zeros((0, 2), dtype=int), [], 0, 1)
+            self._lattice_cache = cached = (key, found)
+        return cached[1]
+
+    def _vouched_places(self):
+        """``(ij, placed)`` of another placement of the POVs on the lattice, or None."""
+        return None
+
+    def implied_rows(self) -> np.ndarray:
+        """Rows ``(set id, from, to)`` of the lattice's sets as ``equality_sets``
+        numbers them: what the graph's agent publishes at the end of its run."""
+        pairs, set_ids = self.equality_sets()
+        n_implied = len(self.lattice_sets().pairs)
+        return np.column_stack([set_ids[len(set_ids) - n_implied:],
+                                pairs[len(pairs) - n_implied:]]).astype(np.int64)

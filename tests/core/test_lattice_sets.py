@@ -1,0 +1,170 @@
+"""The lattice of equality sets that hold wrong pairs, and the sets it implies
+(core/naive/lattice_sets.py)."""
+import numpy as np
+import pytest
+
+from sensorispace_ros.core.naive.lattice import Lattice, lattice_coordinates
+from sensorispace_ros.core.naive.lattice_sets import (implied_sets, lattice_equalities,
+                                                      pair_support, set_medians,
+                                                      trimmed_lattice)
+
+from test_lattice import _sets, _square_patch, _unimodular_map
+
+
+def _with_wrong_pairs(points, pairs, ids, share: float, seed: int):
+    """``pairs``/``ids`` with ``share`` of the pairs' ends moved to another
+    POV one to three steps from the right one (a match with a neighbour);
+    returns them and which pairs are wrong."""
+    rng = np.random.default_rng(seed)
+    index = {tuple(p): i for i, p in enumerate(points.tolist())}
+    pairs = pairs.copy()
+    wrong = np.zeros(len(pairs), dtype=bool)
+    for k in rng.choice(len(pairs), size=int(share * len(pairs)), replace=False):
+        for _ in range(20):
+            off = rng.integers(-3, 4, size=points.shape[1])
+            partner = index.get(tuple(points[pairs[k, 1]] + off))
+            if off.any() and partner is not None and partner != pairs[k, 0]:
+                pairs[k, 1], wrong[k] = partner, True
+                break
+    return pairs, ids, wrong
+
+
+def test_set_medians_are_each_sets_median():
+    rng = np.random.default_rng(0)
+    ids = rng.integers(0, 40, size=500)
+    values = rng.normal(size=(500, 2))
+    medians = set_medians(values, ids)
+    for s in np.unique(ids):
+        np.testing.assert_allclose(medians[ids == s], np.median(values[ids == s], axis=0)[None]
+                                   .repeat(np.count_nonzero(ids == s), axis=0))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_wrong_pairs_are_dropped_and_the_lattice_is_the_truth(seed):
+    # Two percent of the pairs matched a neighbour of the right POV: the exact
+    # test finds no lattice; trimmed, every wrong pair is dropped, few right
+    # ones, and every POV sits where the truth puts it.
+    points = _square_patch(seed)
+    pairs, ids = _sets(points, 400, seed, max_pairs=12)
+    pairs, ids, wrong = _with_wrong_pairs(points, pairs, ids, 0.02, seed)
+    assert wrong.sum() >= 10
+    assert lattice_coordinates(pairs, ids, len(points)) is None
+    lattice, kept = trimmed_lattice(pairs, ids, len(points))
+    assert lattice is not None and lattice.placed.all()
+    assert not np.any(kept & wrong)
+    assert np.count_nonzero(~kept & ~wrong) <= 0.05 * np.count_nonzero(~wrong)
+    _unimodular_map(lattice.ij, points)
+
+
+def test_sets_without_wrong_pairs_are_kept_whole():
+    points = _square_patch(3)
+    pairs, ids = _sets(points, 300, 3)
+    lattice, kept = trimmed_lattice(pairs, ids, len(points))
+    assert kept.all()
+    np.testing.assert_array_equal(lattice.ij, lattice_coordinates(pairs, ids, len(points)).ij)
+
+
+def test_three_dimensions_give_no_lattice_even_trimmed():
+    cube = np.array([(i, j, k) for i in range(6) for j in range(6) for k in range(6)])
+    pairs, ids = _sets(cube, 400, 7)
+    assert trimmed_lattice(pairs, ids, len(cube))[0] is None
+    found = lattice_equalities(pairs, ids, len(cube), 1)
+    assert len(found.pairs) == 0 and found.placed == 0
+
+
+def test_pair_support_counts_distinct_sets():
+    pairs = np.array([[0, 1], [0, 2], [1, 2], [0, 3], [3, 4]])
+    ids = np.array([0, 0, 1, 1, 1])
+    # POV 0: sets 0 and 1; 1: 0 and 1; 2: 0 and 1; 3: set 1; 4: set 1; 5: none.
+    np.testing.assert_array_equal(pair_support(pairs, ids, 6), [2, 2, 2, 1, 1, 0])
+
+
+def test_implied_sets_hold_every_two_usable_povs_by_their_step():
+    ij = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [5, 5]])
+    lattice = Lattice(ij=ij, placed=np.array([1, 1, 1, 1, 1, 0], bool), residual=0.0)
+    usable = np.array([1, 1, 1, 1, 0, 1], bool)         # POV 4 unusable, POV 5 not placed
+    pairs, ids = implied_sets(lattice, usable)
+    steps = ij[pairs[:, 1]] - ij[pairs[:, 0]]
+    for s in np.unique(ids):
+        assert len(np.unique(steps[ids == s], axis=0)) == 1
+        assert np.count_nonzero(ids == s) >= 2
+    assert np.array_equal(np.unique(ids), np.arange(ids.max() + 1))
+    assert not np.isin(pairs, [4, 5]).any()
+    # Steps (1, 0): 0->1, 1->2; (0, 1) has one pair only (0->3): no set.
+    got = {tuple(p) for p in pairs.tolist()}
+    assert {(0, 1), (1, 2)} <= got and (0, 3) not in got
+
+
+def test_a_pov_tied_by_few_sets_is_left_out_of_the_implied_sets():
+    points = _square_patch(8)
+    pairs, ids = _sets(points, 300, 8)
+    # One more POV, in one pair of one set: the lattice places it, but on
+    # that one pair alone.
+    stray = len(points)
+    pairs = np.vstack([pairs, [[0, stray]]])
+    ids = np.append(ids, ids[0])
+    support = pair_support(pairs, ids, stray + 1)
+    assert support[stray] == 1 and support[:stray].min() >= 2
+    found = lattice_equalities(pairs, ids, stray + 1, support=2)
+    assert found.placed == stray + 1 and found.usable == stray
+    assert not np.isin(found.pairs, stray).any()
+    assert np.isin(np.arange(stray), found.pairs).all()
+    taken = lattice_equalities(pairs, ids, stray + 1, support=1)
+    assert np.isin(stray, taken.pairs)
+
+
+def _implying_agent(lattice_sets: bool, pairs, ids, n_povs):
+    from types import SimpleNamespace
+
+    from sensorispace_ros.core.naive.equality_sets import EqualitySetCollection
+    from sensorispace_ros.core.naive.lattice_sets import ImpliedSets
+
+    agent = ImpliedSets()
+    agent.params = SimpleNamespace(lattice_sets=lattice_sets, lattice_support=1)
+    agent._store = SimpleNamespace(count=n_povs)
+    agent._sets = EqualitySetCollection()
+    for s in np.unique(ids):
+        agent._sets.add(pairs[ids == s, 0], pairs[ids == s, 1])
+    return agent
+
+
+def test_the_agents_sets_are_the_found_then_the_implied_and_their_rows():
+    points = _square_patch(2)
+    pairs, ids = _sets(points, 200, 2)
+    on = _implying_agent(True, pairs, ids, len(points))
+    found_pairs, found_ids = on._found_sets()
+    all_pairs, all_ids = on.equality_sets()
+    n_found = len(found_pairs)
+    assert len(all_pairs) > n_found
+    np.testing.assert_array_equal(all_pairs[:n_found], found_pairs)
+    rows = on.implied_rows()
+    np.testing.assert_array_equal(rows[:, 1:], all_pairs[n_found:])
+    np.testing.assert_array_equal(rows[:, 0], all_ids[n_found:])
+    assert rows[:, 0].min() == found_ids.max() + 1
+    off = _implying_agent(False, pairs, ids, len(points))
+    np.testing.assert_array_equal(off.equality_sets()[0], found_pairs)
+    assert len(off.implied_rows()) == 0
+
+
+def test_places_vouched_for_in_another_basis_join_the_lattice():
+    from sensorispace_ros.core.naive.lattice_sets import with_vouched
+
+    truth = np.array([(i, j) for i in range(5) for j in range(5)])
+    placed = np.ones(len(truth), bool)
+    placed[24] = False                            # the lattice does not place POV 24
+    lattice = Lattice(ij=np.where(placed[:, None], truth, 0), placed=placed, residual=0.0)
+    usable = placed.copy()
+    usable[[3, 7]] = False                        # tied by too few sets
+    # The other placement: another basis of the same lattice, shifted; it
+    # places POV 3 where the lattice does, POV 7 elsewhere, POV 24 alone.
+    other = truth @ np.array([[1, 1], [0, 1]]) + (2, -1)
+    other[7] += (1, 0)
+    grown, taken = with_vouched(lattice, usable, other, np.ones(len(truth), bool))
+    assert grown.placed.all()
+    np.testing.assert_array_equal(grown.ij[24], truth[24])
+    assert taken[3] and taken[24] and not taken[7]
+    np.testing.assert_array_equal(grown.ij[:24], lattice.ij[:24])
+    # A placement that disagrees on a usable POV is not taken at all.
+    other[0] += (0, 1)
+    same, untouched = with_vouched(lattice, usable, other, np.ones(len(truth), bool))
+    assert same is lattice and not untouched[3]
