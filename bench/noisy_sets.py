@@ -18,6 +18,11 @@ metric again (the run's configuration and seed, ``offline.representation``'s
 * ``truth, within X`` (``--within X ...``): perfect sets of the POVs whose
   true position lies within X grid steps of the lattice (the one whose phase
   is the positions' circular mean);
+* ``own + lattice`` (``--lattice``): those sets and the sets their lattice
+  implies (``lattice_sets.lattice_equalities``, the agent's ``lattice_support``),
+  with the pairs the trimming dropped (and how many of them are wrong), the
+  POVs placed and taken (run the agent with ``naive.lattice_sets: false`` to
+  read its found sets alone);
 * ``truth, samples on their pose`` and ``truth, samples on the lattice``
   (``--ideal``): perfect sets, every POV sample moved by the forward model
   onto its POV's own pose, then onto that pose snapped to the lattice (the
@@ -44,6 +49,8 @@ from sensorispace_ros.core import quality
 from sensorispace_ros.core.arm import Arm, wrap_angle
 from sensorispace_ros.core.hausdorff import hausdorff_matrix
 from sensorispace_ros.core.naive.clock_equality import translated_sets
+from sensorispace_ros.core.naive.lattice_sets import lattice_equalities, trimmed_lattice
+from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.seeding import CounterStream
 from sensorispace_ros.offline.representation import _dimension_chain
 
@@ -131,6 +138,21 @@ def ideal_variants(arrays, cfg, step, within):
     return variants
 
 
+def lattice_variant(pairs, set_ids, wrong, n_povs, cfg):
+    """``own + lattice``: the found sets, then those their lattice implies;
+    prints what the trimming dropped and placed."""
+    support = cfg.get("naive", {}).get("lattice_support", NaiveParams().lattice_support)
+    lattice, kept = trimmed_lattice(pairs, set_ids, n_povs)
+    found = lattice_equalities(pairs, set_ids, n_povs, support)
+    print(json.dumps({"lattice": lattice is not None, "dropped": int(np.count_nonzero(~kept)),
+                      "dropped_wrong": int(np.count_nonzero(~kept & wrong)),
+                      "placed": found.placed, "taken": found.usable,
+                      "implied_pairs": int(len(found.pairs))}), flush=True)
+    first = int(set_ids.max()) + 1 if len(set_ids) else 0
+    return ("own + lattice", np.concatenate([pairs, found.pairs]),
+            np.concatenate([set_ids, found.set_ids + first]))
+
+
 def residual(arrays, cfg, pairs, set_ids) -> float:
     chain = _dimension_chain(arrays["hausdorff"], pairs, set_ids, cfg, int(arrays["seed"]),
                              "2d", 2)
@@ -147,6 +169,8 @@ def main() -> None:
     parser.add_argument("--ideal", action="store_true",
                         help="also perfect sets of the samples moved onto their pose, "
                              "then onto the lattice")
+    parser.add_argument("--lattice", action="store_true",
+                        help="also own with the sets their lattice implies")
     parser.add_argument("--segments", type=int, default=0,
                         help="also each of own and right with its sets of segments "
                              "(this many changes a set; 0: not)")
@@ -164,6 +188,8 @@ def main() -> None:
         variants += [(f"{name} + segments", *with_segments(p, s, len(positions), args.segments,
                                                             args.seed))
                      for name, p, s in variants[:2]]
+    if args.lattice:
+        variants.append(lattice_variant(pairs, set_ids, wrong, len(positions), cfg))
     variants += [(f"sample {n}", *sampled_sets(pairs, set_ids, n, rng)) for n in args.sample]
     variants.append(("truth", *true_sets(positions, step)))
     variants = [(*v, arrays) for v in variants] + \

@@ -88,3 +88,16 @@ def test_samples_moved_onto_a_pose_sense_from_it_and_move_little():
     np.testing.assert_allclose(PAPER_ARM.pose_error(PAPER_ARM.forward(moved), poses[:, None]), 0.0,
                                atol=1e-9)
     assert np.max(np.linalg.norm(moved - povs, axis=-1)) < 0.2
+
+
+def test_the_lattice_variant_adds_sets_of_true_displacements_after_the_own():
+    positions = _lattice(n=8)
+    pairs, set_ids = noisy_sets.true_sets(positions, STEP)
+    keep = np.random.default_rng(2).random(len(pairs)) < 0.3       # a sparse sample of them
+    own, own_ids = pairs[keep], set_ids[keep]
+    wrong = noisy_sets.wrong_pairs(positions, own, own_ids, STEP)
+    name, both, both_ids = noisy_sets.lattice_variant(own, own_ids, wrong, len(positions), {})
+    assert name == "own + lattice" and len(both) > len(own)
+    np.testing.assert_array_equal(both[:len(own)], own)
+    assert both_ids[len(own):].min() > own_ids.max()
+    assert not noisy_sets.wrong_pairs(positions, both, both_ids, STEP).any()
