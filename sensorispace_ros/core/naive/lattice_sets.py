@@ -74,7 +74,9 @@ def _embedding(pairs, set_ids, n_povs: int, max_dim: int):
     dim = 1 + int(np.argmax(values[2:] / values[1:-1]))
     coords = vectors[:, 1:dim + 1] - vectors[:, 1:dim + 1].mean(axis=0)
     variance, axes = np.linalg.eigh(np.atleast_2d(np.cov(coords.T)))
-    points = coords @ axes / np.sqrt(np.maximum(variance, 1e-300))
+    if not variance.min() > 1e-12 * variance.max():
+        return None                 # positions along fewer directions than measured
+    points = coords @ axes / np.sqrt(variance)
     basis = reduced_basis(points)
     if basis is None:
         return None
