@@ -26,8 +26,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 from scipy.spatial import cKDTree
 
-__all__ = ["Lattice", "consecutive_pairs", "constraint_normal_matrix", "lattice_coordinates",
-           "null_space_positions", "reduced_basis"]
+__all__ = ["Lattice", "basis_coordinates", "consecutive_pairs", "constraint_normal_matrix",
+           "lattice_coordinates", "null_space_positions", "reduced_basis", "smallest_eigenvectors"]
 
 NULL_TOL = 1e-8         # an eigenvalue this small (relative to the largest entry) is null
 GAP = 1e-5              # the first non-null eigenvalue is at least this (relative)
@@ -74,11 +74,11 @@ def constraint_normal_matrix(pairs: np.ndarray, set_ids: np.ndarray, n_povs: int
     return (a.T @ a).tocsr()
 
 
-def null_space_positions(pairs, set_ids, n_povs: int, max_dim: int = 3):
-    """``(P, d)`` positions up to an affine map (NaN where a POV is not in the
-    largest connected group of equalities), ``d`` the null directions beyond
-    the constant, or None when the group has no clear null space of
-    dimension 1 to ``max_dim`` (too few sets, or equalities that contradict)."""
+def smallest_eigenvectors(pairs, set_ids, n_povs: int, max_dim: int = 3):
+    """``(group, values, vectors, scale)``: the ``max_dim + 2`` smallest
+    eigenvalues (ascending) and eigenvectors of the constraints' normal matrix
+    on ``group``, the POVs of the largest connected group of equalities, and
+    the matrix's largest entry; None when the group is too small."""
     normal = constraint_normal_matrix(pairs, set_ids, n_povs)
     tied = np.flatnonzero(normal.diagonal() > 0)
     if len(tied) < 2 * (max_dim + 2):
@@ -103,7 +103,19 @@ def null_space_positions(pairs, set_ids, n_povs: int, max_dim: int = 3):
     except ArpackNoConvergence:
         return None
     order = np.argsort(values)
-    values, vectors = values[order], vectors[:, order]
+    return group, values[order], vectors[:, order], scale
+
+
+def null_space_positions(pairs, set_ids, n_povs: int, max_dim: int = 3):
+    """``(P, d)`` positions up to an affine map (NaN where a POV is not in the
+    largest connected group of equalities), ``d`` the null directions beyond
+    the constant, or None when the group has no clear null space of
+    dimension 1 to ``max_dim`` (too few sets, or equalities that contradict)."""
+    smallest = smallest_eigenvectors(pairs, set_ids, n_povs, max_dim)
+    if smallest is None:
+        return None
+    group, values, vectors, scale = smallest
+    k = len(values)
     null = int(np.count_nonzero(np.abs(values) < NULL_TOL * scale))
     if not 2 <= null <= max_dim + 1 or (null < k and values[null] < GAP * scale):
         return None
@@ -115,6 +127,21 @@ def null_space_positions(pairs, set_ids, n_povs: int, max_dim: int = 3):
     positions = np.full((n_povs, null - 1), np.nan)
     positions[group] = coords
     return positions
+
+
+def basis_coordinates(points: np.ndarray, flat: float = 0.0) -> np.ndarray | None:
+    """``(n, d)`` coordinates of ``points`` in a reduced basis of the lattice
+    they lie on, whitened first (an affine map of a lattice is a lattice),
+    from the first point; None where some direction's variance is at most
+    ``flat`` times the largest, or no basis is found."""
+    variance, axes = np.linalg.eigh(np.atleast_2d(np.cov(points.T)))
+    if np.any(variance <= flat * variance.max()):
+        return None
+    points = points @ axes / np.sqrt(variance)
+    basis = reduced_basis(points)
+    if basis is None:
+        return None
+    return np.linalg.solve(basis.T, (points - points[0]).T).T
 
 
 def reduced_basis(points: np.ndarray) -> np.ndarray | None:
@@ -157,19 +184,12 @@ def lattice_coordinates(pairs, set_ids, n_povs: int) -> Lattice | None:
     if positions is None:
         return None
     placed = np.all(np.isfinite(positions), axis=1)
-    points = positions[placed]
-    # Whitened, the lattice's neighbours are its nearest points.
-    variance, axes = np.linalg.eigh(np.atleast_2d(np.cov(points.T)))
-    if np.any(variance <= 0):
+    coords = basis_coordinates(positions[placed])
+    if coords is None:
         return None
-    points = points @ axes / np.sqrt(variance)
-    basis = reduced_basis(points)
-    if basis is None:
-        return None
-    coords = np.linalg.solve(basis.T, (points - points[0]).T).T
     residual = float(np.max(np.abs(coords - np.round(coords))))
     if residual > INTEGER_TOL:
         return None
-    ij = np.zeros((n_povs, points.shape[1]), dtype=int)
+    ij = np.zeros((n_povs, coords.shape[1]), dtype=int)
     ij[placed] = np.round(coords).astype(int)
     return Lattice(ij=ij, placed=placed, residual=residual)

@@ -22,11 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 
-from sensorispace_ros.core.naive.lattice import (SHIFT, Lattice, constraint_normal_matrix,
-                                                 lattice_coordinates, reduced_basis)
+from sensorispace_ros.core.naive.lattice import (Lattice, basis_coordinates, lattice_coordinates,
+                                                 smallest_eigenvectors)
 
 __all__ = ["ImpliedSets", "LatticeSets", "implied_sets", "lattice_equalities", "pair_support",
            "set_medians", "trimmed_lattice", "with_vouched"]
@@ -54,35 +52,20 @@ def _embedding(pairs, set_ids, n_povs: int, max_dim: int):
     """``(P, d)`` lattice units of the largest tied group (NaN elsewhere) from the
     smallest eigenvectors, ``d`` where the eigenvalues jump most; None when
     there is too little to embed."""
-    normal = constraint_normal_matrix(pairs, set_ids, n_povs)
-    tied = np.flatnonzero(normal.diagonal() > 0)
-    if len(tied) < 2 * (max_dim + 2):
+    smallest = smallest_eigenvectors(pairs, set_ids, n_povs, max_dim)
+    if smallest is None:
         return None
-    _, label = connected_components(normal[tied][:, tied] != 0, directed=False)
-    group = tied[label == np.bincount(label).argmax()]
-    if len(group) < 2 * (max_dim + 2):
-        return None
-    sub = normal[group][:, group]
-    scale = float(abs(sub).max())
-    try:
-        values, vectors = eigsh(sub, k=max_dim + 2, sigma=-SHIFT * scale, which="LM",
-                                v0=np.sin(1.0 + np.arange(len(group))))
-    except ArpackNoConvergence:
-        return None
-    order = np.argsort(values)
-    values, vectors = np.maximum(values[order], 1e-300 * scale), vectors[:, order]
+    group, values, vectors, scale = smallest
+    values = np.maximum(values, 1e-300 * scale)
     dim = 1 + int(np.argmax(values[2:] / values[1:-1]))
     coords = vectors[:, 1:dim + 1] - vectors[:, 1:dim + 1].mean(axis=0)
-    variance, axes = np.linalg.eigh(np.atleast_2d(np.cov(coords.T)))
-    if not variance.min() > 1e-12 * variance.max():
-        return None                 # positions along fewer directions than measured
-    points = coords @ axes / np.sqrt(variance)
-    basis = reduced_basis(points)
-    if basis is None:
+    # An embedding flat along a measured direction has no lattice there.
+    units = basis_coordinates(coords, flat=1e-12)
+    if units is None:
         return None
-    units = np.full((n_povs, dim), np.nan)
-    units[group] = np.linalg.solve(basis.T, (points - points[0]).T).T
-    return units
+    placed = np.full((n_povs, dim), np.nan)
+    placed[group] = units
+    return placed
 
 
 def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
@@ -138,19 +121,19 @@ def implied_sets(lattice: Lattice, usable: np.ndarray):
 @dataclass
 class LatticeSets:
     """What ``lattice_equalities`` found: the sets ``pairs`` / ``set_ids`` the
-    lattice implies, the POVs it ``placed`` and took (``usable``), and the
-    found pairs it ``dropped``."""
+    lattice implies, the POVs it ``placed`` and took (``usable``), and which
+    found pairs the trimming ``kept`` (None without found pairs)."""
 
     pairs: np.ndarray
     set_ids: np.ndarray
     placed: int = 0
     usable: int = 0
-    dropped: int = 0
+    kept: np.ndarray | None = None
 
-    def metrics(self) -> dict:
-        return {"naive.lattice.placed": self.placed, "naive.lattice.usable": self.usable,
-                "naive.lattice.dropped_pairs": self.dropped,
-                "naive.lattice.implied_pairs": int(len(self.pairs))}
+    @classmethod
+    def none(cls, kept=None) -> "LatticeSets":
+        """No implied set (no lattice, or none asked for)."""
+        return cls(np.zeros((0, 2), dtype=int), np.zeros(0, dtype=int), kept=kept)
 
 
 def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
@@ -162,16 +145,17 @@ def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
     whatever their support (``with_vouched``)."""
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
-    lattice, kept = trimmed_lattice(pairs, set_ids, n_povs) if len(pairs) else (None, None)
+    if not len(pairs):
+        return LatticeSets.none()
+    lattice, kept = trimmed_lattice(pairs, set_ids, n_povs)
     if lattice is None:
-        return LatticeSets(np.zeros((0, 2), dtype=int), np.zeros(0, dtype=int))
+        return LatticeSets.none(kept)
     usable = pair_support(pairs[kept], set_ids[kept], n_povs) >= support
     if vouched is not None:
         lattice, usable = with_vouched(lattice, usable, *vouched)
     implied, implied_ids = implied_sets(lattice, usable)
     return LatticeSets(implied, implied_ids, placed=int(np.count_nonzero(lattice.placed)),
-                       usable=int(np.count_nonzero(usable & lattice.placed)),
-                       dropped=int(np.count_nonzero(~kept)))
+                       usable=int(np.count_nonzero(usable & lattice.placed)), kept=kept)
 
 
 def with_vouched(lattice: Lattice, usable: np.ndarray, ij: np.ndarray, placed: np.ndarray):
@@ -208,40 +192,45 @@ class ImpliedSets:
         then the equality pass if one ran), then, with ``lattice_sets``, the
         sets their lattice implies (``lattice_sets.lattice_equalities``),
         numbered after them: for ``core.regularize``."""
-        pairs, set_ids = self._found_sets()
-        implied = self.lattice_sets()
-        if not len(implied.pairs):
+        pairs, set_ids = found = self._found_sets()
+        implied, implied_ids = self._implied_after(found)
+        if not len(implied):
             return pairs, set_ids
+        return np.concatenate([pairs, implied]), np.concatenate([set_ids, implied_ids])
+
+    def implied_rows(self) -> np.ndarray:
+        """Rows ``(set id, from, to)`` of the lattice's sets as ``equality_sets``
+        numbers them: what the graph's agent publishes at the end of its run."""
+        implied, implied_ids = self._implied_after(self._found_sets())
+        return np.column_stack([implied_ids, implied]).astype(np.int64)
+
+    def _implied_after(self, found):
+        """The lattice's sets of the ``found`` sets, numbered after them."""
+        pairs, set_ids = found
+        implied = self.lattice_sets(found)
         first = int(set_ids.max()) + 1 if len(set_ids) else 0
-        return (np.concatenate([pairs, implied.pairs]),
-                np.concatenate([set_ids, implied.set_ids + first]))
+        return implied.pairs, implied.set_ids + first
 
     def _found_sets(self):
         """The equality sets the agent found itself."""
         return self._sets.pairs, self._sets.set_ids
 
-    def lattice_sets(self) -> LatticeSets:
-        """The sets the lattice of the found sets implies (none without
-        ``lattice_sets``); measured once for the sets and POVs known now."""
+    def lattice_sets(self, found=None) -> LatticeSets:
+        """The sets the lattice of the found sets (``found``, else
+        ``_found_sets()``) implies, none without ``lattice_sets``; measured once
+        for the sets and POVs known now."""
         key = (self._sets.n_sets, self._sets.n_pairs, self._store.count)
         cached = getattr(self, "_lattice_cache", None)
         if cached is None or cached[0] != key:
             if self.params.lattice_sets:
-                found = lattice_equalities(*self._found_sets(), self._store.count,
-                                           self.params.lattice_support, self._vouched_places())
+                found = self._found_sets() if found is None else found
+                implied = lattice_equalities(*found, self._store.count,
+                                             self.params.lattice_support, self._vouched_places())
             else:
-                found = lattice_equalities(np.zeros((0, 2), dtype=int), [], 0, 1)
-            self._lattice_cache = cached = (key, found)
+                implied = LatticeSets.none()
+            self._lattice_cache = cached = (key, implied)
         return cached[1]
 
     def _vouched_places(self):
         """``(ij, placed)`` of another placement of the POVs on the lattice, or None."""
         return None
-
-    def implied_rows(self) -> np.ndarray:
-        """Rows ``(set id, from, to)`` of the lattice's sets as ``equality_sets``
-        numbers them: what the graph's agent publishes at the end of its run."""
-        pairs, set_ids = self.equality_sets()
-        n_implied = len(self.lattice_sets().pairs)
-        return np.column_stack([set_ids[len(set_ids) - n_implied:],
-                                pairs[len(pairs) - n_implied:]]).astype(np.int64)
