@@ -49,7 +49,7 @@ from sensorispace_ros.core import quality
 from sensorispace_ros.core.arm import Arm, wrap_angle
 from sensorispace_ros.core.hausdorff import hausdorff_matrix
 from sensorispace_ros.core.naive.clock_equality import translated_sets
-from sensorispace_ros.core.naive.lattice_sets import lattice_equalities, trimmed_lattice
+from sensorispace_ros.core.naive.lattice_sets import lattice_equalities, set_medians
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.seeding import CounterStream
 from sensorispace_ros.offline.representation import _dimension_chain
@@ -59,13 +59,7 @@ def wrong_pairs(true_positions, pairs, set_ids, step) -> np.ndarray:
     """(K,) bool: pairs whose true displacement lies more than half ``step``
     from the median displacement of their set."""
     shift = true_positions[pairs[:, 1]] - true_positions[pairs[:, 0]]
-    wrong = np.zeros(len(pairs), dtype=bool)
-    order = np.argsort(set_ids, kind="stable")
-    _, first = np.unique(set_ids[order], return_index=True)
-    for members in np.split(order, first[1:]):
-        median = np.median(shift[members], axis=0)
-        wrong[members] = np.linalg.norm(shift[members] - median, axis=1) > 0.5 * step
-    return wrong
+    return np.linalg.norm(shift - set_medians(shift, set_ids), axis=1) > 0.5 * step
 
 
 def true_sets(true_positions, step):
@@ -142,9 +136,9 @@ def lattice_variant(pairs, set_ids, wrong, n_povs, cfg):
     """``own + lattice``: the found sets, then those their lattice implies;
     prints what the trimming dropped and placed."""
     support = cfg.get("naive", {}).get("lattice_support", NaiveParams().lattice_support)
-    lattice, kept = trimmed_lattice(pairs, set_ids, n_povs)
     found = lattice_equalities(pairs, set_ids, n_povs, support)
-    print(json.dumps({"lattice": lattice is not None, "dropped": int(np.count_nonzero(~kept)),
+    kept = found.kept if found.kept is not None else np.ones(len(pairs), dtype=bool)
+    print(json.dumps({"lattice": found.placed > 0, "dropped": int(np.count_nonzero(~kept)),
                       "dropped_wrong": int(np.count_nonzero(~kept & wrong)),
                       "placed": found.placed, "taken": found.usable,
                       "implied_pairs": int(len(found.pairs))}), flush=True)
