@@ -3,7 +3,7 @@ rests only on a compensation its matched neighbours hold (a far pose
 sensing an unconfirmed anchor alike never becomes the pose every later
 anchor is sensed from), averages the anchors that may be searched
 unconfirmed as often as its budget allows, and takes a pose on a known
-POV's loop for that POV."""
+POV's loop for that POV (``test_known_loops``)."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,7 +12,6 @@ import pytest
 from sensorispace_ros.core.naive.agent import NaiveAgent
 from sensorispace_ros.core.naive.anchors import Request, SnapshotMatching
 from sensorispace_ros.core.naive.neighbours import Neighbours, loop_distances
-from sensorispace_ros.core.naive.points_of_view import PovStore
 from sensorispace_ros.core.naive.searching import SearchAndSample
 
 
@@ -123,29 +122,3 @@ def test_a_pose_between_two_samples_lies_on_the_loop():
     wrapped = loop_distances(np.array([-np.pi + 0.01, 0, 0, 0]),
                              _circle(np.array([np.pi - 0.5, 0, 0, 0]), radius=0.3)[None])
     assert wrapped[0] < 0.25
-
-
-def _walked_agent(noisy, count=10):
-    loops = np.stack([_circle(np.array([0, 0.6 * k - 3.0, 0, 0]), radius=0.2, n=16)
-                      for k in range(count)])
-    store = PovStore(16, 4)
-    for loop in loops:
-        store.append(loop)
-    store.separation = lambda: 0.4
-    agent = SimpleNamespace(_noisy=noisy, structure=SimpleNamespace(pov_dim=1),
-                            params=SimpleNamespace(pose_precision_povs=8), _store=store)
-    agent._longest_chord = lambda: SearchAndSample._longest_chord(agent)
-    return agent
-
-
-def test_a_noisy_agent_takes_a_pose_on_a_known_loop_for_that_pov():
-    # Loops of radius 0.2 centred 0.6 apart, separation 0.4: a state 0.05
-    # off loop 2 (a quarter of the separation is 0.1) is POV 2; 0.2 off
-    # it is none; noiseless, or with too few POVs to measure their
-    # separation, nothing is taken for a known POV by motor distance.
-    near = np.array([0.2, -1.8, 0.05, 0])
-    far = np.array([0.2, -1.8, 0.2, 0])
-    assert SearchAndSample._walked_pose(_walked_agent(True), near) == 2
-    assert SearchAndSample._walked_pose(_walked_agent(True), far) == -1
-    assert SearchAndSample._walked_pose(_walked_agent(False), near) == -1
-    assert SearchAndSample._walked_pose(_walked_agent(True, count=5), near) == -1

@@ -22,14 +22,14 @@ from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
 from sensorispace_ros.core.naive.jacobians import SPLIT, AveragedStep, SymmetricStep, stencil_rows
-from sensorispace_ros.core.naive.neighbours import loop_distances
+from sensorispace_ros.core.naive.known_loops import KnownLoops
 from sensorispace_ros.core.naive.noise import (jacobian_noise, noise_residual, noise_step,
     walk_step)
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 
 
-class SearchAndSample:
+class SearchAndSample(KnownLoops):
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
     ``_body``, ``_store``, ``_rest``, ``_split_states`` and counters."""
 
@@ -83,7 +83,8 @@ class SearchAndSample:
         # distance of match_tol; where the Jacobians are averaged (the match
         # tolerance, which allows for drift along chains, then spans
         # neighbouring poses) within what two sensings of one pose differ by;
-        # under noise also a solution on a known POV's loop (``_walked_pose``).
+        # under noise only a solution on that POV's loop, and also a solution
+        # on a known POV's loop; one between loops is refused (``known_loops``).
         fresh = []
         split_tree = cKDTree(finite_rows(split_now, -1.0)) if len(split_now) else None
         for g in sorted(solution):
@@ -92,12 +93,16 @@ class SearchAndSample:
                 same = min(same, self._tol.separation)
             if tree is not None:
                 distance, index = tree.query(unique_targets[g], k=1)
-                if distance <= same:
+                if distance <= same and self._on_known_loop(solution[g], int(index)):
                     pov_of_group[g] = int(index)
                     continue
             known = self._walked_pose(solution[g])
             if known >= 0:
                 pov_of_group[g] = known
+                continue
+            if self._between_loops(solution[g]):
+                pov_of_group[g] = -1
+                self.ends_between_loops += 1
                 continue
             if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] <= same:
                 pov_of_group[g] = -1
@@ -400,40 +405,6 @@ class SearchAndSample:
                     sensations.append(None)
         return indices, sensations
 
-    def _walked_pose(self, motor_state: np.ndarray) -> int:
-        """Where noise sized the tolerances and the POVs are loops: the known
-        POV whose loop passes within ``_SAME_POSITION`` of their measured
-        separation (``PovStore.separation``) of ``motor_state``, -1 if none
-        (or fewer than ``pose_precision_povs`` POVs are known). A search's
-        end is as precise as its averages; two ends on one pose then
-        sense apart by more than two sensings differ along the strong pose
-        directions, yet lie on one loop in motor space: one POV, not two
-        (each would breed its own frontier rows, one position twice)."""
-        if not self._noisy or self.structure.pov_dim != 1 or \
-                self._store.count < self.params.pose_precision_povs:
-            return -1
-        limit = _SAME_POSITION * self._store.separation()
-        samples = self._store.samples
-        # A point within ``limit`` of a chord lies within ``limit`` plus half
-        # the chord of one of its ends: only POVs with a sample that near.
-        candidates = self._store.near(motor_state, limit + 0.5 * self._longest_chord())
-        if not len(candidates):
-            return -1
-        distance = loop_distances(motor_state, samples[candidates])
-        nearest = int(np.argmin(distance))
-        return int(candidates[nearest]) if distance[nearest] <= limit else -1
-
-    def _longest_chord(self) -> float:
-        """The longest step between consecutive samples of a known POV's loop
-        (torus of phases), measured for the POVs appended since last asked."""
-        done, longest = getattr(self, "_chords", (0, 0.0))
-        if self._store.count > done:
-            loops = self._store.samples[done:]
-            step = (np.roll(loops, -1, axis=1) - loops + np.pi) % (2.0 * np.pi) - np.pi
-            longest = max(longest, float(np.sqrt(np.max(np.sum(step * step, axis=2)))))
-            self._chords = (self._store.count, longest)
-        return longest
-
     def _walk_noise(self) -> float:
         """The noise a POV walk allows for in its corrections: the measured
         one with an ``AveragedStep`` (0 otherwise: exact Gauss-Newton steps)."""
@@ -465,9 +436,6 @@ class SearchAndSample:
             pattern_ratio=p.pattern_ratio, noise_sd=self._walk_noise())
 
 
-# Two loops closer than this share of the POVs' separation are one position
-# (a quarter: half way to half way between neighbours; ``_walked_pose``).
-_SAME_POSITION = 0.25
 # How many times what two sensings of one pose differ by a POV's sample may
 # lie from its start's sensation: the walk's own tolerances are motor steps
 # (``pov_sample_tol``), which leave a residual along the strong pose
