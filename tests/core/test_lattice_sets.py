@@ -5,7 +5,7 @@ import pytest
 
 from sensorispace_ros.core.naive.lattice import Lattice, lattice_coordinates
 from sensorispace_ros.core.naive.lattice_sets import (implied_sets, lattice_equalities,
-                                                      pair_support, set_medians,
+                                                      pair_support, set_medians, tied_twice,
                                                       trimmed_lattice)
 
 from test_lattice import _sets, _square_patch, _unimodular_map
@@ -168,3 +168,42 @@ def test_places_vouched_for_in_another_basis_join_the_lattice():
     other[0] += (0, 1)
     same, untouched = with_vouched(lattice, usable, other, np.ones(len(truth), bool))
     assert same is lattice and not untouched[3]
+
+
+def _with_sliding_chain(points, pairs, ids):
+    """Three more POVs, off the patch, that only a set of two pairs with no
+    other member (its step free) and one more pair tie to it: they can slide
+    together without breaking any set."""
+    n = len(points)
+    free, other = ids.max() + 1, ids[0]
+    chain = np.array([[0, n], [n + 1, n + 2], [n, n + 1]])
+    return (np.vstack([pairs, chain]), np.r_[ids, free, free, other], n + 3)
+
+
+def test_povs_fewer_than_two_sets_tie_are_left_out_until_none_is():
+    points = _square_patch(2)
+    pairs, ids = _sets(points, 300, 2)
+    pairs, ids, n = _with_sliding_chain(points, pairs, ids)
+    kept = tied_twice(pairs, ids, n)
+    # The chain's POV n + 2 is in the free set alone, then n + 1 is in one
+    # set, then n: every chain pair goes, every other POV stays tied twice.
+    assert not kept[-3:].any()
+    assert np.all(pair_support(pairs[kept], ids[kept], n)[:len(points)] >= 2)
+    assert kept[:-3].sum() >= 0.95 * (len(kept) - 3)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_trimmed_lattice_spans_the_plane_with_a_sliding_chain_and_wrong_pairs(seed):
+    # A chain that can slide adds a null direction, and wrong pairs lift the
+    # plane's own: the trimmed lattice is still the plane's (not a line
+    # through it), and the chain is not placed.
+    points = _square_patch(seed)
+    pairs, ids = _sets(points, 400, seed, max_pairs=12)
+    pairs, ids, wrong = _with_wrong_pairs(points, pairs, ids, 0.02, seed)
+    pairs, ids, n = _with_sliding_chain(points, pairs, ids)
+    lattice, kept = trimmed_lattice(pairs, ids, n)
+    assert lattice is not None and lattice.dim == 2
+    assert not lattice.placed[len(points):].any()
+    assert not np.any(kept[:len(wrong)] & wrong)
+    _unimodular_map(lattice.ij[:len(points)][lattice.placed[:len(points)]],
+                    points[lattice.placed[:len(points)]])

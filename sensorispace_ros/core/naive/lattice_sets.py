@@ -3,12 +3,15 @@ implies.
 
 Under noise a few matches pair two POVs that the displacement does not
 relate: one such pair leaves no exact null space, so ``lattice`` finds no
-lattice. Where it finds none, ``trimmed_lattice`` embeds the POVs by the
-smallest eigenvectors of the constraints all the same (the dimension where
-the eigenvalues jump most), reads every pair's step in the reduced basis
+lattice. Where it finds none, ``trimmed_lattice`` embeds the POVs by
+smallest eigenvectors of the constraints all the same (``EMBEDDINGS``: those
+before the eigenvalues' largest jump, else the two smallest, else the two
+that move the most POVs), reads every pair's step in the reduced basis
 against its set's median step, drops the pairs farthest from a whole step,
-and embeds again, until every pair agrees; the lattice of the pairs kept
-must then pass ``lattice_coordinates``'s exact test.
+and embeds again, until every pair agrees; the pairs kept must then pass
+``lattice_coordinates``'s exact test with a plane's lattice. Where no
+embedding gives one, it tries again without the POVs fewer than two sets
+tie (``tied_twice``), which can slide.
 
 Any two POVs the lattice places are related by the lattice step between
 them: ``implied_sets`` gives one set per step, the pairs of POVs that
@@ -27,10 +30,11 @@ from sensorispace_ros.core.naive.lattice import (Lattice, basis_coordinates, lat
                                                  smallest_eigenvectors)
 
 __all__ = ["ImpliedSets", "LatticeSets", "implied_sets", "lattice_equalities", "pair_support",
-           "set_medians", "trimmed_lattice", "with_vouched"]
+           "set_medians", "tied_twice", "trimmed_lattice", "with_vouched"]
 
 MAX_ROUNDS = 24         # embeddings before the pairs must agree
 HALF_STEP = 0.5         # a pair farther than this from its set's step (lattice units) is dropped
+MAX_DROPPED = 0.05      # a trimming may drop at most this share of the pairs
 
 
 def set_medians(values: np.ndarray, set_ids: np.ndarray) -> np.ndarray:
@@ -48,40 +52,94 @@ def set_medians(values: np.ndarray, set_ids: np.ndarray) -> np.ndarray:
     return out
 
 
-def _embedding(pairs, set_ids, n_povs: int, max_dim: int):
-    """``(P, d)`` lattice units of the largest tied group (NaN elsewhere) from the
-    smallest eigenvectors, ``d`` where the eigenvalues jump most; None when
-    there is too little to embed."""
+def _embedding(pairs, set_ids, n_povs: int, choose, max_dim: int):
+    """``(P, d)`` lattice units of the largest tied group (NaN elsewhere) from
+    the smallest non-constant eigenvectors ``choose(values, vectors)`` picks
+    (column indices); None when there is too little to embed."""
     smallest = smallest_eigenvectors(pairs, set_ids, n_povs, max_dim)
     if smallest is None:
         return None
     group, values, vectors, scale = smallest
-    values = np.maximum(values, 1e-300 * scale)
-    dim = 1 + int(np.argmax(values[2:] / values[1:-1]))
-    coords = vectors[:, 1:dim + 1] - vectors[:, 1:dim + 1].mean(axis=0)
+    columns = choose(np.maximum(values[1:], 1e-300 * scale), vectors[:, 1:]) + 1
+    coords = vectors[:, columns] - vectors[:, columns].mean(axis=0)
     # An embedding flat along a measured direction has no lattice there.
     units = basis_coordinates(coords, flat=1e-12)
     if units is None:
         return None
-    placed = np.full((n_povs, dim), np.nan)
+    placed = np.full((n_povs, len(columns)), np.nan)
     placed[group] = units
     return placed
+
+
+def _largest_jump(values, vectors) -> np.ndarray:
+    """The eigenvectors before the eigenvalues' largest jump."""
+    return np.arange(1 + int(np.argmax(values[1:] / values[:-1])))
+
+
+def _smallest_two(values, vectors) -> np.ndarray:
+    return np.arange(2)
+
+
+def _spread_two(values, vectors) -> np.ndarray:
+    """The two eigenvectors that move the most POVs (participation ratio): a
+    displacement moves every POV, while a group the others hold by a few
+    pairs has a small eigenvalue of its own, on its members alone."""
+    magnitude = np.abs(vectors)
+    participation = magnitude.sum(axis=0) ** 2 / np.maximum((magnitude ** 2).sum(axis=0), 1e-300)
+    return np.sort(np.argsort(-participation, kind="stable")[:2])
+
+
+# The embeddings a trimming tries, in turn, until one leaves a plane's lattice.
+EMBEDDINGS = (_largest_jump, _smallest_two, _spread_two)
+
+
+def tied_twice(pairs, set_ids, n_povs: int) -> np.ndarray:
+    """``(K,)`` bool: the pairs left once every POV in fewer than two distinct
+    sets, and every set of one pair, has been left out, again until none is.
+    A set of one pair constrains nothing, and a POV one set ties moves with
+    that set's step: a chain of them can slide, a direction no displacement
+    spans."""
+    kept = np.ones(len(pairs), dtype=bool)
+    while True:
+        alone = np.bincount(set_ids[kept], minlength=int(set_ids.max()) + 1)[set_ids] < 2
+        loose = pair_support(pairs[kept & ~alone], set_ids[kept & ~alone], n_povs) < 2
+        drop = kept & (alone | loose[pairs[:, 0]] | loose[pairs[:, 1]])
+        if not drop.any():
+            return kept
+        kept &= ~drop
 
 
 def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
     """``(Lattice, kept)``: the lattice of the pairs ``kept`` ``(K,)`` bool after
     the pairs that disagree with it were dropped (module docstring), or
-    ``(None, kept)`` where no lattice holds."""
+    ``(None, kept)`` where no lattice holds. Only a plane's lattice counts:
+    one wrong pair left, or a chain of POVs that can slide, leaves one
+    direction null, whose line is a lattice too."""
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
-    kept = np.ones(len(pairs), dtype=bool)
-    exact = lattice_coordinates(pairs, set_ids, n_povs)
-    if exact is not None:
-        return exact, kept
+    tied = tied_twice(pairs, set_ids, n_povs)
+    for start in (np.ones(len(pairs), dtype=bool), tied):
+        exact = lattice_coordinates(pairs[start], set_ids[start], n_povs)
+        if exact is not None and exact.dim == 2:
+            return exact, start
+        for choose in EMBEDDINGS:
+            kept = _trimmed_by(pairs, set_ids, n_povs, start.copy(), choose, max_dim)
+            if np.count_nonzero(start & ~kept) > MAX_DROPPED * len(pairs):
+                continue
+            lattice = lattice_coordinates(pairs[kept], set_ids[kept], n_povs)
+            if lattice is not None and lattice.dim == 2:
+                return lattice, kept
+    return None, tied
+
+
+def _trimmed_by(pairs, set_ids, n_povs: int, kept, choose, max_dim: int):
+    """``kept`` less the pairs farthest from a whole step of their set's median
+    in the embedding ``choose`` picks, embedded again until every pair agrees
+    (or ``MAX_ROUNDS``)."""
     for _ in range(MAX_ROUNDS):
-        units = _embedding(pairs[kept], set_ids[kept], n_povs, max_dim)
+        units = _embedding(pairs[kept], set_ids[kept], n_povs, choose, max_dim)
         if units is None:
-            return None, kept
+            return kept
         steps = units[pairs[:, 1]] - units[pairs[:, 0]]
         live = kept & np.all(np.isfinite(steps), axis=1)
         gap = np.full(len(pairs), 0.0)
@@ -89,10 +147,9 @@ def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
             steps[live] - np.round(set_medians(steps[live], set_ids[live])), axis=1)
         worst = gap.max()
         if worst <= HALF_STEP:
-            break
+            return kept
         kept &= gap < max(HALF_STEP, 0.5 * worst)
-    lattice = lattice_coordinates(pairs[kept], set_ids[kept], n_povs)
-    return lattice, kept
+    return kept
 
 
 def pair_support(pairs, set_ids, n_povs: int) -> np.ndarray:
