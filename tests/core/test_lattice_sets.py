@@ -207,3 +207,9 @@ def test_a_trimmed_lattice_spans_the_plane_with_a_sliding_chain_and_wrong_pairs(
     assert not np.any(kept[:len(wrong)] & wrong)
     _unimodular_map(lattice.ij[:len(points)][lattice.placed[:len(points)]],
                     points[lattice.placed[:len(points)]])
+
+
+def test_no_pairs_and_lone_sets_leave_nothing_tied():
+    assert tied_twice(np.zeros((0, 2), dtype=int), np.zeros(0, dtype=int), 3).shape == (0,)
+    # One set of two pairs ties each POV once: nothing is tied twice.
+    assert not tied_twice(np.array([[0, 1], [2, 3]]), np.array([0, 0]), 4).any()

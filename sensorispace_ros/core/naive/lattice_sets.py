@@ -100,13 +100,14 @@ def tied_twice(pairs, set_ids, n_povs: int) -> np.ndarray:
     that set's step: a chain of them can slide, a direction no displacement
     spans."""
     kept = np.ones(len(pairs), dtype=bool)
-    while True:
+    while kept.any():
         alone = np.bincount(set_ids[kept], minlength=int(set_ids.max()) + 1)[set_ids] < 2
         loose = pair_support(pairs[kept & ~alone], set_ids[kept & ~alone], n_povs) < 2
         drop = kept & (alone | loose[pairs[:, 0]] | loose[pairs[:, 1]])
         if not drop.any():
-            return kept
+            break
         kept &= ~drop
+    return kept
 
 
 def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
