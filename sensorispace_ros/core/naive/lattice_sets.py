@@ -119,7 +119,9 @@ def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
     tied = tied_twice(pairs, set_ids, n_povs)
-    for start in (np.ones(len(pairs), dtype=bool), tied):
+    # Without POVs that can slide, again only where there were some.
+    starts = (np.ones(len(pairs), dtype=bool),) + (() if tied.all() else (tied,))
+    for start in starts:
         exact = lattice_coordinates(pairs[start], set_ids[start], n_povs)
         if exact is not None and exact.dim == 2:
             return exact, start
