@@ -14,26 +14,40 @@ neighbour's loop):
   way between neighbours), an end is that POV (``_walked_pose``), and a POV
   the sensations name keeps only such an end (``_on_known_loop``);
 * from ``APART`` on, it is a pose no known POV holds: a new POV;
-* in between it lies off the lattice of positions the POVs found so far
+* in between it may lie off the lattice of positions the POVs found so far
   share (its anchor rested off it, or the search stopped short): neither
   that POV nor a new one (``_between_loops``). Taken for the POV it would
   pair two POVs a fraction of a step apart in the equality sets; walked as
   a new one it would breed a second lattice, offset from the first.
+
+Motor distances mean different pose distances from place to place on an
+arm, so where the agent measured the manifold the loops sweep
+(``loop_manifold``) that manifold decides past ``HALF`` of the separation:
+an end on it lies nearer a new position of the lattice than a known one
+and is a new POV; an end off it changed a pose component no displacement
+changes, and is refused however far it lies.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from sensorispace_ros.core.naive import loop_manifold
 from sensorispace_ros.core.naive.neighbours import loop_distances
 
 ON_LOOP = 0.25
+HALF = 0.5
 APART = 0.6
+# An end lies off the loops' manifold beyond this many times the POVs' own
+# median offset from it (measured at up to ``CALIBRATION_POVS`` of them).
+OFF_FACTOR = 8.0
+CALIBRATION_POVS = 32
 
 
 class KnownLoops:
     """Mixin: needs the agent's ``_noisy``, ``structure``, ``params`` and ``_store``."""
 
     ends_between_loops = 0      # search ends refused by ``_between_loops``
+    ends_off_manifold = 0       # of them, those refused off the loops' manifold
 
     def _loops_tell_poses(self) -> bool:
         """Noise sized the tolerances, the POVs are loops and enough of them
@@ -61,13 +75,55 @@ class KnownLoops:
         return bool(distance <= ON_LOOP * self._store.separation())
 
     def _between_loops(self, motor_state: np.ndarray) -> bool:
-        """Where loops tell poses: whether the nearest known loop lies between
-        ``ON_LOOP`` and ``APART`` of the POVs' separation from ``motor_state``."""
+        """Where loops tell poses, whether a search's end at ``motor_state``,
+        on no known loop (beyond ``ON_LOOP``), is refused: where the loops'
+        manifold is measured, if the nearest known loop lies nearer than
+        ``HALF`` of the POVs' separation or the end lies off the manifold
+        (``_off_manifold``); where it is not, if that loop lies nearer than
+        ``APART``."""
         if not self._loops_tell_poses():
             return False
         separation = self._store.separation()
         _, distance = self._nearest_loop(motor_state, APART)
-        return bool(ON_LOOP * separation < distance < APART * separation)
+        if distance <= ON_LOOP * separation:
+            return False
+        if self._manifold()[1] is None:
+            return bool(distance < APART * separation)
+        if distance < HALF * separation:
+            return True
+        off = self._off_manifold(motor_state)
+        self.ends_off_manifold += int(off)
+        return off
+
+    def _off_manifold(self, motor_state: np.ndarray) -> bool:
+        """Whether ``motor_state`` lies off the known loops' manifold by more
+        than ``OFF_FACTOR`` times the POVs' own median offset, that measured
+        a separation from the nearest loop: farther, the fitted plane is
+        extrapolated and the manifold's bend grows with the square of the
+        distance, and so does the limit."""
+        codim, limit = self._manifold()
+        offset, reach = loop_manifold.normal_offset(motor_state, self._store.samples, codim)
+        return bool(offset > limit * max(1.0, (reach / self._store.separation()) ** 2))
+
+    def _manifold(self):
+        """``(codimension, offset limit)`` of the known loops' manifold,
+        ``(0, None)`` where the loops leave no motor direction out or are too
+        few to fit one; measured again when the POVs have grown by an eighth."""
+        count = self._store.count
+        cached = getattr(self, "_manifold_cache", (0, 0, None))
+        if count < cached[0] * 9 / 8:
+            return cached[1:]
+        if count <= 2 * loop_manifold.K_LOOPS:
+            return 0, None
+        loops = self._store.samples
+        probes = np.unique(np.linspace(0, count - 1, min(count, CALIBRATION_POVS)).astype(int))
+        codim = loop_manifold.codimension(loops, probes)
+        limit = None
+        if codim:
+            own = loop_manifold.own_offsets(loops, probes, codim)
+            limit = OFF_FACTOR * float(np.median(own))
+        self._manifold_cache = (count, codim, limit)
+        return codim, limit
 
     def _nearest_loop(self, motor_state: np.ndarray, share: float):
         """``(POV, distance)`` of the known loop nearest ``motor_state`` among
