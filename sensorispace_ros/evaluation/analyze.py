@@ -50,7 +50,8 @@ import numpy as np
 
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core.arm import Arm
-from sensorispace_ros.core.naive.records import STAGES, STRUCTURE_FIELDS, NaiveAgentRecords
+from sensorispace_ros.core.naive.records import (SEARCH_FIELDS, STAGES, STRUCTURE_FIELDS,
+                                                 NaiveAgentRecords)
 from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.evaluation.graph_clock import clocked_numbers
 from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from_motor
@@ -237,7 +238,7 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
         queries_total=int(totals["queries"]), calls_total=int(totals["calls"]),
         queries_by_stage={stage: int(counters[f"queries_{stage}"][0]) for stage in STAGES},
         calls_by_stage={stage: int(counters[f"calls_{stage}"][0]) for stage in STAGES},
-        **{name: counters[name][0].item() for name in STRUCTURE_FIELDS
+        **{name: counters[name][0].item() for name in STRUCTURE_FIELDS + SEARCH_FIELDS
            if name in counters.dtype.names})
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from sensorispace_ros.core import arm
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
-from sensorispace_ros.core.naive.records import STRUCTURE_FIELDS, NaiveAgentRecords
+from sensorispace_ros.core.naive.records import SEARCH_FIELDS, STRUCTURE_FIELDS, NaiveAgentRecords
 from sensorispace_ros.core.world import REDISTRIBUTION
 from sensorispace_ros.evaluation import rotations
 from sensorispace_ros.evaluation.ground_truth import (NaiveGroundTruth, RunTruth,
@@ -138,6 +138,8 @@ def _query_numbers(records: NaiveAgentRecords) -> dict:
         numbers[f"naive.queries_by_stage.{stage}"] = int(records.queries_by_stage.get(stage, 0))
     for stage in NAIVE_STAGES:
         numbers[f"naive.calls_by_stage.{stage}"] = int(records.calls_by_stage.get(stage, 0))
+    # Search ends refused under noise (core.naive.known_loops).
+    numbers.update({f"naive.{name}": int(getattr(records, name)) for name in SEARCH_FIELDS})
     return numbers
 
 

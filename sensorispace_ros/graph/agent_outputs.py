@@ -12,7 +12,7 @@ import numpy as np
 
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
 from sensorispace_ros.core.naive.records import (STRUCTURE_FIELDS, NaiveAgentRecords,
-                                                 structure_fields)
+                                                 search_fields, structure_fields)
 from sensorispace_ros.protocol import AGENT_RECORDS_FILE  # noqa: F401 (the file name nodes write)
 
 
@@ -79,7 +79,7 @@ def stage_counters(agent) -> tuple[dict, list[str]]:
         counters[f"queries_{stage}"] = queries.get(stage, 0)
         counters[f"calls_{stage}"] = calls.get(stage, 0)
     defaults = {name: getattr(NaiveAgentRecords, name) for name in STRUCTURE_FIELDS}
-    counters.update({**defaults, **structure_fields(agent)})
+    counters.update({**defaults, **structure_fields(agent), **search_fields(agent)})
     return counters, sorted((set(queries) | set(calls)) - set(NAIVE_STAGES))
 
 

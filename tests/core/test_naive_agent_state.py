@@ -122,7 +122,7 @@ def test_agent_records_survive_a_round_trip_through_arrays(tmp_path):
         compensation_searched=np.array([True, False]), pairs=np.array([[0, 1], [1, 2]]),
         set_ids=np.array([0, 0]), compensated=2, compensation_queries=77, queries_total=900,
         calls_total=40, queries_by_stage={"sweep": 5, "pov": 60},
-        calls_by_stage={"sweep": 1, "pov": 3})
+        calls_by_stage={"sweep": 1, "pov": 3}, ends_between_loops=7, ends_off_manifold=3)
     np.savez(tmp_path / "records.npz", **records.to_arrays())
     with np.load(tmp_path / "records.npz") as stored:
         back = NaiveAgentRecords.from_arrays({key: stored[key] for key in stored.files})
@@ -132,3 +132,27 @@ def test_agent_records_survive_a_round_trip_through_arrays(tmp_path):
             assert got.dtype == expected.dtype and np.array_equal(got, expected), item.name
         else:
             assert got == expected and type(got) is type(expected), item.name
+
+
+def test_the_refused_search_ends_reach_the_stage_counters_and_the_metrics():
+    from types import SimpleNamespace
+
+    from sensorispace_ros.core.naive.records import NaiveAgentRecords, search_fields
+    from sensorispace_ros.evaluation.naive import _query_numbers
+    from sensorispace_ros.graph.agent_outputs import stage_counters
+    agent = SimpleNamespace(queries_by_stage={}, calls_by_stage={}, compensation_queries=[],
+                            structure=None, ends_between_loops=5, ends_off_manifold=2)
+    assert search_fields(agent) == {"ends_between_loops": 5, "ends_off_manifold": 2}
+    assert search_fields(SimpleNamespace()) == {"ends_between_loops": 0, "ends_off_manifold": 0}
+    counters, _ = stage_counters(agent)
+    assert counters["ends_between_loops"] == 5 and counters["ends_off_manifold"] == 2
+    records = NaiveAgentRecords(
+        povs=np.zeros((0, 5, 4)), pov_events=np.zeros(0, int), pov_queries=np.zeros(0, int),
+        compensation_event=np.zeros(0, int), compensation_anchor_event=np.zeros(0, int),
+        compensation_motor_state=np.zeros((0, 4)), compensation_anchor_motor_state=np.zeros((0, 4)),
+        compensation_searched=np.zeros(0, bool), pairs=np.zeros((0, 2), int),
+        set_ids=np.zeros(0, int), compensated=0, compensation_queries=0, queries_total=0,
+        calls_total=0, queries_by_stage={}, calls_by_stage={}, ends_between_loops=5,
+        ends_off_manifold=2)
+    numbers = _query_numbers(records)
+    assert numbers["naive.ends_between_loops"] == 5 and numbers["naive.ends_off_manifold"] == 2

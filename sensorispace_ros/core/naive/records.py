@@ -77,7 +77,9 @@ class NaiveAgentRecords:
     ``rank_gap``, ``sensory_gain``, ``fd_noise_floor``, ``rank_votes``,
     ``rank_probes``, ``noise_estimate``, ``fd_step`` and ``noise_quantum``
     the agent's measure of its body (``STRUCTURE_FIELDS``; ``pose_rank`` -1
-    before ``start``).
+    before ``start``); ``ends_between_loops`` and ``ends_off_manifold`` the
+    search ends it refused under noise, all and those off its loops'
+    manifold (``SEARCH_FIELDS``, ``core.naive.known_loops``).
     """
 
     povs: np.ndarray
@@ -106,6 +108,8 @@ class NaiveAgentRecords:
     noise_estimate: float = 0.0
     fd_step: float = 0.0
     noise_quantum: float = 0.0
+    ends_between_loops: int = 0
+    ends_off_manifold: int = 0
 
     @classmethod
     def from_agent(cls, agent) -> "NaiveAgentRecords":
@@ -130,7 +134,7 @@ class NaiveAgentRecords:
             compensation_queries=int(sum(agent.compensation_queries)),
             queries_total=int(agent.queries_total), calls_total=int(agent.calls_total),
             queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage,
-            **structure_fields(agent))
+            **structure_fields(agent), **search_fields(agent))
 
     def to_arrays(self) -> dict:
         """Flat ``{name: array}`` (``np.savez``); stage counts as
@@ -168,6 +172,16 @@ class NaiveAgentRecords:
 # The agent's measure of its body, as its records and metrics (naive.<field>) name it.
 STRUCTURE_FIELDS = ("pose_rank", "pov_dim", "rank_gap", "sensory_gain", "fd_noise_floor",
                     "rank_votes", "rank_probes", "noise_estimate", "fd_step", "noise_quantum")
+
+
+# The search ends the agent refused (``core.naive.known_loops``), as its
+# records and metrics (naive.<field>) name them.
+SEARCH_FIELDS = ("ends_between_loops", "ends_off_manifold")
+
+
+def search_fields(agent) -> dict:
+    """``SEARCH_FIELDS`` of an agent (0 for an agent that has none)."""
+    return {name: int(getattr(agent, name, 0)) for name in SEARCH_FIELDS}
 
 
 def structure_fields(agent) -> dict:
