@@ -104,10 +104,12 @@ def body_description(bag_dir, cfg: dict | None = None):
     return Arm.from_config(cfg["arm"]).description(int(cfg["world"]["retina"]["receptors"]))
 
 
-def _tables(bag_dir, topic: str, kinds=("change",), description=None) -> dict[str, np.ndarray]:
+def _tables(bag_dir, topic: str, kinds=("change",), description=None, later=()
+            ) -> dict[str, np.ndarray]:
     """frame id -> decoded table of the first message of ``topic`` with that frame id
     (a re-send after a restart is a duplicate, see the module docstring);
-    ``description`` sizes a topic sized by the body."""
+    ``description`` sizes a topic sized by the body; ``later``: trailing
+    columns a bag recorded before they existed lacks (``decoded_table``)."""
     columns = contracts.contract(topic).columns_for(description)
     tables = {}
     for _, _, _, msg in read_bag_messages(bag_dir, [topic]):
@@ -115,10 +117,22 @@ def _tables(bag_dir, topic: str, kinds=("change",), description=None) -> dict[st
         if parsed is None or parsed[0] not in kinds or msg.header.frame_id in tables:
             continue
         try:
-            tables[msg.header.frame_id] = messages.cloud_to_table(msg, columns).copy()
+            tables[msg.header.frame_id] = decoded_table(msg, columns, later)
         except messages.MessageError as exc:
             raise BagError(f"bag {bag_dir}: a {topic} message does not decode: {exc}") from None
     return tables
+
+
+def decoded_table(msg, columns: dict, later=()) -> np.ndarray:
+    """``msg`` as a table of ``columns``, or, where it has none of the
+    columns ``later`` (an older recording), of the others."""
+    try:
+        return messages.cloud_to_table(msg, columns).copy()
+    except messages.MessageError:
+        if not later or {field.name for field in msg.fields} & set(later):
+            raise
+    earlier = {name: kind for name, kind in columns.items() if name not in later}
+    return messages.cloud_to_table(msg, earlier).copy()
 
 
 def agent_data(bag_dir, description=None) -> dict:
@@ -209,7 +223,7 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
     info = bag_info(bag_dir)
     if totals is None or STAGE_COUNTERS not in info.topics or POV_RECORDS not in info.topics:
         return None
-    counters = _tables(bag_dir, STAGE_COUNTERS, kinds=("end",))
+    counters = _tables(bag_dir, STAGE_COUNTERS, kinds=("end",), later=SEARCH_FIELDS)
     if not counters:
         return None
     counters = next(iter(counters.values()))

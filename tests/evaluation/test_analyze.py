@@ -217,3 +217,24 @@ def test_analyze_bag_equals_the_pipeline_on_the_same_data(tmp_path):
     assert got["equality_sets.count"] == 3 and got["equality_sets.pairs"] == 6
     assert got["analysis.complete"] is True
     assert got["seed"] == 4
+
+
+def test_stage_counters_recorded_before_the_refused_search_ends_still_decode():
+    from sensorispace_ros.core.naive.records import SEARCH_FIELDS
+    columns = contracts.contract("/agent/stage_counters").columns
+    earlier = {name: kind for name, kind in columns.items() if name not in SEARCH_FIELDS}
+    row = {name: np.array([3]) for name in earlier}
+    old = messages.table_to_cloud(row, earlier, messages.make_header("end/4"))
+    table = analyze.decoded_table(old, columns, later=SEARCH_FIELDS)
+    assert table.dtype.names == tuple(earlier) and table["noise_quantum"][0] == 3
+    with pytest.raises(messages.MessageError):
+        analyze.decoded_table(old, columns)
+    # A message with some of the later columns is malformed, not old.
+    partial = dict(earlier, ends_between_loops=columns["ends_between_loops"])
+    broken = messages.table_to_cloud({name: np.array([3]) for name in partial}, partial,
+                                     messages.make_header("end/4"))
+    with pytest.raises(messages.MessageError):
+        analyze.decoded_table(broken, columns, later=SEARCH_FIELDS)
+    new = messages.table_to_cloud({name: np.array([3]) for name in columns}, columns,
+                                  messages.make_header("end/4"))
+    assert analyze.decoded_table(new, columns, later=SEARCH_FIELDS)["ends_off_manifold"][0] == 3
