@@ -52,17 +52,17 @@ def _filling_loops(n=96):
 @pytest.mark.parametrize("noise", [0.0, 1e-4])
 def test_the_loops_of_a_lattice_of_positions_leave_one_motor_direction_out(noise):
     loops = _lattice_loops(noise=noise)
-    assert loop_manifold.codimension(loops, np.arange(len(loops))) == 1
+    assert loop_manifold.measure(loops, np.arange(len(loops)))[0] == 1
 
 
 def test_loops_that_fill_the_motor_space_leave_none_out():
     loops = _filling_loops()
-    assert loop_manifold.codimension(loops, np.arange(len(loops))) == 0
+    assert loop_manifold.measure(loops, np.arange(len(loops))) == (0, None)
 
 
 def test_a_new_position_lies_on_the_manifold_and_a_changed_orientation_off_it():
     loops = _lattice_loops()
-    own = loop_manifold.own_offsets(loops, np.arange(len(loops)), 1)
+    own = loop_manifold.measure(loops, np.arange(len(loops)))[1]
     new_position = _embed(0.0, 0.0, 1.0)
     off = new_position + 0.03 * _normal(new_position)
     # The hole's nearest loops lie a step away, the POVs' own nearest ones
@@ -143,8 +143,7 @@ def test_the_limit_grows_with_the_square_of_the_distance_to_the_nearest_loop():
         normal = directions[-1]
         shifted = state + (0.02 - normal @ (state - centroid)) * normal    # offset 0.02
         assert loop_manifold.normal_offset(shifted, loops, 1)[0] == pytest.approx(0.02)
-        agent._manifold_cache = (len(loops), 1, 0.01)
-        assert agent._off_manifold(shifted) is (reach < 1.5 * STEP)
+        assert agent._off_manifold(shifted, 1, 0.01) is (reach < 1.5 * STEP)
 
 
 def test_without_a_measured_manifold_ends_up_to_apart_are_refused():

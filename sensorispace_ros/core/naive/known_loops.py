@@ -16,7 +16,7 @@ neighbour's loop):
 * from ``APART`` on, it is a pose no known POV holds: a new POV;
 * in between it may lie off the lattice of positions the POVs found so far
   share (its anchor rested off it, or the search stopped short): neither
-  that POV nor a new one (``_between_loops``). Taken for the POV it would
+  that POV nor a new one (``_between_loops``, ``_placed_end``). Taken for the POV it would
   pair two POVs a fraction of a step apart in the equality sets; walked as
   a new one it would breed a second lattice, offset from the first.
 
@@ -76,52 +76,54 @@ class KnownLoops:
 
     def _between_loops(self, motor_state: np.ndarray) -> bool:
         """Where loops tell poses, whether a search's end at ``motor_state``,
-        on no known loop (beyond ``ON_LOOP``), is refused: where the loops'
-        manifold is measured, if the nearest known loop lies nearer than
-        ``HALF`` of the POVs' separation or the end lies off the manifold
-        (``_off_manifold``); where it is not, if that loop lies nearer than
-        ``APART``."""
-        if not self._loops_tell_poses():
-            return False
-        separation = self._store.separation()
-        _, distance = self._nearest_loop(motor_state, APART)
-        if distance <= ON_LOOP * separation:
-            return False
-        if self._manifold()[1] is None:
-            return bool(distance < APART * separation)
-        if distance < HALF * separation:
-            return True
-        off = self._off_manifold(motor_state)
-        self.ends_off_manifold += int(off)
-        return off
+        on no known loop (beyond ``ON_LOOP``), is refused (``_placed_end``)."""
+        return self._placed_end(motor_state)[1]
 
-    def _off_manifold(self, motor_state: np.ndarray) -> bool:
-        """Whether ``motor_state`` lies off the known loops' manifold by more
-        than ``OFF_FACTOR`` times the POVs' own median offset, that measured
-        a separation from the nearest loop: farther, the fitted plane is
+    def _placed_end(self, motor_state: np.ndarray) -> tuple[int, bool]:
+        """``(known POV, refused)`` of a search's end at ``motor_state``, from
+        one query of the known loops: the POV whose loop lies within
+        ``ON_LOOP`` of the POVs' separation (as ``_walked_pose``), else -1
+        and whether it is refused. Where the loops' manifold is measured it
+        is refused nearer than ``HALF`` to a known loop or off the manifold
+        (``_off_manifold``); where it is not, nearer than ``APART``."""
+        if not self._loops_tell_poses():
+            return -1, False
+        separation = self._store.separation()
+        pov, distance = self._nearest_loop(motor_state, APART)
+        if distance <= ON_LOOP * separation:
+            return pov, False
+        codim, limit = self._manifold()
+        if limit is None:
+            return -1, bool(distance < APART * separation)
+        if distance < HALF * separation:
+            return -1, True
+        off = self._off_manifold(motor_state, codim, limit)
+        self.ends_off_manifold += int(off)
+        return -1, off
+
+    def _off_manifold(self, motor_state: np.ndarray, codim: int, limit: float) -> bool:
+        """Whether ``motor_state`` lies off the known loops' manifold (of
+        ``codim``) by more than ``limit`` (``_manifold``'s), that measured a
+        separation from the nearest loop: farther, the fitted plane is
         extrapolated and the manifold's bend grows with the square of the
         distance, and so does the limit."""
-        codim, limit = self._manifold()
         offset, reach = loop_manifold.normal_offset(motor_state, self._store.samples, codim)
         return bool(offset > limit * max(1.0, (reach / self._store.separation()) ** 2))
 
     def _manifold(self):
-        """``(codimension, offset limit)`` of the known loops' manifold,
-        ``(0, None)`` where the loops leave no motor direction out or are too
-        few to fit one; measured again when the POVs have grown by an eighth."""
+        """``(codimension, offset limit)`` of the known loops' manifold: the
+        limit ``OFF_FACTOR`` times the POVs' own median offset; ``(0, None)``
+        where the loops leave no motor direction out or are too few to fit
+        one. Measured again when the POVs have grown by an eighth."""
         count = self._store.count
         cached = getattr(self, "_manifold_cache", (0, 0, None))
         if count < cached[0] * 9 / 8:
             return cached[1:]
         if count <= 2 * loop_manifold.K_LOOPS:
             return 0, None
-        loops = self._store.samples
         probes = np.unique(np.linspace(0, count - 1, min(count, CALIBRATION_POVS)).astype(int))
-        codim = loop_manifold.codimension(loops, probes)
-        limit = None
-        if codim:
-            own = loop_manifold.own_offsets(loops, probes, codim)
-            limit = OFF_FACTOR * float(np.median(own))
+        codim, own = loop_manifold.measure(self._store.samples, probes)
+        limit = None if own is None else OFF_FACTOR * float(np.median(own))
         self._manifold_cache = (count, codim, limit)
         return codim, limit
 

@@ -11,10 +11,10 @@ search) lies off that manifold, whatever its motor distance to the nearest
 loop says; an end on a new position of the lattice lies on it.
 
 All of it is measured from the loops: the manifold's dimension from the gap
-in the singular values of the samples near a POV (``codimension``), its
-local plane from the samples of the loops nearest a motor state
-(``normal_offset``), and what "off" means from the POVs' own offsets, each
-POV measured against the others (``own_offsets``).
+in the singular values of the samples near a POV, and what "off" means from
+the POVs' own offsets, each POV measured against the others (``measure``);
+a motor state's offset from the plane of the loops nearest it
+(``normal_offset``).
 """
 from __future__ import annotations
 
@@ -51,18 +51,30 @@ def _plane(samples: np.ndarray):
     return centroid, singular, directions
 
 
-def codimension(loops: np.ndarray, probes: np.ndarray) -> int:
-    """How many motor directions the loops ``(K, N, M)`` leave out, measured
-    at the POVs ``probes`` (indices): at each, the samples of the other
-    loops nearest its first sample; over the probes, the median singular
-    values (each probe's scaled by its largest). The plane ends at the
-    largest jump between consecutive ones if that jump is ``GAP`` or more;
-    without one the loops fill the motor space (0)."""
-    spectra = []
-    for pov in probes:
-        singular = _plane(local_samples(loops[pov, 0], loops, exclude=int(pov))[0])[1]
-        if singular[0] > 0:
-            spectra.append(singular / singular[0])
+def measure(loops: np.ndarray, probes: np.ndarray):
+    """``(codimension, own offsets)`` of the loops ``(K, N, M)``, measured at
+    the POVs ``probes`` (indices), each from the plane of the other loops'
+    samples nearest its first sample. The codimension is how many motor
+    directions the loops leave out: over the probes, the median singular
+    values of those samples (each probe's scaled by its largest); the plane
+    ends at the largest jump between consecutive ones if that jump is
+    ``GAP`` or more, else the loops fill the motor space (0). The own
+    offsets ``(len(probes),)`` are each probe's ``normal_offset`` from its
+    plane, the POVs' own spread off their manifold, measured a neighbour's
+    distance away (what ``PovStore.separation`` is the median of); None
+    where the codimension is 0."""
+    points = loops[np.asarray(probes, dtype=int), 0]
+    planes = [_plane(local_samples(point, loops, exclude=int(pov))[0])
+              for point, pov in zip(points, probes)]
+    codim = _codimension([singular for _, singular, _ in planes])
+    if not codim:
+        return 0, None
+    return codim, np.array([_offset(point, plane, codim) for point, plane in zip(points, planes)])
+
+
+def _codimension(spectra) -> int:
+    """``measure``'s codimension from each probe's singular values."""
+    spectra = [singular / singular[0] for singular in spectra if singular[0] > 0]
     if not spectra:
         return 0
     median = np.median(spectra, axis=0)
@@ -74,21 +86,18 @@ def codimension(loops: np.ndarray, probes: np.ndarray) -> int:
     return len(median) - dimension if jumps[dimension - 1] >= GAP else 0
 
 
+def _offset(point: np.ndarray, plane, codim: int) -> float:
+    """Distance from ``point`` to ``plane`` (``_plane``'s) along its last
+    ``codim`` directions."""
+    centroid, _, directions = plane
+    normal = directions[directions.shape[0] - codim:]
+    return float(np.linalg.norm(normal @ (point - centroid)))
+
+
 def normal_offset(point: np.ndarray, loops: np.ndarray, codim: int, exclude: int = -1):
     """Distance from ``point`` to the plane the samples of the loops
     nearest it span (``exclude`` left out), along the ``codim`` directions
     they leave out; and the distance from ``point`` to the nearest sample,
     which sizes how far the plane is extrapolated."""
     samples, reach = local_samples(point, loops, exclude)
-    centroid, _, directions = _plane(samples)
-    normal = directions[directions.shape[0] - codim:]
-    return float(np.linalg.norm(normal @ (point - centroid))), reach
-
-
-def own_offsets(loops: np.ndarray, probes: np.ndarray, codim: int) -> np.ndarray:
-    """Each POV of ``probes``: its first sample's ``normal_offset`` from the
-    other loops, what the POVs' own spread off their manifold is (measured
-    a neighbour's distance away, what ``PovStore.separation`` is the median
-    of)."""
-    return np.array([normal_offset(loops[pov, 0], loops, codim, exclude=int(pov))[0]
-                     for pov in probes])
+    return _offset(point, _plane(samples), codim), reach

@@ -96,13 +96,10 @@ class SearchAndSample(KnownLoops):
                 if distance <= same and self._on_known_loop(solution[g], int(index)):
                     pov_of_group[g] = int(index)
                     continue
-            known = self._walked_pose(solution[g])
-            if known >= 0:
+            known, refused = self._placed_end(solution[g])
+            if known >= 0 or refused:
                 pov_of_group[g] = known
-                continue
-            if self._between_loops(solution[g]):
-                pov_of_group[g] = -1
-                self.ends_between_loops += 1
+                self.ends_between_loops += int(refused)
                 continue
             if split_tree is not None and split_tree.query(unique_targets[g], k=1)[0] <= same:
                 pov_of_group[g] = -1
