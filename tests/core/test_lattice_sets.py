@@ -121,7 +121,7 @@ def _implying_agent(lattice_sets: bool, pairs, ids, n_povs):
 
     agent = ImpliedSets()
     agent.params = SimpleNamespace(lattice_sets=lattice_sets, lattice_support=1)
-    agent._store = SimpleNamespace(count=n_povs)
+    agent._store = SimpleNamespace(count=n_povs, samples=None)
     agent._sets = EqualitySetCollection()
     for s in np.unique(ids):
         agent._sets.add(pairs[ids == s, 0], pairs[ids == s, 1])

@@ -16,7 +16,8 @@ tie (``tied_twice``), which can slide.
 Any two POVs the lattice places are related by the lattice step between
 them: ``implied_sets`` gives one set per step, the pairs of POVs that
 enough sets tie (a POV whose place rests on one or two pairs may rest
-on a wrong one). ``ImpliedSets``, a mixin of the agents, hands the
+on a wrong one), and those fewer tie where motor space agrees with their
+place (``motor_agreement``). ``ImpliedSets``, a mixin of the agents, hands the
 representation the found sets and then these (in the graph the agent
 publishes them at the end of its run, so both regularise with the same sets).
 """
@@ -28,6 +29,7 @@ import numpy as np
 
 from sensorispace_ros.core.naive.lattice import (Lattice, basis_coordinates, lattice_coordinates,
                                                  smallest_eigenvectors)
+from sensorispace_ros.core.naive.motor_agreement import agreeing
 
 __all__ = ["ImpliedSets", "LatticeSets", "implied_sets", "lattice_equalities", "pair_support",
            "set_medians", "tied_twice", "trimmed_lattice", "with_vouched"]
@@ -197,12 +199,14 @@ class LatticeSets:
 
 
 def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
-                       vouched=None) -> LatticeSets:
+                       vouched=None, samples=None) -> LatticeSets:
     """The sets the lattice of ``pairs`` / ``set_ids`` implies among the POVs
     with a kept pair in ``support`` distinct sets or more (none where no
-    lattice holds). ``vouched``: ``(ij, placed)``, where a search toward an
-    empty lattice point found a POV (``HoleMap``): those POVs are taken
-    whatever their support (``with_vouched``)."""
+    lattice holds). ``samples``: the POVs' loops ``(P, N, M)``; with them a
+    POV fewer sets tie is taken where motor space agrees with its place
+    (``motor_agreement.agreeing``). ``vouched``: ``(ij, placed)``, where a
+    search toward an empty lattice point found a POV (``HoleMap``): those
+    POVs are taken whatever their support (``with_vouched``)."""
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
     if not len(pairs):
@@ -210,7 +214,11 @@ def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
     lattice, kept = trimmed_lattice(pairs, set_ids, n_povs)
     if lattice is None:
         return LatticeSets.none(kept)
-    usable = pair_support(pairs[kept], set_ids[kept], n_povs) >= support
+    tied = pair_support(pairs[kept], set_ids[kept], n_povs)
+    usable = tied >= support
+    if samples is not None:
+        usable |= agreeing(samples, lattice.ij, usable & lattice.placed,
+                           lattice.placed & (tied > 0))
     if vouched is not None:
         lattice, usable = with_vouched(lattice, usable, *vouched)
     implied, implied_ids = implied_sets(lattice, usable)
@@ -285,7 +293,8 @@ class ImpliedSets:
             if self.params.lattice_sets:
                 found = self._found_sets() if found is None else found
                 implied = lattice_equalities(*found, self._store.count,
-                                             self.params.lattice_support, self._vouched_places())
+                                             self.params.lattice_support, self._vouched_places(),
+                                             self._store.samples)
             else:
                 implied = LatticeSets.none()
             self._lattice_cache = cached = (key, implied)
