@@ -213,3 +213,20 @@ def test_no_pairs_and_lone_sets_leave_nothing_tied():
     assert tied_twice(np.zeros((0, 2), dtype=int), np.zeros(0, dtype=int), 3).shape == (0,)
     # One set of two pairs ties each POV once: nothing is tied twice.
     assert not tied_twice(np.array([[0, 1], [2, 3]]), np.array([0, 0]), 4).any()
+
+
+def test_a_plane_is_one_to_one_but_for_a_few_povs_walked_twice():
+    from sensorispace_ros.core.naive.lattice_sets import MAX_SHARED, _a_plane
+
+    points = _square_patch(5)
+    placed = np.ones(len(points), dtype=bool)
+    assert _a_plane(Lattice(ij=points, placed=placed, residual=0.0))
+    twice = int(MAX_SHARED * len(points))
+    walked_twice = np.vstack([points, points[:twice]])
+    assert _a_plane(Lattice(ij=walked_twice, placed=np.ones(len(walked_twice), bool),
+                            residual=0.0))
+    # A plane folded onto a strip two points wide: whole rows on one point.
+    strip = np.stack([points[:, 0] + 7 * (points[:, 1] // 2), points[:, 1] % 2], axis=1)
+    assert not _a_plane(Lattice(ij=strip, placed=placed, residual=0.0))
+    assert not _a_plane(Lattice(ij=points[:, :1], placed=placed, residual=0.0))
+    assert not _a_plane(None)

@@ -9,9 +9,10 @@ before the eigenvalues' largest jump, else the two smallest, else the two
 that move the most POVs), reads every pair's step in the reduced basis
 against its set's median step, drops the pairs farthest from a whole step,
 and embeds again, until every pair agrees; the pairs kept must then pass
-``lattice_coordinates``'s exact test with a plane's lattice. Where no
-embedding gives one, it tries again without the POVs fewer than two sets
-tie (``tied_twice``), which can slide.
+``lattice_coordinates``'s exact test with a plane's lattice, one POV to a
+point but for a few (``_a_plane``). Where no embedding gives one, it tries
+again without the POVs fewer than two sets tie (``tied_twice``), which can
+slide.
 
 Any two POVs the lattice places are related by the lattice step between
 them: ``implied_sets`` gives one set per step, the pairs of POVs that
@@ -37,6 +38,7 @@ __all__ = ["ImpliedSets", "LatticeSets", "implied_sets", "lattice_equalities", "
 MAX_ROUNDS = 24         # embeddings before the pairs must agree
 HALF_STEP = 0.5         # a pair farther than this from its set's step (lattice units) is dropped
 MAX_DROPPED = 0.05      # a trimming may drop at most this share of the pairs
+MAX_SHARED = 0.05       # at most this share of the placed POVs may share a lattice point
 
 
 def set_medians(values: np.ndarray, set_ids: np.ndarray) -> np.ndarray:
@@ -125,16 +127,28 @@ def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
     starts = (np.ones(len(pairs), dtype=bool),) + (() if tied.all() else (tied,))
     for start in starts:
         exact = lattice_coordinates(pairs[start], set_ids[start], n_povs)
-        if exact is not None and exact.dim == 2:
+        if _a_plane(exact):
             return exact, start
         for choose in EMBEDDINGS:
             kept = _trimmed_by(pairs, set_ids, n_povs, start.copy(), choose, max_dim)
             if np.count_nonzero(start & ~kept) > MAX_DROPPED * len(pairs):
                 continue
             lattice = lattice_coordinates(pairs[kept], set_ids[kept], n_povs)
-            if lattice is not None and lattice.dim == 2:
+            if _a_plane(lattice):
                 return lattice, kept
     return None, tied
+
+
+def _a_plane(lattice: Lattice | None) -> bool:
+    """Whether ``lattice`` is a plane's: two dimensions, and one-to-one but
+    for a few POVs walked twice (``MAX_SHARED``). Pairs that fold the plane
+    onto a strip (a wrong pair left between far POVs) still pass the exact
+    test, with whole rows of POVs on one point."""
+    if lattice is None or lattice.dim != 2:
+        return False
+    placed = lattice.ij[lattice.placed]
+    shared = len(placed) - len(np.unique(placed, axis=0))
+    return shared <= MAX_SHARED * len(placed)
 
 
 def _trimmed_by(pairs, set_ids, n_povs: int, kept, choose, max_dim: int):
