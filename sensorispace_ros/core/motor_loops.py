@@ -42,3 +42,23 @@ def closure_gap_ratio(path: np.ndarray) -> float:
     length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
     gap = float(np.linalg.norm(path[-1] - path[0]))
     return gap / length if length > 0 else np.inf
+
+
+def doubles_back(samples: np.ndarray) -> np.ndarray:
+    """``(P,)`` bool: which closed loops ``(P, N, J)`` of samples (in order
+    round the loop, phases) turn back on themselves somewhere: two
+    consecutive chords (the last back to the first sample included) more
+    than a right angle apart.
+
+    Samples spread evenly round a smooth loop turn by a few degrees from
+    chord to chord. A walk whose front turned round walked part of its
+    loop twice, out and back: its samples double back at both ends of
+    that stretch, and the loop is not its POV's whole level set.
+    """
+    samples = np.asarray(samples, dtype=float)
+    if samples.ndim != 3 or samples.shape[1] < 3:
+        raise ValueError(f"samples must have shape (P, N >= 3, joints), got {samples.shape}")
+    chords = np.diff(np.concatenate([samples, samples[:, :1]], axis=1), axis=1)
+    chords = (chords + np.pi) % TWO_PI - np.pi
+    turn = np.sum(chords * np.roll(chords, -1, axis=1), axis=2)
+    return np.any(turn < 0.0, axis=1)

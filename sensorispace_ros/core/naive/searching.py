@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
+from sensorispace_ros.core.motor_loops import doubles_back
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
@@ -326,7 +327,9 @@ class SearchAndSample(KnownLoops):
         sample sensing their start's sensation within ``SLID`` times what
         two sensings differ by (one call, every sample of every valid walk); a walk
         that slid along a weak pose direction, or onto another pose with a
-        like sensation, is not one POV. True everywhere else."""
+        like sensation, is not one POV. Nor is one whose loop doubles back
+        (``motor_loops.doubles_back``): a front that turned round, where
+        noise hid which way the level set went on. True everywhere else."""
         whole = np.ones(len(walk.valid), dtype=bool)
         valid = np.flatnonzero(walk.valid)
         if not self._noisy or not len(valid):
@@ -338,7 +341,7 @@ class SearchAndSample(KnownLoops):
         with np.errstate(invalid="ignore"):
             worst = np.max(np.sum(residual ** 2, axis=2), axis=1)
         limit = self._level_set_allowance(walk, samples.shape[1], residual.shape[2])
-        whole[valid] = ~(worst > limit)       # a lost row does not reject a POV
+        whole[valid] = ~(worst > limit) & ~doubles_back(samples)  # a lost row rejects no POV
         return whole
 
     def _level_set_allowance(self, walk, n_samples: int, n_sensors: int) -> float:
