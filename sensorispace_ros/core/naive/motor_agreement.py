@@ -25,7 +25,7 @@ import numpy as np
 from sensorispace_ros.core.naive.points_of_view import torus_tree
 
 NEIGHBOURS = 6          # POVs nearest in motor space whose places are compared
-QUERY_SAMPLES = 20      # samples of a POV's loop that look for its neighbours
+QUERY_SAMPLES = 20      # samples of each loop, evenly spread, that stand for it
 
 
 def lattice_spread(samples: np.ndarray, ij: np.ndarray, members: np.ndarray,
@@ -39,13 +39,14 @@ def lattice_spread(samples: np.ndarray, ij: np.ndarray, members: np.ndarray,
     out = np.full(len(candidates), np.nan)
     if len(members) <= NEIGHBOURS or not len(candidates):
         return out
-    per_loop = samples.shape[1]
-    tree = torus_tree(samples[members].reshape(-1, samples.shape[2]))
-    owner = np.repeat(members, per_loop)
-    taken = np.linspace(0, per_loop - 1, min(QUERY_SAMPLES, per_loop)).astype(int)
-    k = min(len(owner), (NEIGHBOURS + 1) * per_loop)
+    taken = np.unique(np.linspace(0, samples.shape[1] - 1,
+                                  min(QUERY_SAMPLES, samples.shape[1])).astype(int))
+    loops = samples[:, taken]
+    tree = torus_tree(loops[members].reshape(-1, samples.shape[2]))
+    owner = np.repeat(members, len(taken))
+    k = min(len(owner), (NEIGHBOURS + 1) * len(taken))
     for row, pov in enumerate(candidates):
-        distance, index = tree.query(samples[pov, taken], k=k)
+        distance, index = tree.query(loops[pov], k=k)
         order = np.argsort(distance.ravel(), kind="stable")
         nearest = _first_distinct(owner[index.ravel()[order]], exclude=pov)
         if len(nearest) == NEIGHBOURS:
