@@ -61,7 +61,7 @@ def test_the_clocked_agent_adds_the_segment_sets_after_its_own():
     agent._sets = EqualitySetCollection()
     for set_id in np.unique(ids):
         agent._sets.add(pairs[ids == set_id, 0], pairs[ids == set_id, 1])
-    agent._store = type("Store", (), {"count": len(GRID)})()
+    agent._store = type("Store", (), {"count": len(GRID), "samples": None})()
     agent.params = NaiveParams(clock_translated_pairs=0)
     plain, plain_ids = agent.equality_sets()
     assert np.array_equal(plain, pairs) and np.array_equal(plain_ids, ids)
