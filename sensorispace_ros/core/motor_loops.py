@@ -9,6 +9,19 @@ import numpy as np
 TWO_PI = 2.0 * np.pi
 
 
+def wrap_phase(angle) -> np.ndarray:
+    """``angle`` (phases) wrapped into ``[-pi, pi)``: a difference on the
+    torus of phases taken the short way round."""
+    return (angle + np.pi) % TWO_PI - np.pi
+
+
+def loop_chords(samples: np.ndarray) -> np.ndarray:
+    """``(..., N, J)``: the chord from each sample of closed loops
+    ``(..., N, J)`` to the next round the loop (the last back to the first),
+    on the torus of phases."""
+    return wrap_phase(np.roll(samples, -1, axis=-2) - samples)
+
+
 def loop_winding(path: np.ndarray) -> np.ndarray:
     """Per-joint number of 2 pi turns between the start and the end of a
     closed loop, ``(J,)`` int.
@@ -58,7 +71,6 @@ def doubles_back(samples: np.ndarray) -> np.ndarray:
     samples = np.asarray(samples, dtype=float)
     if samples.ndim != 3 or samples.shape[1] < 3:
         raise ValueError(f"samples must have shape (P, N >= 3, joints), got {samples.shape}")
-    chords = np.diff(np.concatenate([samples, samples[:, :1]], axis=1), axis=1)
-    chords = (chords + np.pi) % TWO_PI - np.pi
+    chords = loop_chords(samples)
     turn = np.sum(chords * np.roll(chords, -1, axis=1), axis=2)
     return np.any(turn < 0.0, axis=1)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sensorispace_ros.core.motor_loops import loop_chords
 from sensorispace_ros.core.naive import loop_manifold
 from sensorispace_ros.core.naive.neighbours import loop_distances
 
@@ -147,7 +148,7 @@ class KnownLoops:
         done, longest = getattr(self, "_chords", (0, 0.0))
         if self._store.count > done:
             loops = self._store.samples[done:]
-            step = (np.roll(loops, -1, axis=1) - loops + np.pi) % (2.0 * np.pi) - np.pi
+            step = loop_chords(loops)
             longest = max(longest, float(np.sqrt(np.max(np.sum(step * step, axis=2)))))
             self._chords = (self._store.count, longest)
         return longest

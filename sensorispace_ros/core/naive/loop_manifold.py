@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from sensorispace_ros.core.motor_loops import wrap_phase
+
 K_LOOPS = 8     # loops whose nearest samples fit the local plane
 AROUND = 2      # samples either side of each loop's nearest one
 GAP = 10.0      # a singular value this many times the next one ends the plane
@@ -31,7 +33,7 @@ def local_samples(point: np.ndarray, loops: np.ndarray, exclude: int = -1):
     out), each loop's nearest sample and ``AROUND`` either side of it,
     unwrapped next to ``point``: ``(k (2 AROUND + 1), M)``, and the
     distance from ``point`` to the nearest of them."""
-    offsets = (loops - point + np.pi) % (2.0 * np.pi) - np.pi
+    offsets = wrap_phase(loops - point)
     squared = np.sum(offsets * offsets, axis=2)
     reach = np.min(squared, axis=1)
     if exclude >= 0:

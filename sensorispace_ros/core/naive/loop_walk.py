@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from sensorispace_ros.core.motor_loops import closure_gap_ratio, loop_winding
+from sensorispace_ros.core.motor_loops import closure_gap_ratio, loop_winding, wrap_phase
 from sensorispace_ros.core.naive.jacobians import (NOT_CLOSED, RANK_DEFICIENT, REPEAT_JITTER,
     SPLIT, VALID, has_full_pose_rank, jacobian_stencil, jacobian_svd, loop_smoothed_correction,
     minimum_norm_correction, repair_rows, sensory_jacobian, shrink, stencil_jacobian,
@@ -234,7 +234,7 @@ class LoopWalk:
         and the fronts cannot pass each other between two calls. A POV out
         of budget stops, not closed."""
         point, direction, spacing, active = self.point, self.direction, self.spacing, self.active
-        gap = _wrap(point[:, 1] - point[:, 0])
+        gap = wrap_phase(point[:, 1] - point[:, 0])
         distance = np.linalg.norm(gap, axis=1)
         facing = (np.sum(gap * direction[:, 0], axis=1) > 0.0) & (
             np.sum(gap * direction[:, 1], axis=1) < 0.0)
@@ -480,7 +480,3 @@ def resample_loop_spline(path: np.ndarray, n_samples: int = 100) -> np.ndarray:
 def _nearest_rows(points: np.ndarray, path: np.ndarray) -> np.ndarray:
     gap = np.sum((points[:, None, :] - path[None, :, :]) ** 2, axis=-1)
     return np.argmin(gap, axis=1)
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % TWO_PI - np.pi

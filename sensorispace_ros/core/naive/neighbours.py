@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sensorispace_ros.core.motor_loops import loop_chords, wrap_phase
+
 
 @dataclass
 class Neighbours:
@@ -35,7 +37,7 @@ _NEIGHBOURS = 5
 def curve_distances(point: np.ndarray, curves: np.ndarray) -> np.ndarray:
     """Distance (torus of phases) from ``point`` ``(M,)`` to the nearest
     sample of each of ``curves`` ``(K, N, M)``: ``(K,)``."""
-    wrapped = (curves - point + np.pi) % (2.0 * np.pi) - np.pi
+    wrapped = wrap_phase(curves - point)
     return np.sqrt(np.min(np.sum(wrapped * wrapped, axis=2), axis=1))
 
 
@@ -70,9 +72,8 @@ def loop_distances(point: np.ndarray, loops: np.ndarray) -> np.ndarray:
     POV's samples lie a walk's step apart; between them the loop runs
     along the chord, so a pose on the loop lies near it, not only near a
     sample."""
-    start = (loops - point + np.pi) % (2.0 * np.pi) - np.pi
-    chord = np.roll(loops, -1, axis=1) - loops
-    chord = (chord + np.pi) % (2.0 * np.pi) - np.pi
+    start = wrap_phase(loops - point)
+    chord = loop_chords(loops)
     length2 = np.sum(chord * chord, axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
         along = np.clip(np.where(length2 > 0, -np.sum(start * chord, axis=2) / length2, 0.0),

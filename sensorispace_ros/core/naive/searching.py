@@ -18,7 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
-from sensorispace_ros.core.motor_loops import doubles_back
+from sensorispace_ros.core.motor_loops import doubles_back, wrap_phase
 from sensorispace_ros.core.naive.compensation import compensate
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import finite_rows
@@ -448,7 +448,7 @@ def _distinct(states: np.ndarray, tol: float) -> np.ndarray:
     from every earlier kept row, in order."""
     kept = []
     for row in states:
-        if all(np.linalg.norm((row - k + np.pi) % (2 * np.pi) - np.pi) > tol for k in kept):
+        if all(np.linalg.norm(wrap_phase(row - k)) > tol for k in kept):
             kept.append(row)
     return np.asarray(kept).reshape(-1, states.shape[1])
 
