@@ -71,9 +71,9 @@ def agreeing(samples: np.ndarray, ij: np.ndarray, tied: np.ndarray,
     candidates = np.flatnonzero(loose & ~tied)
     if not len(candidates):
         return agree
-    own = lattice_spread(samples, ij, members, members)
+    spread = lattice_spread(samples, ij, members, np.concatenate([members, candidates]))
+    own, loose_spread = spread[:len(members)], spread[len(members):]
     if not np.isfinite(own).any():
         return agree
-    spread = lattice_spread(samples, ij, members, candidates)
-    agree[candidates] = spread <= np.nanmax(own)
+    agree[candidates] = loose_spread <= np.nanmax(own)
     return agree
