@@ -64,8 +64,8 @@ def test_a_pov_the_sensations_name_keeps_only_a_state_on_its_loop(share, kept):
 @pytest.mark.parametrize("share, between", [(0.9 * ON_LOOP, False), (1.1 * ON_LOOP, True),
                                             (0.9 * APART, True), (1.1 * APART, False)])
 def test_a_state_between_a_loop_and_a_neighbours_distance_is_between_loops(share, between):
-    assert _Agent()._between_loops(_off_loop_2(share * SEPARATION)) is between
-    assert _Agent(noisy=False)._between_loops(_off_loop_2(share * SEPARATION)) is False
+    assert _Agent()._placed_end(_off_loop_2(share * SEPARATION))[1] is between
+    assert _Agent(noisy=False)._placed_end(_off_loop_2(share * SEPARATION))[1] is False
 
 
 def test_a_solution_off_its_pov_is_a_new_pov_or_refused():

@@ -112,21 +112,21 @@ def test_an_end_past_half_a_step_is_new_on_the_manifold_and_refused_off_it(loops
     agent = _Agent(loops)
     share = 0.5 * (HALF + APART)
     on = _toward_neighbour(share)
-    assert agent._between_loops(on) is False
-    assert agent._between_loops(on + 0.03 * _normal(on)) is True
+    assert agent._placed_end(on)[1] is False
+    assert agent._placed_end(on + 0.03 * _normal(on))[1] is True
     assert agent.ends_off_manifold == 1
     # Nearer a known loop than half a step it is refused on the manifold too,
     # and within a quarter step it is that POV (never between loops).
-    assert agent._between_loops(_toward_neighbour(0.5 * (ON_LOOP + HALF))) is True
-    assert agent._between_loops(_toward_neighbour(0.8 * ON_LOOP)) is False
+    assert agent._placed_end(_toward_neighbour(0.5 * (ON_LOOP + HALF)))[1] is True
+    assert agent._placed_end(_toward_neighbour(0.8 * ON_LOOP))[1] is False
     assert agent.ends_off_manifold == 1
 
 
 def test_an_end_off_the_manifold_is_refused_however_far_from_a_known_loop():
     agent = _Agent(_lattice_loops())
     hole = _embed(0.0, 0.0, 2.0)    # a step from the nearest loops
-    assert agent._between_loops(hole) is False
-    assert agent._between_loops(hole + 0.03 * _normal(hole)) is True
+    assert agent._placed_end(hole)[1] is False
+    assert agent._placed_end(hole + 0.03 * _normal(hole))[1] is True
 
 
 def test_the_limit_grows_with_the_square_of_the_distance_to_the_nearest_loop():
@@ -152,5 +152,5 @@ def test_without_a_measured_manifold_ends_up_to_apart_are_refused():
     loops = _lattice_loops()
     agent = _Agent(loops)
     agent._manifold_cache = (len(loops), 0, None)
-    assert agent._between_loops(_toward_neighbour(0.5 * (HALF + APART))) is True
+    assert agent._placed_end(_toward_neighbour(0.5 * (HALF + APART)))[1] is True
     assert agent.ends_off_manifold == 0

@@ -16,7 +16,7 @@ neighbour's loop):
 * from ``APART`` on, it is a pose no known POV holds: a new POV;
 * in between it may lie off the lattice of positions the POVs found so far
   share (its anchor rested off it, or the search stopped short): neither
-  that POV nor a new one (``_between_loops``, ``_placed_end``). Taken for the POV it would
+  that POV nor a new one (refused by ``_placed_end``). Taken for the POV it would
   pair two POVs a fraction of a step apart in the equality sets; walked as
   a new one it would breed a second lattice, offset from the first.
 
@@ -74,11 +74,6 @@ class KnownLoops:
             return True
         distance = loop_distances(motor_state, self._store.samples[[pov]])[0]
         return bool(distance <= ON_LOOP * self._store.separation())
-
-    def _between_loops(self, motor_state: np.ndarray) -> bool:
-        """Where loops tell poses, whether a search's end at ``motor_state``,
-        on no known loop (beyond ``ON_LOOP``), is refused (``_placed_end``)."""
-        return self._placed_end(motor_state)[1]
 
     def _placed_end(self, motor_state: np.ndarray) -> tuple[int, bool]:
         """``(known POV, refused)`` of a search's end at ``motor_state``, from
