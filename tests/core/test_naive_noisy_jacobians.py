@@ -246,6 +246,44 @@ def test_a_pose_whose_sensation_does_not_follow_every_direction_is_rejected():
         assert (accepted.mean() >= 0.9) if passing else not accepted.any()
 
 
+class BentBody(RankTwoBody):
+    """``RankTwoBody`` whose weak coordinate ``y = m2`` enters only as
+    ``y^3``: at ``y = 0`` no output follows it (the eye of one light in
+    view), yet a central difference over ``+-h`` sees the outputs bend by
+    ``~k h^2 / 2``, twice the noise's spectral norm at the step used here."""
+
+    def sense(self, motor_states):
+        m = np.asarray(motor_states, dtype=float)
+        k = np.arange(1, 7)
+        return 0.5 + 0.3 * np.sin(k * (m[:, :1] + m[:, 1:2]) + k) + 0.5 * k * m[:, 2:] ** 3
+
+
+def test_the_agent_refuses_a_pose_where_only_the_secant_sees_a_direction():
+    from types import SimpleNamespace
+
+    from sensorispace_ros.core.naive.noise import jacobian_noise
+    from sensorispace_ros.core.naive.params import NaiveParams
+    from sensorispace_ros.core.naive.searching import SearchAndSample
+
+    step = SymmetricStep(0.05)
+    agent = SimpleNamespace(params=NaiveParams(), _repeats=64, _fd_step=step,
+                            structure=SimpleNamespace(noise=1e-4, n_motors=3),
+                            _body=SimpleNamespace(n_sensors=6))
+    agents_floor = SearchAndSample._pinning_floor(agent)
+    noise_norm = jacobian_noise(agent.structure, 6, step)
+    states = np.repeat(np.array([0.3, 0.2, 0.0])[None], 10, axis=0)
+    for body, minimum, passing in ((BentBody(), noise_norm, True),
+                                   (BentBody(), agents_floor, False),
+                                   (RankTwoBody(), agents_floor, True)):
+        noisy = ImperfectSensing(body, seed=10, noise=1e-4)
+        target = finite_mean(noisy.sense(np.repeat(states[:1], 64, axis=0)))
+        _, accepted, _ = confirm_compensations(
+            noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
+            noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
+            min_singular=minimum)
+        assert (accepted.mean() >= 0.9) if passing else not accepted.any()
+
+
 def test_matched_rows_pool_the_sensings_of_their_chain():
     from sensorispace_ros.core.naive.anchors import Snapshot, pooled_sweep
     old = Snapshot(0, np.array([[1.0, 1.0], [2.0, 2.0]]), np.ones(2, int), np.zeros(2),

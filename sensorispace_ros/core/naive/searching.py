@@ -181,12 +181,17 @@ class SearchAndSample(KnownLoops):
 
     def _pinning_floor(self) -> float:
         """The ``rank``-th singular value a confirmed state's averaged
-        Jacobian must exceed: the expected spectral norm of its noise
-        (``noise.jacobian_noise``) where random noise was measured (0 where
-        the repeats do not spread)."""
+        Jacobian must exceed where random noise was measured (0 where the
+        repeats do not spread): ``rank_noise_gap`` times the expected
+        spectral norm of its noise (``noise.jacobian_noise``), as a
+        singular value must to count toward the pose rank at the start. A
+        secant over the noisy body's wide step sees the sensation bend
+        along a direction it does not vary in (one light in view) by a few
+        times that norm."""
         if self._repeats <= 1:
             return 0.0
-        return jacobian_noise(self.structure, self._body.n_sensors, self._fd_step)
+        return self.params.rank_noise_gap * jacobian_noise(self.structure, self._body.n_sensors,
+                                                           self._fd_step)
 
     def _size_repeats(self) -> None:
         """With an ``AveragedStep``, once the POVs' separation is measured:
