@@ -1,12 +1,14 @@
 """The naive agent's tools under sensory noise: symmetric-difference
 Jacobians, the chi-square acceptance of a compensation and matching by how
 far a match stands out from the next sensation."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import match_sensations
-from sensorispace_ros.core.naive.jacobians import (SymmetricStep, jacobian_stencil,
+from sensorispace_ros.core.naive.jacobians import (AveragedStep, SymmetricStep, jacobian_stencil,
     sensory_jacobian, stencil_rows)
 
 from imperfect_bodies import ImperfectSensing
@@ -259,8 +261,6 @@ class BentBody(RankTwoBody):
 
 
 def test_the_agent_refuses_a_pose_where_only_the_secant_sees_a_direction():
-    from types import SimpleNamespace
-
     from sensorispace_ros.core.naive.noise import jacobian_noise
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.searching import SearchAndSample
@@ -272,7 +272,8 @@ def test_the_agent_refuses_a_pose_where_only_the_secant_sees_a_direction():
     agents_floor = SearchAndSample._pinning_floor(agent)
     noise_norm = jacobian_noise(agent.structure, 6, step)
     states = np.repeat(np.array([0.3, 0.2, 0.0])[None], 10, axis=0)
-    for body, minimum, passing in ((BentBody(), noise_norm, True),
+    assert agents_floor > 2 * noise_norm
+    for body, minimum, passing in ((BentBody(), 0.0, True),
                                    (BentBody(), agents_floor, False),
                                    (RankTwoBody(), agents_floor, True)):
         noisy = ImperfectSensing(body, seed=10, noise=1e-4)
@@ -281,6 +282,27 @@ def test_the_agent_refuses_a_pose_where_only_the_secant_sees_a_direction():
             noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
             noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
             min_singular=minimum)
+        assert (accepted.mean() >= 0.9) if passing else not accepted.any()
+
+
+def test_a_bend_above_the_floor_falls_at_half_the_step():
+    # Averaged 16 times a row, the bend stands 8 times above the noise's
+    # norm, twice the agent's floor; at half the step it falls to a quarter,
+    # a true direction's slope stays.
+    from sensorispace_ros.core.naive.noise import jacobian_noise
+
+    step = AveragedStep(0.05, 16)
+    floor = 4.0 * jacobian_noise(SimpleNamespace(noise=1e-4, n_motors=3), 6, step)
+    states = np.repeat(np.array([0.3, 0.2, 0.0])[None], 10, axis=0)
+    for body, passing in ((BentBody(), False), (RankTwoBody(), True)):
+        noisy = ImperfectSensing(body, seed=11, noise=1e-4)
+        _, jac = sensory_jacobian(noisy, states, step)[:2]
+        assert np.all(np.linalg.svd(jac, compute_uv=False)[:, 1] > floor)
+        target = finite_mean(noisy.sense(np.repeat(states[:1], 64, axis=0)))
+        _, accepted, _ = confirm_compensations(
+            noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
+            noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
+            min_singular=floor)
         assert (accepted.mean() >= 0.9) if passing else not accepted.any()
 
 

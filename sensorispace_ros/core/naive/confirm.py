@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from sensorispace_ros.core.naive.jacobians import (jacobian_stencil, minimum_norm_correction,
-    stencil_jacobian, stencil_rows)
+from sensorispace_ros.core.naive.jacobians import (SymmetricStep, halved, jacobian_stencil,
+    minimum_norm_correction, stencil_jacobian, stencil_rows)
 
 
 def finite_mean(rows: np.ndarray) -> np.ndarray:
@@ -62,7 +62,9 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     does not pin that well is rejected, and so is one whose Jacobian's
     ``rank``-th singular value is not above ``min_singular`` (its noise's
     expected spectral norm: a pose where the eye sees no light senses alike
-    wherever it lies). ``max_step`` (motor, phases): a
+    wherever it lies); with such a floor and a central step, a settled
+    state's ``rank``-th singular value must also hold at half the step
+    (``_slope_holds``). ``max_step`` (motor, phases): a
     state whose Gauss-Newton step is within it is settled whatever its
     residual in range (a known POV tested against an anchor: its pose is
     where it was found, not refined). A search's end is only as close to its target as one
@@ -92,6 +94,12 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
         step, explained, settled = _judge(jac, mean - targets[pending], rank, whole,
                                           [v[pending] for v in variances], limits,
                                           (max_error, min_singular), max_step)
+        if min_singular > 0 and isinstance(fd_step, SymmetricStep) and settled.any():
+            bent = settled.copy()
+            bent[settled] = ~_slope_holds(body, refined[pending[settled]], jac[settled], rank,
+                                          fd_step)
+            explained &= ~bent
+            settled &= ~bent
         refined[pending[explained]] += step[explained]
         accepted[pending[settled]] = True
         pending = pending[explained & ~settled]
@@ -183,6 +191,24 @@ def _judge(jac, residual, rank, whole, variances, limits, bounds, max_step):
     else:
         settled = explained & (np.linalg.norm(step, axis=1) <= max_step)
     return step, explained, settled
+
+
+def _slope_holds(body, states, jac, rank, fd_step):
+    """True where the ``rank``-th singular value of the Jacobians ``jac``
+    ``(K, S, M)`` of ``states`` holds at half the (central) step: at least
+    half of it. A direction's slope does not change with the step; the bend
+    a central difference sees along a direction the outputs do not follow
+    (one light in view) falls with the step's square, to a quarter."""
+    half = halved(fd_step)
+    rows = stencil_rows(states.shape[1], half)
+    with getattr(body, "fresh", _nothing)():
+        sensed = np.asarray(body.sense(jacobian_stencil(states, half)), dtype=float)
+    _, jac_half = stencil_jacobian(sensed.reshape(len(states), rows, -1), half)
+    whole = np.all(np.isfinite(jac_half), axis=(1, 2))
+    jac_half[~whole] = 0.0
+    at_step = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
+    at_half = np.linalg.svd(jac_half, compute_uv=False)[:, rank - 1]
+    return whole & (at_half >= 0.5 * at_step)
 
 
 def _averaged_with_jacobian(body, states, repeats, fd_step):

@@ -93,6 +93,15 @@ class AveragedStep(SymmetricStep):
 REPEAT_JITTER = 1e-12
 
 
+def halved(fd_step: float) -> float:
+    """The step of the same kind (and repeats) at half its size."""
+    if isinstance(fd_step, AveragedStep):
+        return AveragedStep(float(fd_step) / 2.0, fd_step.repeats)
+    if isinstance(fd_step, SymmetricStep):
+        return SymmetricStep(float(fd_step) / 2.0)
+    return float(fd_step) / 2.0
+
+
 class CloudStep(float):
     """A finite-difference "step" (phase) whose Jacobians are fits: each
     state is sensed with ``2 * pairs`` states around it, in pairs ``+-x``
