@@ -64,13 +64,11 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     expected spectral norm: a pose where the eye sees no light senses alike
     wherever it lies); with such a floor and a central step, a settled
     state's ``rank``-th singular value must also hold at half the step
-    (``_slope_holds``). ``max_step`` (motor, phases): a
-    state whose Gauss-Newton step is within it is settled whatever its
-    residual in range (a known POV tested against an anchor: its pose is
-    where it was found, not refined). A search's end is only as close to its target as one
-    sensing's noise lets the search tell; the rounds take it to what the
-    averages tell, and a state a lattice step away along a weak pose direction,
-    which a single sensing cannot reject, is moved or rejected.
+    (``_slope_holds``). ``max_step`` (motor, phases): a state whose
+    Gauss-Newton step is within it is settled whatever its residual in range
+    (a known POV tested against an anchor: its pose is where it was found,
+    not refined). The rounds take a search's end, as close to its target as
+    one sensing tells, to what the averages tell.
 
     Returns ``(refined states (K, M), accepted (K,) bool, averaged
     sensations at the last round (K, S))``."""
@@ -79,12 +77,8 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     refined = states.copy()
     accepted = np.zeros(n_states, bool)
     means = np.full((n_states, n_sensors), np.nan)
-    target_variance = np.asarray(target_variance, dtype=float)
-    # After a step the target's noise is in both the step and the residual:
-    # what is left in range is the difference of two averages of the state.
-    variances = (target_variance + noise_sd ** 2 / repeats,
-                 target_variance + 2.0 * noise_sd ** 2 / repeats)
-    limits = (chi2.ppf(confidence, max(n_sensors - rank, 1)), chi2.ppf(confidence, max(rank, 1)))
+    variances, limits = _noise_bounds(target_variance, noise_sd, repeats, confidence,
+                                      n_sensors, rank)
     pending = np.arange(n_states)
     for _ in range(int(rounds)):
         if not len(pending):
@@ -95,11 +89,8 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
                                           [v[pending] for v in variances], limits,
                                           (max_error, min_singular), max_step)
         if min_singular > 0 and isinstance(fd_step, SymmetricStep) and settled.any():
-            bent = settled.copy()
-            bent[settled] = ~_slope_holds(body, refined[pending[settled]], jac[settled], rank,
-                                          fd_step)
-            explained &= ~bent
-            settled &= ~bent
+            bent = _bent(body, refined[pending], jac, rank, fd_step, settled)
+            explained, settled = explained & ~bent, settled & ~bent
         refined[pending[explained]] += step[explained]
         accepted[pending[settled]] = True
         pending = pending[explained & ~settled]
@@ -140,10 +131,8 @@ def verify_matches(body, states: np.ndarray, targets: np.ndarray,
     n_sensors = targets.shape[1]
     mean, jac, whole = _averaged_with_jacobian(body, states, repeats, fd_step)
     residual = mean - targets
-    target_variance = np.asarray(target_variance, dtype=float)
-    variances = (target_variance + noise_sd ** 2 / repeats,
-                 target_variance + 2.0 * noise_sd ** 2 / repeats)
-    limits = (chi2.ppf(confidence, max(n_sensors - rank, 1)), chi2.ppf(confidence, max(rank, 1)))
+    variances, limits = _noise_bounds(target_variance, noise_sd, repeats, confidence,
+                                      n_sensors, rank)
     _, _, precise = _judge(jac, residual, rank, whole, variances, limits,
                            (max_error, min_singular), max_step)
     singular = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
@@ -191,6 +180,26 @@ def _judge(jac, residual, rank, whole, variances, limits, bounds, max_step):
     else:
         settled = explained & (np.linalg.norm(step, axis=1) <= max_step)
     return step, explained, settled
+
+
+def _noise_bounds(target_variance, noise_sd, repeats, confidence, n_sensors, rank):
+    """``_judge``'s ``variances`` (of the residual before a step, and of what
+    is left in range after one: the difference of two averages of the
+    state, the target's noise in both) and chi-square ``limits`` (outside
+    the range, inside it)."""
+    target_variance = np.asarray(target_variance, dtype=float)
+    variances = (target_variance + noise_sd ** 2 / repeats,
+                 target_variance + 2.0 * noise_sd ** 2 / repeats)
+    limits = (chi2.ppf(confidence, max(n_sensors - rank, 1)), chi2.ppf(confidence, max(rank, 1)))
+    return variances, limits
+
+
+def _bent(body, states, jac, rank, fd_step, settled):
+    """``(K,)``: which ``settled`` states' ``rank``-th singular value does not
+    hold at half the step (``_slope_holds``)."""
+    bent = np.zeros_like(settled)
+    bent[settled] = ~_slope_holds(body, states[settled], jac[settled], rank, fd_step)
+    return bent
 
 
 def _slope_holds(body, states, jac, rank, fd_step):
