@@ -181,17 +181,17 @@ class SearchAndSample(KnownLoops):
 
     def _pinning_floor(self) -> float:
         """The ``rank``-th singular value a confirmed state's averaged
-        Jacobian must exceed where random noise was measured (0 where the
-        repeats do not spread): ``rank_noise_gap`` times the expected
-        spectral norm of its noise (``noise.jacobian_noise``), as a
-        singular value must to count toward the pose rank at the start. A
-        secant over the noisy body's wide step sees the sensation bend
-        along a direction it does not vary in (one light in view) by a few
-        times that norm."""
+        Jacobian must exceed: the expected spectral norm of its noise
+        (``noise.jacobian_noise``) where random noise was measured (0 where
+        the repeats do not spread). A bend the secant sees above it along a
+        direction the outputs do not follow is refused at half the step
+        (``confirm._slope_holds``). Not ``rank_noise_gap`` times the norm:
+        joint noise errs along the Jacobian's strong directions, the norm
+        overstates its weak ones' noise, and such a floor refuses nearly
+        every state."""
         if self._repeats <= 1:
             return 0.0
-        return self.params.rank_noise_gap * jacobian_noise(self.structure, self._body.n_sensors,
-                                                           self._fd_step)
+        return jacobian_noise(self.structure, self._body.n_sensors, self._fd_step)
 
     def _size_repeats(self) -> None:
         """With an ``AveragedStep``, once the POVs' separation is measured:
