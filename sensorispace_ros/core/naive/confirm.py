@@ -208,13 +208,7 @@ def _slope_holds(body, states, jac, rank, fd_step):
     half of it. A direction's slope does not change with the step; the bend
     a central difference sees along a direction the outputs do not follow
     (one light in view) falls with the step's square, to a quarter."""
-    half = halved(fd_step)
-    rows = stencil_rows(states.shape[1], half)
-    with getattr(body, "fresh", _nothing)():
-        sensed = np.asarray(body.sense(jacobian_stencil(states, half)), dtype=float)
-    _, jac_half = stencil_jacobian(sensed.reshape(len(states), rows, -1), half)
-    whole = np.all(np.isfinite(jac_half), axis=(1, 2))
-    jac_half[~whole] = 0.0
+    _, jac_half, whole = _averaged_with_jacobian(body, states, 1, halved(fd_step))
     at_step = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
     at_half = np.linalg.svd(jac_half, compute_uv=False)[:, rank - 1]
     return whole & (at_half >= 0.5 * at_step)
