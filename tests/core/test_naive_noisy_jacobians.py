@@ -239,13 +239,19 @@ def test_a_pose_whose_sensation_does_not_follow_every_direction_is_rejected():
     states = np.repeat(np.array([0.3, 0.2, -0.4])[None], 10, axis=0)
     for body, minimum, passing in ((BlankBody(), 0.0, True), (BlankBody(), floor, False),
                                    (RankTwoBody(), floor, True)):
-        noisy = ImperfectSensing(body, seed=9, noise=1e-4)
-        target = finite_mean(noisy.sense(np.repeat(states[:1], 64, axis=0)))
-        _, accepted, _ = confirm_compensations(
-            noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
-            noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
-            min_singular=minimum)
+        accepted = _confirmed(ImperfectSensing(body, seed=9, noise=1e-4), states, step, minimum)
         assert (accepted.mean() >= 0.9) if passing else not accepted.any()
+
+
+def _confirmed(noisy, states, step, minimum):
+    """``confirm_compensations``' verdicts on ``states`` (10 alike) toward
+    their first state's sensation averaged 64 times, at noise 1e-4."""
+    target = finite_mean(noisy.sense(np.repeat(states[:1], 64, axis=0)))
+    _, accepted, _ = confirm_compensations(
+        noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
+        noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
+        min_singular=minimum)
+    return accepted
 
 
 class BentBody(RankTwoBody):
@@ -278,11 +284,7 @@ def test_a_bend_above_the_agents_floor_falls_at_half_the_step():
         noisy = ImperfectSensing(body, seed=11, noise=1e-4)
         _, jac = sensory_jacobian(noisy, states, step)[:2]
         assert np.all(np.linalg.svd(jac, compute_uv=False)[:, 1] > 4 * floor)
-        target = finite_mean(noisy.sense(np.repeat(states[:1], 64, axis=0)))
-        _, accepted, _ = confirm_compensations(
-            noisy, states, np.repeat(target[None], 10, axis=0), np.full(10, 1e-8 / 64),
-            noise_sd=1e-4, repeats=64, rank=2, fd_step=step, confidence=0.999,
-            min_singular=minimum)
+        accepted = _confirmed(noisy, states, step, minimum)
         assert (accepted.mean() >= 0.9) if passing else not accepted.any()
 
 
