@@ -42,6 +42,7 @@ def measure(config: str, seed: int, overrides: dict) -> dict:
             "pov_dim": s.pov_dim, "votes": f"{s.votes}/{s.probes}",
             "weakest": float(f"{s.weakest:.3g}"), "floor": float(f"{s.floor:.3g}"),
             "rank_gap": float(f"{s.rank_gap:.3g}"), "noise": float(f"{s.noise:.3g}"),
+            "receptor_noise": float(f"{s.receptor_noise:.3g}"),
             "fd_step": float(f"{s.fd_step:.3g}"), "motor_states": int(agent._body.total_rows),
             "moved": bool(agent.start_choice is not None and agent.start_choice.moved),
             "wall_s": round(time.perf_counter() - started, 1)}

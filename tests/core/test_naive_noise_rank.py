@@ -121,3 +121,35 @@ def test_a_noisy_start_is_kept_when_some_probes_count_less():
     kept, choice = choose_start(Unsensed(), start, structure, NaiveParams(), seed=0,
                                 noise_sd=1e-3)
     assert kept is start and choice is None
+
+
+@pytest.mark.parametrize("imperfections, receptors", [
+    ({"noise": 1e-3}, 1e-3),
+    ({"laplace": 7e-4}, 7e-4 * np.sqrt(2.0)),
+    ({"motor_noise": 2e-3}, 0.0),
+    ({"noise": 1e-3, "motor_noise": 2e-3}, 1e-3),
+], ids=["gaussian", "laplace", "motor", "both"])
+def test_the_receptors_part_of_the_noise_leaves_the_joints_error_out(imperfections, receptors):
+    # A joint's error moves the sensation along the Jacobian's range; the
+    # probes' repeats across it are the receptors' noise alone.
+    structure, _ = _measured(1.0, **imperfections)
+    if receptors:
+        assert 0.8 * receptors < structure.receptor_noise < 1.25 * receptors
+    else:
+        assert structure.receptor_noise < 0.02 * structure.noise
+
+
+def test_the_pinning_floor_stands_above_the_receptors_noise_alone():
+    from types import SimpleNamespace
+
+    from sensorispace_ros.core.naive.jacobians import SymmetricStep
+    from sensorispace_ros.core.naive.noise import jacobian_noise
+    from sensorispace_ros.core.naive.searching import _RECEPTOR_GAP, SearchAndSample
+
+    step, params = SymmetricStep(0.05), NaiveParams()
+    for imperfections, ratio in (({"noise": 1e-3}, _RECEPTOR_GAP), ({"motor_noise": 2e-3}, 1.0)):
+        structure, _ = _measured(1.0, **imperfections)
+        agent = SimpleNamespace(params=params, _repeats=16, _fd_step=step, structure=structure,
+                                _body=SimpleNamespace(n_sensors=FaintBody.n_sensors))
+        norm = jacobian_noise(structure, FaintBody.n_sensors, step)
+        assert SearchAndSample._pinning_floor(agent) / norm == pytest.approx(ratio, rel=0.25)

@@ -258,24 +258,26 @@ class BentBody(RankTwoBody):
     """``RankTwoBody`` whose weak coordinate ``y = m2`` enters only as
     ``y^3``: at ``y = 0`` no output follows it (the eye of one light in
     view), yet a central difference over ``+-h`` sees the outputs bend by
-    ``~k h^2 / 2``."""
+    ``~3 k h^2 / 2``."""
 
     def sense(self, motor_states):
         m = np.asarray(motor_states, dtype=float)
         k = np.arange(1, 7)
-        return 0.5 + 0.3 * np.sin(k * (m[:, :1] + m[:, 1:2]) + k) + 0.5 * k * m[:, 2:] ** 3
+        return 0.5 + 0.3 * np.sin(k * (m[:, :1] + m[:, 1:2]) + k) + 1.5 * k * m[:, 2:] ** 3
 
 
 def test_a_bend_above_the_agents_floor_falls_at_half_the_step():
-    # Averaged 16 times a row, the bend stands 8 times above the noise's
-    # norm, the agent's floor; at half the step it falls to a quarter, a
-    # true direction's slope stays. Without a floor nothing refuses it.
+    # Averaged 16 times a row, the bend stands 12 times above the agent's
+    # floor (twice the noise's norm: receptor noise); at half the step it
+    # falls to a quarter, a true direction's slope stays. Without a floor
+    # nothing refuses it.
     from sensorispace_ros.core.naive.params import NaiveParams
     from sensorispace_ros.core.naive.searching import SearchAndSample
 
     step = AveragedStep(0.05, 16)
     agent = SimpleNamespace(params=NaiveParams(), _repeats=64, _fd_step=step,
-                            structure=SimpleNamespace(noise=1e-4, n_motors=3),
+                            structure=SimpleNamespace(noise=1e-4, receptor_noise=1e-4,
+                                                      n_motors=3),
                             _body=SimpleNamespace(n_sensors=6))
     floor = SearchAndSample._pinning_floor(agent)
     states = np.repeat(np.array([0.3, 0.2, 0.0])[None], 10, axis=0)

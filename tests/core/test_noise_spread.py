@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from sensorispace_ros.core.naive.noise import measure_noise
-from sensorispace_ros.core.naive.noise_spread import (clipped_variance, ladder_steps,
-                                                      noise_rows, random_noise)
+from sensorispace_ros.core.naive.noise_spread import (across_range_sd, clipped_variance,
+                                                      ladder_steps, noise_rows, random_noise)
 
 from imperfect_bodies import ImperfectSensing, SmoothBody
 
@@ -78,3 +78,33 @@ def test_a_lost_row_is_left_out():
     lines[0, 7] = np.nan
     sd = random_noise(repeats, lines)
     assert sd is not None and np.isfinite(sd[0]) and 5e-5 < sd[0] < 2e-4
+
+
+def test_the_spread_across_the_jacobians_range_is_the_receptors_alone():
+    # Six states, ten receptors, rank 3: each repeat errs by J delta (a
+    # joint's error, 100 times the receptors') plus receptor noise 1e-3.
+    rng = np.random.default_rng(5)
+    jac = rng.normal(size=(6, 10, 3)) @ rng.normal(size=(6, 3, 4))
+    joints = np.einsum("bsm,brm->brs", jac, rng.normal(0.0, 0.1, (6, 16, 4)))
+    receptors = rng.normal(0.0, 1e-3, joints.shape)
+    assert across_range_sd(joints, jac, 3) < 1e-12
+    noisy = 0.5 + joints + receptors
+    noisy[2, 5] = np.nan                                # a lost row is left out
+    jac[4] = 0.0                                        # so is a state without a Jacobian
+    assert across_range_sd(noisy, jac, 3) == pytest.approx(1e-3, rel=0.1)
+    assert across_range_sd(noisy[:, :1], jac, 3) == 0.0  # one repeat shows no spread
+    assert across_range_sd(noisy, jac, 10) == 0.0       # nothing outside the range
+
+
+def test_heavy_tailed_noise_is_never_taken_for_rounding():
+    # The median absolute deviation reads Laplace repeats ~0.7 of their sd;
+    # where the F test sends the estimate to the larger spread, one draw in
+    # a hundred fell below half of it, the mark of repeats that do not
+    # spread, and the agent stopped averaging. Rounding still reads as such.
+    def ratios(**imperfections):
+        noises = [measure_noise(ImperfectSensing(SmoothBody(), seed=s, **imperfections), CENTER)
+                  for s in range(1000)]
+        return np.array([n.repeat_sd / n.sd for n in noises])
+
+    assert ratios(laplace=7e-4).min() >= 0.5
+    assert ratios(quantum=1e-3).max() == 0.0

@@ -22,8 +22,9 @@ from scipy.stats import f as f_distribution
 
 from sensorispace_ros.core.naive.repeat_step import robust_sd
 
-__all__ = ["clipped_variance", "informative_d2", "ladder_spread", "ladder_steps", "line_slope",
-           "noise_rows", "output_lattice", "random_noise", "repeat_spread"]
+__all__ = ["across_range_sd", "clipped_variance", "informative_d2", "ladder_spread",
+           "ladder_steps", "line_slope", "noise_rows", "output_lattice", "random_noise",
+           "repeat_spread"]
 
 # Fixed direction of the ladder's lines (any body's motor space).
 _GOLDEN = 0.5 * (1.0 + np.sqrt(5.0))
@@ -184,3 +185,30 @@ def random_noise(repeats: np.ndarray, lines: np.ndarray) -> tuple[float, float, 
         return None
     pooled = (repeat_dof * repeat_var + ladder_dof * ladder_var) / (repeat_dof + ladder_dof)
     return float(np.sqrt(pooled)), float(np.sqrt(repeat_var)), float(np.sqrt(ladder_var))
+
+
+def across_range_sd(repeats: np.ndarray, jac: np.ndarray, rank: int) -> float:
+    """Per-receptor sd of the repeats ``(B, R, S)`` of ``B`` motor states
+    outside the ``rank`` leading left singular directions of their
+    Jacobians ``(B, S, M)``: the receptors' own noise. A joint that lands
+    off its command moves the sensation along the Jacobian's range
+    (``J delta``, to first order), so only this part can fake a pose
+    direction the sensation does not follow. Rows with a lost value and
+    states without a Jacobian (all zero) are left out; 0 where no state
+    has two repeats or nothing lies outside the range."""
+    repeats, jac = np.asarray(repeats, dtype=float), np.asarray(jac, dtype=float)
+    n_sensors = repeats.shape[-1]
+    usable = np.any(jac != 0, axis=(1, 2)) & np.all(np.isfinite(jac), axis=(1, 2))
+    if rank >= n_sensors or not usable.any():
+        return 0.0
+    repeats, jac = repeats[usable], jac[usable]
+    finite = np.all(np.isfinite(repeats), axis=2, keepdims=True)
+    count = np.sum(finite, axis=1)
+    values = np.where(finite, repeats, 0.0)
+    mean = values.sum(axis=1, keepdims=True) / np.maximum(count, 1)[:, None]
+    deviation = np.where(finite, values - mean, 0.0)
+    inside = np.einsum("brs,bsk->brk", deviation, np.linalg.svd(jac)[0][:, :, :rank])
+    dof = float(np.sum(np.maximum(count - 1, 0))) * (n_sensors - rank)
+    if dof <= 0:
+        return 0.0
+    return float(np.sqrt(max(np.sum(deviation ** 2) - np.sum(inside ** 2), 0.0) / dof))

@@ -29,6 +29,13 @@ from sensorispace_ros.core.naive.noise import (jacobian_noise, noise_residual, n
 from sensorispace_ros.core.naive.points_of_view import (isolated_samples,
     sample_sensory_points_of_view)
 
+# Times the expected spectral norm of the receptors' noise in a confirmed
+# state's Jacobian that its weakest pose direction must clear: the norm of
+# pure noise rarely exceeds its expectation by half, and twice it also
+# refuses most of what the secant bends along a direction the sensation
+# does not follow.
+_RECEPTOR_GAP = 2.0
+
 
 class SearchAndSample(KnownLoops):
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_tol``,
@@ -181,17 +188,20 @@ class SearchAndSample(KnownLoops):
 
     def _pinning_floor(self) -> float:
         """The ``rank``-th singular value a confirmed state's averaged
-        Jacobian must exceed: the expected spectral norm of its noise
-        (``noise.jacobian_noise``) where random noise was measured (0 where
-        the repeats do not spread). A bend the secant sees above it along a
-        direction the outputs do not follow is refused at half the step
-        (``confirm._slope_holds``). Not ``rank_noise_gap`` times the norm:
-        joint noise errs along the Jacobian's strong directions, the norm
-        overstates its weak ones' noise, and such a floor refuses nearly
-        every state."""
+        Jacobian must exceed where random noise was measured (0 where the
+        repeats do not spread): the expected spectral norm of its noise
+        (``noise.jacobian_noise``), and ``_RECEPTOR_GAP`` times that of the
+        receptors' part (``BodyStructure.receptor_noise``). Receptor noise
+        errs in every direction and can fake one the sensation does not
+        follow; a joint's error moves the sensation along the Jacobian's
+        range, so it lifts the first term, not the second. A bend the
+        secant sees above the floor is refused at half the step
+        (``confirm._slope_holds``)."""
         if self._repeats <= 1:
             return 0.0
-        return jacobian_noise(self.structure, self._body.n_sensors, self._fd_step)
+        norm = jacobian_noise(self.structure, self._body.n_sensors, self._fd_step)
+        receptors = self.structure.receptor_noise / self.structure.noise
+        return norm * max(1.0, _RECEPTOR_GAP * receptors)
 
     def _size_repeats(self) -> None:
         """With an ``AveragedStep``, once the POVs' separation is measured:

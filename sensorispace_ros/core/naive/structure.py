@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import contextlib
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from sensorispace_ros.core.naive.jacobians import (CloudStep, cloud_design, cloud_fit,
                                                    jacobian_stencil, stencil_rows)
+from sensorispace_ros.core.naive.noise_spread import across_range_sd
 
 # Fixed directions of the probe states around the start (any body's motor
 # space): a golden-ratio sequence of cosines, normalised per state.
@@ -57,7 +58,9 @@ class BodyStructure:
     ``pose_rank``-th singular value of the agreeing probes; ``repeat_noise``
     the part of the noise a repeat does not repeat (``SensoryNoise.repeat_sd``);
     ``quantum`` the step of the lattice rounded outputs lie on (0: none,
-    ``SensoryNoise.quantum``)."""
+    ``SensoryNoise.quantum``); ``receptor_noise`` the part of the probes'
+    repeats across their Jacobians' range (``noise_spread.across_range_sd``,
+    0 where not measured): what no joint error explains."""
 
     n_motors: int
     pose_rank: int
@@ -71,6 +74,7 @@ class BodyStructure:
     weakest: float = 0.0
     repeat_noise: float = 0.0
     quantum: float = 0.0
+    receptor_noise: float = 0.0
 
     @property
     def pov_dim(self) -> int:
@@ -289,7 +293,9 @@ def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
     always without ``noise_sd`` or with one repeat; else unless the floor
     of the budget, of which ``spent`` is spent, would count more
     (``more_could_count``, the Jacobians' noise shown by half the
-    difference of the even and the odd repeats' Jacobians)."""
+    difference of the even and the odd repeats' Jacobians). With repeats,
+    the structure carries the receptors' part of their spread
+    (``receptor_noise``)."""
     n_states, n_motors = sensed.shape[0], (sensed.shape[1] - 1) // 4
     repeats = sensed.shape[2]
     jac, floor = jacobians_and_floor(sensed, n_states, n_motors, fd_step, repeats, noise_sd)
@@ -298,6 +304,8 @@ def probe_structure(sensed: np.ndarray, fd_step: float, min_gap: float = 100.0,
                                       None if noise_sd is None else noise_gap)
     if noise_sd is None or repeats < 2:
         return structure, True
+    structure = replace(structure, receptor_noise=across_range_sd(
+        sensed[:, 0], jac, structure.pose_rank))
     halves = [jacobians_and_floor(sensed[:, :, part::2], n_states, n_motors, fd_step,
                                   len(range(part, repeats, 2)), noise_sd)[0] for part in (0, 1)]
     noise = 0.5 * (halves[0] - halves[1])
