@@ -44,7 +44,8 @@ from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.jacobians import AveragedStep, SymmetricStep
 from sensorispace_ros.core.naive.params import NaiveParams
-from sensorispace_ros.core.naive.noise_spread import (ladder_spread, ladder_steps, line_slope,
+from sensorispace_ros.core.naive.noise_spread import (clipped_variance, ladder_spread,
+                                                      ladder_steps, line_slope,
                                                       noise_rows, output_lattice, random_noise,
                                                       repeat_spread)
 from sensorispace_ros.core.naive.repeat_step import last_world_start
@@ -101,7 +102,10 @@ def measure_noise(body, center: np.ndarray, *, repeats: int = 16,
     quantum = output_lattice(sensed)
     # A world that changed during the repeats: only its last world's count.
     repeated = sensed[last_world_start(sensed[:repeats], quantum):repeats]
-    repeat_sd = repeat_spread(repeated)
+    # The median absolute deviation reads heavy tails low, the clipped
+    # variance does not: the larger, so that random noise of any shape is
+    # not taken for rounding the repeats do not see.
+    repeat_sd = max(repeat_spread(repeated), np.sqrt(clipped_variance(repeated, centred=True)[0]))
     lines = sensed[repeats:].reshape(len(ladder_steps()), line_rows, -1)
     ladder_sd = ladder_spread(lines)
     finite = sensed[np.isfinite(sensed)]
