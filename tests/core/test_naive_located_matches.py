@@ -99,7 +99,7 @@ class _Staged:
 def _matching_agent(repeats, noisy=True):
     """The parts of a NaiveAgent ``_verify_matches`` reads: 8 known POVs,
     one snapshot whose rows sensed them once, matches row k -> POV k; no
-    discrepancy measured beyond the noise (``naive.match_discrepancy`` off)."""
+    discrepancy measured beyond the noise (``_discrepancy`` 0)."""
     exact = RankTwoBody()
     states = TARGET_STATE + np.outer(np.linspace(-0.2, 0.2, 8), [1.0, 0.0, 0.5])
     rows = ImperfectSensing(exact, seed=12, noise=1e-4).sense(states)

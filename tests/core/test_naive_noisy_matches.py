@@ -20,7 +20,7 @@ def _agent(rows, rest, noisy=True, counts=None, rest_count=16):
                     np.zeros(3), -1, counts=counts, rest_count=rest_count)
     tol = SimpleNamespace(match=0.13, separation=8.3 * SD, ratio=3.0)
     structure = SimpleNamespace(noise=SD, repeat_noise=SD, quantum=0.0)   # random noise
-    return SimpleNamespace(_noisy=noisy, structure=structure, _tol=tol,
+    return SimpleNamespace(_noisy=noisy, structure=structure, _tol=tol, _repeats=16,
                            params=NaiveParams(), _pool=[snap])
 
 

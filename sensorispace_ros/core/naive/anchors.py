@@ -233,8 +233,10 @@ class SnapshotMatching:
         rank_now = np.full(len(current), RANK_UNKNOWN)
         noise_sd = match_noise(self.structure.noise, self.structure.repeat_noise,
                                self.structure.quantum) if self._noisy else 0.0
+        # Only where repeats spread: outputs rounded alike sense alike, and the
+        # spread between rounded rows lets in neighbours, not partners.
         self._discrepancy = sweep_discrepancy(self._pool, current, noise_sd, tree) \
-            if noise_sd > 0 and self.params.match_discrepancy else 0.0
+            if noise_sd > 0 and self._repeats > 1 and self.params.match_discrepancy else 0.0
         match = dict(match_tol=self._tol.match, separation=self._tol.separation, tree=tree,
                      ratio=self._tol.ratio, confidence=self.params.noise_confidence,
                      noise_sd=noise_sd, discrepancy=self._discrepancy)
