@@ -109,7 +109,8 @@ def _matching_agent(repeats, noisy=True):
         _store=SimpleNamespace(samples=states[:, None, :]),
         _body=_Staged(ImperfectSensing(exact, seed=13, noise=1e-4)),
         structure=SimpleNamespace(noise=1e-4, pose_rank=2), _fd_step=SymmetricStep(0.02),
-        _max_pose_error=lambda: 1e-3, _pinning_floor=lambda: 0.0, _discrepancy=0.0)
+        _max_pose_error=lambda: 1e-3, _pinning_floor=lambda: 0.0, _discrepancy=0.0,
+        _note_verified=lambda *noted: None)
 
 
 def test_the_agent_keeps_located_matches_only_where_repeats_spread():

@@ -59,6 +59,7 @@ from sensorispace_ros.core.naive.frontier import FrontierChoice
 from sensorispace_ros.core.naive.lattice_sets import ImpliedSets
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.core.naive.points_of_view import PovStore
+from sensorispace_ros.core.naive.pov_relaxation import RelaxedPOVs
 from sensorispace_ros.core.naive.records import EQUALITY_PASS, CompensationRecord, Reaction
 from sensorispace_ros.core.naive.records import STAGES, NaiveAgentRecords  # noqa: F401  (re-exported)
 from sensorispace_ros.core.naive.searching import SearchAndSample
@@ -71,7 +72,7 @@ from sensorispace_ros.core.naive.structure import BodyStructure, Tolerances
 EXPLORING = "exploring"
 
 
-class NaiveAgent(ImpliedSets, SnapshotMatching, FrontierChoice, SearchAndSample):
+class NaiveAgent(ImpliedSets, RelaxedPOVs, SnapshotMatching, FrontierChoice, SearchAndSample):
     """Event-driven naive explorer (see the module docstring).
 
     ``body`` needs ``sense(motor_states (B, M)) -> (B, S)``, ``n_motors`` and

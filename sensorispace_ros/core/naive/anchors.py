@@ -342,14 +342,16 @@ class SnapshotMatching:
                 continue
             self._body.stage, error = "compensation", self._max_pose_error()
             # Averaging pays until the average's noise is a quarter of the target's.
+            repeats, sensed = min(self._repeats, 4 * int(counts.max())), []
             precise, located = verify_matches(
                 self._body, self._store.samples[after, 0], snap.sensations[before],
                 self.structure.noise ** 2 / counts, noise_sd=self.structure.noise,
-                repeats=min(self._repeats, 4 * int(counts.max())), rank=self.structure.pose_rank,
+                repeats=repeats, rank=self.structure.pose_rank,
                 fd_step=self._fd_step, confidence=self.params.noise_confidence, max_error=error,
                 max_step=_HIT_SHARE * error, min_singular=self._pinning_floor(),
-                discrepancy=self._discrepancy)
+                discrepancy=self._discrepancy, sensed=sensed)
             good = precise | (located & (self._repeats > 1))
+            self._note_verified(snap, before, after, sensed[0], counts, repeats, good)
             kept.append((before[good], after[good]))
         return kept
 

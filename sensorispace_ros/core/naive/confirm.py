@@ -83,7 +83,7 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     for _ in range(int(rounds)):
         if not len(pending):
             break
-        mean, jac, whole = _averaged_with_jacobian(body, refined[pending], repeats, fd_step)
+        mean, jac, whole = averaged_with_jacobian(body, refined[pending], repeats, fd_step)
         means[pending] = mean
         step, explained, settled = _judge(jac, mean - targets[pending], rank, whole,
                                           [v[pending] for v in variances], limits,
@@ -101,7 +101,7 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
 def verify_matches(body, states: np.ndarray, targets: np.ndarray,
                    target_variance: np.ndarray, *, noise_sd: float, repeats: int, rank: int,
                    fd_step: float, confidence: float, max_error: float, max_step: float,
-                   min_singular: float = 0.0, discrepancy: float = 0.0):
+                   min_singular: float = 0.0, discrepancy: float = 0.0, sensed=None):
     """Known POVs ``states`` ``(K, M)`` matched by a sweep to the rows
     ``targets`` ``(K, S)`` of one snapshot (per-receptor variance
     ``target_variance`` ``(K,)``), each sensed ``repeats`` times with its
@@ -125,11 +125,14 @@ def verify_matches(body, states: np.ndarray, targets: np.ndarray,
     A single sensing of the row leaves the pose along its weakest direction
     uncertain by more than ``max_error`` where the noise is large: such a
     match is never precise, yet located it shows the light layout unchanged
-    and which known POVs neighbour the rows it did not match."""
+    and which known POVs neighbour the rows it did not match. ``sensed``: a
+    list that receives ``(mean, Jacobian, whole)`` of ``states``."""
     states = np.asarray(states, dtype=float)
     targets = np.asarray(targets, dtype=float)
     n_sensors = targets.shape[1]
-    mean, jac, whole = _averaged_with_jacobian(body, states, repeats, fd_step)
+    mean, jac, whole = averaged_with_jacobian(body, states, repeats, fd_step)
+    if sensed is not None:
+        sensed.append((mean, jac, whole))
     residual = mean - targets
     variances, limits = _noise_bounds(target_variance, noise_sd, repeats, confidence,
                                       n_sensors, rank)
@@ -208,13 +211,13 @@ def _slope_holds(body, states, jac, rank, fd_step):
     half of it. A direction's slope does not change with the step; the bend
     a central difference sees along a direction the outputs do not follow
     (one light in view) falls with the step's square, to a quarter."""
-    _, jac_half, whole = _averaged_with_jacobian(body, states, 1, halved(fd_step))
+    _, jac_half, whole = averaged_with_jacobian(body, states, 1, halved(fd_step))
     at_step = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
     at_half = np.linalg.svd(jac_half, compute_uv=False)[:, rank - 1]
     return whole & (at_half >= 0.5 * at_step)
 
 
-def _averaged_with_jacobian(body, states, repeats, fd_step):
+def averaged_with_jacobian(body, states, repeats, fd_step):
     """Sense ``states`` ``(K, M)`` with their Jacobian stencils and ``repeats -
     1`` more times, in one call. Returns ``(mean sensation (K, S), Jacobian
     (K, S, M), whole (K,))``; a stencil with a lost row has no Jacobian

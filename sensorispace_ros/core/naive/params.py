@@ -116,6 +116,7 @@ class NaiveParams:
     clock_hole_attempts: int = _default("clock_hole_attempts")
     lattice_sets: bool = _default("lattice_sets")
     lattice_support: int = _default("lattice_support")
+    relax_povs: bool = _default("relax_povs")
 
     def __post_init__(self):
         # Also fails ("naive.<name>: missing") if a schema entry has no field here.

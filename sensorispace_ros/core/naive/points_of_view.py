@@ -82,6 +82,12 @@ class PovStore:
         self.count += 1
         return self.count - 1
 
+    def replace(self, index: int, samples: np.ndarray) -> None:
+        """POV ``index``'s samples moved to ``samples``; ``near``'s tree is
+        rebuilt when next queried."""
+        self._data[index] = samples
+        self._near_built, self._near_tree = 0, None
+
     @property
     def samples(self) -> np.ndarray:
         return self._data[:self.count]

@@ -83,6 +83,7 @@ def explore_naive(world, params: NaiveParams | None = None, *, progress=None,
         agent.react(_passive_sensation(body))
         if progress is not None and callable(progress) and (k + 1) % 100 == 0:
             progress(k + 1, n_events)
+    agent.relax_povs()
     exploration_s = time.perf_counter() - started
 
     equality_s = 0.0

@@ -1,0 +1,51 @@
+"""The naive agent moves its POVs onto one lattice at the end of exploring
+(``naive.relax_povs``, core/naive/pov_relaxation.py), on a body whose noise
+no parameter names: ground truth (the arm's forward model) checks that a
+moved POV is still one pose. How much nearer the lattice the POVs come is
+measured on the paper grid (docs/noise.md, "POVs moved onto one lattice")."""
+import functools
+
+import numpy as np
+import pytest
+
+from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.pov_relaxation import RelaxedPOVs
+from sensorispace_ros.core.naive.run import explore_naive
+from sensorispace_ros.core.paper.exploration import build_world
+
+from imperfect_bodies import ImperfectSensing
+
+
+@pytest.fixture(scope="module")
+def relaxed_run():
+    world = build_world(0, {"grid_count": 16, "initial_center": "center"})
+    wrapper = functools.partial(ImperfectSensing, seed=5, noise=1e-4)
+    found = {}
+    original = RelaxedPOVs.relax_povs
+
+    def spied(agent):
+        found["samples"] = agent._store.samples.copy()
+        return original(agent)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(RelaxedPOVs, "relax_povs", spied)
+        agent = explore_naive(world, NaiveParams(relax_povs=True), body_wrapper=wrapper).agent
+    return world, found["samples"], agent
+
+
+def test_a_moved_pov_stays_one_pose(relaxed_run):
+    world, before, agent = relaxed_run
+    moved = np.any(agent._store.samples != before, axis=(1, 2))
+    assert agent.povs_relaxed == moved.sum() > 0
+    spread = {name: np.ptp(world.arm.forward(s)[:, :, :2], axis=1).max(axis=1)
+              for name, s in (("before", before), ("after", agent._store.samples))}
+    # No loop spreads by more than a small share of a grid step beyond what its walk left.
+    assert np.max(spread["after"] - spread["before"]) < 0.02 * world.spacing
+
+
+def test_without_the_option_nothing_is_kept_or_moved():
+    world = build_world(0, {"grid_count": 6, "initial_center": "center"})
+    wrapper = functools.partial(ImperfectSensing, seed=5, noise=1e-4)
+    agent = explore_naive(world, NaiveParams(), body_wrapper=wrapper).agent
+    assert getattr(agent, "_match_evidence", None) is None
+    assert agent.relax_povs() == 0
