@@ -18,6 +18,9 @@ metric again (the run's configuration and seed, ``offline.representation``'s
 * ``truth, within X`` (``--within X ...``): perfect sets of the POVs whose
   true position lies within X grid steps of the lattice (the one whose phase
   is the positions' circular mean);
+* ``own, trimmed`` (``--trimmed``): the run's sets without the found pairs
+  its lattice's trimming drops (the found sets told from the implied ones by
+  their numbering, ``found_count``);
 * ``own + lattice`` (``--lattice``): those sets and the sets their lattice
   implies (``lattice_sets.lattice_equalities``, the agent's ``lattice_support``),
   with the pairs the trimming dropped (and how many of them are wrong), the
@@ -147,6 +150,35 @@ def lattice_variant(pairs, set_ids, wrong, n_povs, cfg):
             np.concatenate([set_ids, found.set_ids + first]))
 
 
+def found_count(pairs, set_ids, n_povs, support, samples=None) -> int:
+    """How many of the sets (numbered in order) the agent found itself: the
+    sets its lattice implies are numbered after them, so the first ``b``
+    whose found sets' lattice implies exactly the sets from ``b`` on (a
+    fixed point, found in a few steps; every set where none implies any)."""
+    total = int(set_ids.max()) + 1 if len(set_ids) else 0
+    count, seen = total // 2, set()
+    while count not in seen:
+        seen.add(count)
+        found = set_ids < count
+        implied = lattice_equalities(pairs[found], set_ids[found], n_povs, support, samples=samples)
+        count = total - len(np.unique(implied.set_ids))
+    return count
+
+
+def trimmed_variant(pairs, set_ids, n_povs, cfg, samples=None):
+    """``own, trimmed``: the run's sets without the found pairs its lattice's
+    trimming drops (``lattice_sets.trimmed_lattice``; the agent hands them
+    to the representation all the same); prints how many it drops."""
+    support = cfg.get("naive", {}).get("lattice_support", NaiveParams().lattice_support)
+    found = set_ids < found_count(pairs, set_ids, n_povs, support, samples)
+    kept = lattice_equalities(pairs[found], set_ids[found], n_povs, support, samples=samples).kept
+    keep = np.ones(len(pairs), dtype=bool)
+    if kept is not None:
+        keep[np.flatnonzero(found)[~kept]] = False
+    print(json.dumps({"found_pairs": int(found.sum()), "trimmed": int(np.count_nonzero(~keep))}))
+    return "own, trimmed", pairs[keep], set_ids[keep]
+
+
 def residual(arrays, cfg, pairs, set_ids) -> float:
     chain = _dimension_chain(arrays["hausdorff"], pairs, set_ids, cfg, int(arrays["seed"]),
                              "2d", 2)
@@ -165,6 +197,8 @@ def main() -> None:
                              "then onto the lattice")
     parser.add_argument("--lattice", action="store_true",
                         help="also own with the sets their lattice implies")
+    parser.add_argument("--trimmed", action="store_true",
+                        help="also own without the found pairs the lattice's trimming drops")
     parser.add_argument("--segments", type=int, default=0,
                         help="also each of own and right with its sets of segments "
                              "(this many changes a set; 0: not)")
@@ -184,6 +218,8 @@ def main() -> None:
                      for name, p, s in variants[:2]]
     if args.lattice:
         variants.append(lattice_variant(pairs, set_ids, wrong, len(positions), cfg))
+    if args.trimmed:
+        variants.append(trimmed_variant(pairs, set_ids, len(positions), cfg, arrays["povs"]))
     variants += [(f"sample {n}", *sampled_sets(pairs, set_ids, n, rng)) for n in args.sample]
     variants.append(("truth", *true_sets(positions, step)))
     variants = [(*v, arrays) for v in variants] + \

@@ -101,3 +101,24 @@ def test_the_lattice_variant_adds_sets_of_true_displacements_after_the_own():
     np.testing.assert_array_equal(both[:len(own)], own)
     assert both_ids[len(own):].min() > own_ids.max()
     assert not noisy_sets.wrong_pairs(positions, both, both_ids, STEP).any()
+
+
+def test_the_trimmed_variant_drops_the_found_pair_the_lattice_refuses_and_no_implied_one():
+    from sensorispace_ros.core.naive.lattice_sets import lattice_equalities
+    positions = _lattice(n=8)
+    pairs, set_ids = noisy_sets.true_sets(positions, STEP)
+    keep = np.random.default_rng(2).random(len(pairs)) < 0.3
+    found, found_ids = pairs[keep], set_ids[keep]
+    _, found_ids = np.unique(found_ids, return_inverse=True)
+    # One pair of the first set moved to a POV off its set's displacement.
+    bad = np.flatnonzero(found_ids == 0)[0]
+    found = found.copy()
+    found[bad, 1] = (found[bad, 1] + 9) % len(positions)
+    implied = lattice_equalities(found, found_ids, len(positions), 4)
+    pairs = np.concatenate([found, implied.pairs])
+    set_ids = np.concatenate([found_ids, implied.set_ids + found_ids.max() + 1])
+    assert noisy_sets.found_count(pairs, set_ids, len(positions), 4) == found_ids.max() + 1
+    name, kept, kept_ids = noisy_sets.trimmed_variant(pairs, set_ids, len(positions), {})
+    assert name == "own, trimmed" and len(kept) < len(pairs)
+    assert not noisy_sets.wrong_pairs(positions, kept, kept_ids, STEP).any()
+    assert len(kept) >= len(pairs) - 0.05 * len(found)
