@@ -208,7 +208,7 @@ class RelaxedPOVs:
         the POV on another pose); its loop by ``neighbour_transport``.
         Returns the POVs moved."""
         evidence, self.povs_relaxed = getattr(self, "_match_evidence", None), 0
-        if evidence is None or not self.params.relax_povs:
+        if evidence is None:            # kept only with relax_povs (_note_verified)
             return 0
         samples = self._store.samples.copy()
         threshold = chi2.ppf(self.params.noise_confidence, self.structure.pose_rank)
