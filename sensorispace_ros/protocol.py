@@ -2,7 +2,8 @@
 analysis of a bag and the evaluator agree on.
 
 Frame ids (msg_schemas/topics.yaml): ``change/<k>``, ``end/<k>``,
-``cmd/<n>``, ``next/<k>``, ``hold/<n>``, ``equality/<k>``, and their parser; the code of each change kind on
+``cmd/<n>``, ``next/<k>``, ``hold/<n>``, ``equality/<k>``, ``withdrawn/<k>``,
+and their parser; the code of each change kind on
 ``/environment/event``; the files nodes write into the run's results
 directory. Plain Python: ``recording`` and ``evaluation`` read it without
 rclpy.
@@ -14,10 +15,12 @@ from pathlib import Path
 
 from sensorispace_ros.core.world import REDISTRIBUTION, TRANSLATION
 
-FRAME_KINDS = ("change", "end", "cmd", "next", "hold", "equality")
-# /agent/compensations: a reaction's rows (change/<k>), then the sets the
-# agent's lattice implies, once the run is over (end/<k>).
-EQUALITY_ROW_KINDS = ("change", "end")
+FRAME_KINDS = ("change", "end", "cmd", "next", "hold", "equality", "withdrawn")
+# /agent/compensations: a reaction's rows (change/<k>), then, once the run is
+# over, the sets the agent's lattice implies (end/<k>) and the rows published
+# earlier that the lattice's trimming withdraws (withdrawn/<k>).
+EQUALITY_ROW_KINDS = ("change", "end", "withdrawn")
+WITHDRAWN = "withdrawn"
 # Numbers count changes and commands and travel as int64/uint64 elsewhere.
 MAX_FRAME_NUMBER = 2 ** 63 - 1
 

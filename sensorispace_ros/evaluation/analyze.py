@@ -11,7 +11,9 @@ What the bag gives (see recording.bag_format, nodes/recorder.py):
   arm and retina stand in for it;
 - the agent's data: ``/agent/points_of_view`` and ``/agent/compensations``,
   assembled exactly as the representation node assembles them (same
-  function; a message re-sent with the same frame id counts once);
+  functions; a message re-sent with the same frame id counts once; POVs
+  moved at the end of the run, ``end/<k>``, replace their samples; rows
+  ``withdrawn/<k>`` names leave);
 - ground truth, joined here as the evaluator: the sensor position of each
   point of view is looked up in the recorded ``/body/sensor_pose`` rows (the
   row answering the motor command equal to the POV's first sample); a POV
@@ -58,7 +60,8 @@ from sensorispace_ros.evaluation.ground_truth import RunTruth, ground_truth_from
 from sensorispace_ros.evaluation.naive import naive_metrics
 from sensorispace_ros.evaluation.run_files import run_arrays
 from sensorispace_ros.evaluation.runs import evaluate_graph_run
-from sensorispace_ros.offline.pov_assembly import MIN_POVS, assemble_points_of_view, equality_pairs
+from sensorispace_ros.offline.pov_assembly import (MIN_POVS, assemble_points_of_view,
+                                                   equality_pairs, net_equality_rows)
 from sensorispace_ros.offline.representation import build_representation
 from sensorispace_ros.offline.strategies import StrategyOutput, pose_drift
 from sensorispace_ros.protocol import CHECKPOINTS, EQUALITY_ROW_KINDS, KIND_OF_CODE, parse_frame
@@ -137,25 +140,30 @@ def decoded_table(msg, columns: dict, later=()) -> np.ndarray:
 
 def agent_data(bag_dir, description=None) -> dict:
     """POV ids, POV motor samples, equality pairs (POV positions) and set ids, as the
-    representation node builds them, plus the change each POV was published for.
+    representation node builds them, plus the change each POV was published for
+    and the equality rows recorded (``rows_held``, withdrawn ones too, as
+    ``/agent/done`` counts them).
     ``description``: the body's (``body_description`` by default)."""
     description = body_description(bag_dir) if description is None else description
-    pov_tables = _tables(bag_dir, POVS, description=description)
+    pov_tables = _tables(bag_dir, POVS, kinds=("change", "end"), description=description)
+    moved = {frame_id: pov_tables.pop(frame_id) for frame_id in list(pov_tables)
+             if parse_frame(frame_id)[0] == "end"}
     row_tables = _tables(bag_dir, ROWS, kinds=EQUALITY_ROW_KINDS)
-    ids, povs = assemble_points_of_view(list(pov_tables.values()), description.n_motors)
-    rows = (np.concatenate(list(row_tables.values())) if row_tables
-            else np.zeros(0, dtype=messages.record_dtype(contracts.contract(ROWS).columns)))
+    ids, povs = assemble_points_of_view(list(pov_tables.values()), description.n_motors,
+                                        moved=list(moved.values()))
+    rows = net_equality_rows(row_tables, messages.record_dtype(contracts.contract(ROWS).columns))
     pairs, set_ids = equality_pairs(ids, rows)
     change_of_pov = {}
     for frame_id, table in pov_tables.items():
         for pov in np.unique(table["pov"]):
             change_of_pov.setdefault(int(pov), frame_id)
     return {"ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,
-            "pov_frames": [change_of_pov[int(i)] for i in ids]}
+            "pov_frames": [change_of_pov[int(i)] for i in ids],
+            "rows_held": sum(len(table) for table in row_tables.values())}
 
 
 def agent_totals(bag_dir) -> dict | None:
-    done = _tables(bag_dir, DONE, kinds=("end",))
+    done = _tables(bag_dir, DONE, kinds=("end",), later=("moved_povs",))
     if not done:
         return None
     table = next(iter(done.values()))
@@ -250,6 +258,7 @@ def naive_records(bag_dir, data: dict, totals: dict | None, description=None):
         pairs=data["pairs"], set_ids=data["set_ids"], compensated=int(totals["compensated"]),
         compensation_queries=int(counters["compensation_queries"][0]),
         queries_total=int(totals["queries"]), calls_total=int(totals["calls"]),
+        povs_relaxed=int(totals.get("moved_povs", 0)),
         queries_by_stage={stage: int(counters[f"queries_{stage}"][0]) for stage in STAGES},
         calls_by_stage={stage: int(counters[f"calls_{stage}"][0]) for stage in STAGES},
         **{name: counters[name][0].item() for name in STRUCTURE_FIELDS + SEARCH_FIELDS
@@ -308,7 +317,8 @@ def _analyze_bag(bag_dir: Path, out_dir: Path, cfg: dict | None, progress, start
         "analysis.true_positions": f"{recorded} of {len(povs)} from recorded /body/sensor_pose, "
                                    f"{len(povs) - recorded} from core.arm.forward",
         "analysis.complete": totals is not None
-        and (totals["points_of_view"], totals["compensation_rows"]) == (len(povs), len(pairs)),
+        and ((totals["points_of_view"], totals["compensation_rows"])
+             == (len(povs), data["rows_held"])),
         **{f"timings_s.{key}": value for key, value in representation.timings_s.items()},
         **{f"agent.{name}": value for name, value in (totals or {}).items()},
     }

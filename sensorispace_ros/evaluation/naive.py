@@ -140,6 +140,8 @@ def _query_numbers(records: NaiveAgentRecords) -> dict:
         numbers[f"naive.calls_by_stage.{stage}"] = int(records.calls_by_stage.get(stage, 0))
     # Search ends refused under noise (core.naive.known_loops).
     numbers.update({f"naive.{name}": int(getattr(records, name)) for name in SEARCH_FIELDS})
+    # POVs moved onto one lattice at the end (core.naive.pov_relaxation).
+    numbers["naive.povs_relaxed"] = int(records.povs_relaxed)
     return numbers
 
 

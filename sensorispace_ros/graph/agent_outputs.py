@@ -13,7 +13,9 @@ import numpy as np
 from sensorispace_ros.core.naive.records import STAGES as NAIVE_STAGES
 from sensorispace_ros.core.naive.records import (STRUCTURE_FIELDS, NaiveAgentRecords,
                                                  search_fields, structure_fields)
+from sensorispace_ros import messages
 from sensorispace_ros.protocol import AGENT_RECORDS_FILE  # noqa: F401 (the file name nodes write)
+from sensorispace_ros.protocol import WITHDRAWN, frame, parse_frame
 
 
 def reaction_tables(agent, reaction) -> dict[str, dict]:
@@ -22,10 +24,7 @@ def reaction_tables(agent, reaction) -> dict[str, dict]:
     povs = np.asarray(reaction.new_povs, dtype=float)
     if len(povs):
         ids = np.asarray(reaction.new_pov_ids, dtype=np.int64)
-        n_samples, n_motors = povs.shape[1:]
-        tables["/agent/points_of_view"] = {
-            "pov": np.repeat(ids, n_samples), "sample": np.tile(np.arange(n_samples), len(ids)),
-            **{f"m{j}": povs[:, :, j].ravel() for j in range(n_motors)}}
+        tables["/agent/points_of_view"] = pov_table(ids, povs)
         tables["/agent/pov_records"] = {
             "pov": ids, "event": np.asarray(agent.pov_events)[ids],
             "queries": np.asarray(agent.pov_queries)[ids]}
@@ -45,15 +44,37 @@ def reaction_tables(agent, reaction) -> dict[str, dict]:
     return tables
 
 
-def publish_implied_sets(agent, publish, header) -> int:
-    """Publish (``publish(topic, table, header)``) the ``/agent/compensations``
-    rows of the sets the agent's lattice implies (``ImpliedSets.implied_rows``),
-    once its run is over; returns how many."""
-    rows = agent.implied_rows()
-    if len(rows):
-        publish("/agent/compensations",
-                {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]}, header)
-    return len(rows)
+def pov_table(ids, povs) -> dict:
+    """``/agent/points_of_view``'s columns for POVs ``ids`` of samples ``povs`` ``(P, N, M)``."""
+    povs = np.asarray(povs, dtype=float)
+    n_samples, n_motors = povs.shape[1:]
+    return {"pov": np.repeat(np.asarray(ids, dtype=np.int64), n_samples),
+            "sample": np.tile(np.arange(n_samples), len(ids)),
+            **{f"m{j}": povs[:, :, j].ravel() for j in range(n_motors)}}
+
+
+def publish_end_of_run(agent, publish, header) -> int:
+    """Once the run is over, publish (``publish(topic, table, header)``) under
+    ``header`` (``end/<k>``) the POVs the agent moves onto its lattice
+    (``RelaxedPOVs.relax_povs``, their samples now), then the
+    ``/agent/compensations`` rows of the sets its lattice implies
+    (``ImpliedSets.implied_rows``), then under ``withdrawn/<k>`` the rows
+    published earlier that its trimming withdraws (``ImpliedSets.withdrawn_rows``);
+    returns how many equality rows."""
+    if agent.relax_povs():
+        ids = agent.relaxed_ids
+        publish("/agent/points_of_view", pov_table(ids, agent.points_of_view[ids]), header)
+    _, number = parse_frame(header.frame_id)
+    withdrawn_header = messages.make_header(frame(WITHDRAWN, number), messages.stamp_ns(header))
+    published = 0
+    for rows, rows_header in ((agent.implied_rows(), header),
+                              (agent.withdrawn_rows(), withdrawn_header)):
+        if len(rows):
+            publish("/agent/compensations",
+                    {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]},
+                    rows_header)
+        published += len(rows)
+    return published
 
 
 def initial_posture(configured, n_motors: int) -> tuple[np.ndarray, str]:
@@ -87,7 +108,7 @@ def done_totals(agent, changes: int, n_povs: int, n_rows: int) -> dict:
     """``/agent/done``'s row."""
     return {"changes": changes, "points_of_view": n_povs, "compensation_rows": n_rows,
             "compensated": agent.compensated, "queries": agent.queries_total,
-            "calls": agent.calls_total}
+            "calls": agent.calls_total, "moved_povs": getattr(agent, "povs_relaxed", 0)}
 
 
 def write_records(agent, path) -> None:

@@ -31,12 +31,14 @@ def marker_path(bag_dir: str | Path) -> Path:
 
 
 class RunCompleteness:
-    """POV ids and equality rows held (the first message of each frame id, as
-    the representation and the analysis count them) against ``/agent/done``."""
+    """POV ids, POVs moved at the end and equality rows held (the first
+    message of each frame id, as the representation and the analysis count
+    them) against ``/agent/done``."""
 
     def __init__(self):
         self.totals: dict | None = None
         self.pov_ids: set[int] = set()
+        self.moved_ids: set[int] = set()
         self.rows_by_frame: dict[str, int] = {}
         self.complete = False
         self.undecodable = 0
@@ -44,7 +46,8 @@ class RunCompleteness:
     @property
     def held(self) -> dict:
         return {"points_of_view": len(self.pov_ids),
-                "compensation_rows": sum(self.rows_by_frame.values())}
+                "compensation_rows": sum(self.rows_by_frame.values()),
+                "moved_povs": len(self.moved_ids)}
 
     def add(self, topic: str, cdr: bytes) -> bool:
         """Count one recorded message; True when the run has just become complete."""
@@ -63,12 +66,13 @@ class RunCompleteness:
             self.undecodable += 1        # recorded all the same; it just counts for nothing
             return False
         if topic == POVS:
-            self.pov_ids.update(int(pov) for pov in pov_ids)
+            moved = cloud.header.frame_id.startswith("end/")
+            (self.moved_ids if moved else self.pov_ids).update(int(pov) for pov in pov_ids)
         elif topic == ROWS:
             self.rows_by_frame.setdefault(cloud.header.frame_id, len(table))
         elif len(table) == 1:
             self.totals = {name: int(table[name][0])
-                           for name in ("points_of_view", "compensation_rows")}
+                           for name in ("points_of_view", "compensation_rows", "moved_povs")}
         self.complete = self.totals is not None and self.held == self.totals
         return self.complete
 

@@ -146,6 +146,45 @@ def test_the_agents_sets_are_the_found_then_the_implied_and_their_rows():
     assert len(off.implied_rows()) == 0
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_agent_withdraws_the_found_pairs_its_lattice_drops(seed):
+    # Every wrong pair leaves the sets the representation gets, few right
+    # ones do, the found pairs keep their order, and withdrawn_rows names
+    # exactly the pairs that left (the graph's agent withdraws those rows).
+    points = _square_patch(seed)
+    pairs, ids = _sets(points, 400, seed, max_pairs=12)
+    pairs, ids, wrong = _with_wrong_pairs(points, pairs, ids, 0.02, seed)
+    agent = _implying_agent(True, pairs, ids, len(points))
+    found_pairs, found_ids = agent._found_sets()
+    gone = agent.withdrawn_rows()
+    found_rows = np.column_stack([found_ids, found_pairs])
+    left = ~(found_rows[:, None, :] == gone[None, :, :]).all(axis=2).any(axis=1)
+    truly_wrong = {tuple(r) for r in np.column_stack([ids, pairs])[wrong].tolist()}
+    assert truly_wrong <= {tuple(r) for r in gone.tolist()}
+    assert len(gone) - len(truly_wrong) <= 0.05 * len(pairs)
+    all_pairs, all_ids = agent.equality_sets()
+    n_left = int(left.sum())
+    np.testing.assert_array_equal(all_pairs[:n_left], found_pairs[left])
+    np.testing.assert_array_equal(all_ids[:n_left], found_ids[left])
+    assert len(all_pairs) > n_left
+    assert not {tuple(r) for r in np.column_stack([all_ids, all_pairs]).tolist()} & truly_wrong
+
+
+def test_pairs_left_out_only_for_sliding_are_not_withdrawn():
+    # A chain that can slide keeps the lattice from the whole sets; the
+    # lattice of the POVs tied twice holds, and the chain's pairs, which
+    # disagree with nothing, stay with the representation.
+    points = _square_patch(2)
+    pairs, ids = _sets(points, 300, 2)
+    pairs, ids, n = _with_sliding_chain(points, pairs, ids)
+    found = lattice_equalities(pairs, ids, n, support=1)
+    assert found.placed == len(points) and not found.kept[-3:].any()
+    assert not found.withdrawn.any()
+    agent = _implying_agent(True, pairs, ids, n)
+    assert len(agent.withdrawn_rows()) == 0
+    np.testing.assert_array_equal(agent.equality_sets()[0][:len(pairs)], agent._found_sets()[0])
+
+
 def test_places_vouched_for_in_another_basis_join_the_lattice():
     from sensorispace_ros.core.naive.lattice_sets import with_vouched
 

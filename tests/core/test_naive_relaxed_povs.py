@@ -43,6 +43,17 @@ def test_a_moved_pov_stays_one_pose(relaxed_run):
     assert np.max(spread["after"] - spread["before"]) < 0.02 * world.spacing
 
 
+def test_the_moved_povs_are_named_and_a_second_call_moves_nothing_more(relaxed_run):
+    # What the graph's agent publishes at the end: the POVs moved, by id.
+    _, before, agent = relaxed_run
+    moved = np.flatnonzero(np.any(agent._store.samples != before, axis=(1, 2)))
+    np.testing.assert_array_equal(agent.relaxed_ids, moved)
+    samples = agent._store.samples.copy()
+    assert agent.relax_povs() == len(moved)
+    np.testing.assert_array_equal(agent.relaxed_ids, moved)
+    np.testing.assert_array_equal(agent._store.samples, samples)
+
+
 def test_without_the_option_nothing_is_kept_or_moved():
     world = build_world(0, {"grid_count": 6, "initial_center": "center"})
     wrapper = functools.partial(ImperfectSensing, seed=5, noise=1e-4)

@@ -55,10 +55,11 @@ def cloud(topic, table, frame_id, stamp=1, description=PAPER_BODY):
 
 
 def write_run(bag, with_poses=True, config=CONFIG, pose_first=False, description=None,
-              n_povs=P, done=True):
+              n_povs=P, done=True, withdrawn=()):
     """A recorded run; ``description``: the /body/description recorded (None:
     a bag recorded before bodies described themselves, of the paper's body);
-    ``n_povs`` of the P points of view published; ``done``: /agent/done recorded."""
+    ``n_povs`` of the P points of view published; ``done``: /agent/done recorded;
+    ``withdrawn``: the equality rows (indices) the agent withdraws at the end."""
     rng = np.random.default_rng(0)
     body = PAPER_BODY if description is None else description
     povs = rng.uniform(-np.pi, np.pi, size=(P, N, body.n_motors))
@@ -102,8 +103,14 @@ def write_run(bag, with_poses=True, config=CONFIG, pose_first=False, description
             writer.write("/agent/compensations", next(t), cloud(
                 "/agent/compensations", {"set": part[:, 0], "pov_from": IDS[part[:, 1]],
                                          "pov_to": IDS[part[:, 2]]}, f"change/{20 + k}"))
+        if len(withdrawn):
+            gone = rows[list(withdrawn)]
+            writer.write("/agent/compensations", next(t), cloud(
+                "/agent/compensations", {"set": gone[:, 0], "pov_from": IDS[gone[:, 1]],
+                                         "pov_to": IDS[gone[:, 2]]}, f"withdrawn/{P + 1}"))
         totals = {column: [7] for column in contracts.contract("/agent/done").columns}
-        totals.update({"changes": [P], "points_of_view": [n_povs], "compensation_rows": [6]})
+        totals.update({"changes": [P], "points_of_view": [n_povs],
+                       "compensation_rows": [6 + len(withdrawn)]})
         if done:
             writer.write("/agent/done", next(t), cloud("/agent/done", totals, f"end/{P + 1}"))
     return povs, rows
@@ -122,6 +129,15 @@ def test_agent_data_is_rebuilt_like_the_representation_node_does(tmp_path):
     assert (totals["changes"], totals["points_of_view"], totals["compensation_rows"]) == (P, P, 6)
     grid = {f: int(e["grid_index"]) for f, e in analyze.events(tmp_path / "bag").items()}
     assert grid == {f"change/{i + 1}": 100 + i for i in range(P)}
+
+
+def test_rows_the_agent_withdraws_are_left_out_of_the_bags_sets(tmp_path):
+    povs, rows = write_run(tmp_path / "bag", withdrawn=(1, 4))
+    data = analyze.agent_data(tmp_path / "bag")
+    left = np.delete(rows, [1, 4], axis=0)
+    assert data["rows_held"] == 8 == analyze.agent_totals(tmp_path / "bag")["compensation_rows"]
+    assert np.array_equal(data["pairs"], left[:, 1:])
+    assert np.array_equal(data["set_ids"], left[:, 0])
 
 
 @pytest.mark.parametrize("pose_first", [False, True], ids=["command_first", "pose_first"])

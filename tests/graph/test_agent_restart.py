@@ -290,7 +290,7 @@ def test_representation_ignores_re_published_povs_and_rows(context, tmp_path):
         node.on_done(_table("/agent/done", "end/3", changes=np.array([3]),
                             points_of_view=np.array([4]), compensation_rows=np.array([4]),
                             compensated=np.array([2]), queries=np.array([1]),
-                            calls=np.array([1])))
+                            calls=np.array([1]), moved_povs=np.array([0])))
         assert node.worker is not None, "duplicates were counted: totals never matched"
         assert node.duplicates == 3
         from sensorispace_ros.graph.nodes.representation import assemble_points_of_view
@@ -418,7 +418,8 @@ def test_agent_killed_twice_resumes_to_the_undisturbed_result(tmp_path, domain_i
     assert totals == {"changes": n_changes + 1, "points_of_view": len(offline.povs),
                       "compensation_rows": len(offline.pairs),
                       "compensated": reference.compensated,
-                      "queries": reference.queries_total, "calls": reference.calls_total}
+                      "queries": reference.queries_total, "calls": reference.calls_total,
+                      "moved_povs": 0}
     assert agent.agent.queries_by_stage == reference.queries_by_stage
     assert agent.agent.calls_by_stage == reference.calls_by_stage
     assert agent.agent.pov_queries == reference.pov_queries

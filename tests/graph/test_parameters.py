@@ -26,8 +26,6 @@ from shared import SMOKE
     ("recorder", "recorder.topicz:=[/agent/done]", "recorder.topicz: unknown parameter"),
     ("replay", "match_timeout_s:=0.0", "match_timeout_s: must be a finite number > 0.0, got 0.0"),
     ("replay", "match_grace_s:=-1.0", "match_grace_s: must be a finite number >= 0.0, got -1.0"),
-    # moves of published POVs are not carried by the topics
-    ("agent", "naive.relax_povs:=true", "naive.relax_povs: the graph does not carry POVs moved"),
     # only the simulated body checks the start against the simulated arm
     ("body", "arm.initial_motor_state:=[0.1,0.2]",
      "arm.initial_motor_state: must hold one value per joint (4: 3 links"),

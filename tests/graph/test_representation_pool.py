@@ -104,7 +104,7 @@ def test_the_pool_starts_late_or_as_soon_as_the_run_is_over(domain_id, tmp_path,
         node.on_done(messages.table_to_cloud(
             {"changes": np.array([3]), "points_of_view": np.array([4]),
              "compensation_rows": np.array([4]), "compensated": np.array([2]),
-             "queries": np.array([1]), "calls": np.array([1])},
+             "queries": np.array([1]), "calls": np.array([1]), "moved_povs": np.array([0])},
             contracts.contract("/agent/done").columns, messages.make_header("end/3")))
         node.chain_pool_starter.join(timeout=120)
         assert node.chain_pool is not None, "the pool did not start at /agent/done"

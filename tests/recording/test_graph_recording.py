@@ -109,7 +109,7 @@ def test_graph_recording_drops_nothing(recorded_tiny_run):
     assert sorted(set(settled)) == list(range(changes + 1))
     data = analyze.agent_data(bag)
     assert len(data["ids"]) == totals["points_of_view"]
-    assert len(data["pairs"]) == totals["compensation_rows"]
+    assert data["rows_held"] == totals["compensation_rows"]
     # every POV's first motor state was commanded, and its answer recorded
     _, recorded = analyze.true_poses(bag, data["povs"])
     assert recorded == len(data["ids"])

@@ -35,10 +35,10 @@ def _rows(frame_id: str, n: int) -> bytes:
                                  "pov_to": np.ones(n)})
 
 
-def _done(povs: int, rows: int) -> bytes:
+def _done(povs: int, rows: int, moved: int = 0) -> bytes:
     return _cdr(DONE, "end/9", {"changes": [9], "points_of_view": [povs],
                                 "compensation_rows": [rows], "compensated": [1],
-                                "queries": [1], "calls": [1]})
+                                "queries": [1], "calls": [1], "moved_povs": [moved]})
 
 
 def test_complete_only_once_povs_and_rows_add_up_to_the_agents_totals():
@@ -48,7 +48,7 @@ def test_complete_only_once_povs_and_rows_add_up_to_the_agents_totals():
     assert not run.add(ROWS, _rows("change/2", 2))
     assert not run.add(POVS, _povs("change/1", [0, 1]))   # a re-sent copy counts once
     assert not run.add(ROWS, _rows("change/2", 2))
-    assert run.held == {"points_of_view": 2, "compensation_rows": 2}
+    assert run.held == {"points_of_view": 2, "compensation_rows": 2, "moved_povs": 0}
     assert not run.add(POVS, _povs("change/3", [2]))
     assert run.add(ROWS, _rows("change/4", 3))            # now 3 POVs, 5 rows
     assert run.complete and run.held == run.totals
@@ -60,7 +60,18 @@ def test_the_povs_of_a_body_of_any_size_are_counted():
     assert not run.add(DONE, _done(povs=3, rows=0))
     assert not run.add(POVS, _povs("change/1", [0], joints=2))
     assert run.add(POVS, _povs("change/2", [1, 2], joints=2))
-    assert run.held == {"points_of_view": 3, "compensation_rows": 0}
+    assert run.held == {"points_of_view": 3, "compensation_rows": 0, "moved_povs": 0}
+
+
+def test_povs_moved_at_the_end_count_apart_and_withdrawn_rows_count_as_rows():
+    run = RunCompleteness()
+    assert not run.add(DONE, _done(povs=3, rows=4, moved=2))
+    assert not run.add(POVS, _povs("change/1", [0, 1, 2]))
+    assert not run.add(ROWS, _rows("change/2", 3))
+    assert not run.add(ROWS, _rows("withdrawn/9", 1))
+    assert run.held == {"points_of_view": 3, "compensation_rows": 4, "moved_povs": 0}
+    assert run.add(POVS, _povs("end/9", [0, 2]))          # the moved POVs, not new ones
+    assert run.held == {"points_of_view": 3, "compensation_rows": 4, "moved_povs": 2}
 
 
 def test_without_the_agents_totals_nothing_is_complete():
@@ -74,7 +85,8 @@ def test_without_the_agents_totals_nothing_is_complete():
 def test_an_undecodable_message_counts_for_nothing():
     run = RunCompleteness()
     assert not run.add(POVS, b"\x00\x01\x00\x00 not a cloud")
-    assert run.undecodable == 1 and run.held == {"points_of_view": 0, "compensation_rows": 0}
+    assert run.undecodable == 1 and run.held == {"points_of_view": 0, "compensation_rows": 0,
+                                                     "moved_povs": 0}
     assert run.add(DONE, _done(povs=0, rows=0))               # an empty run is complete
 
 

@@ -19,8 +19,10 @@ them: ``implied_sets`` gives one set per step, the pairs of POVs that
 enough sets tie (a POV whose place rests on one or two pairs may rest
 on a wrong one), and those fewer tie where motor space agrees with their
 place (``motor_agreement``). ``ImpliedSets``, a mixin of the agents, hands the
-representation the found sets and then these (in the graph the agent
-publishes them at the end of its run, so both regularise with the same sets).
+representation the found sets less the pairs the trimming dropped, then
+these (in the graph the agent publishes them at the end of its run and
+withdraws the dropped pairs it had published, so both regularise with the
+same sets).
 """
 from __future__ import annotations
 
@@ -120,6 +122,14 @@ def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
     ``(None, kept)`` where no lattice holds. Only a plane's lattice counts:
     one wrong pair left, or a chain of POVs that can slide, leaves one
     direction null, whose line is a lattice too."""
+    lattice, kept, _ = _trimmed_from_start(pairs, set_ids, n_povs, max_dim)
+    return lattice, kept
+
+
+def _trimmed_from_start(pairs, set_ids, n_povs: int, max_dim: int):
+    """``trimmed_lattice`` and the pairs its trimming started from: every
+    pair, or those ``tied_twice`` keeps; ``start & ~kept`` are the pairs
+    that disagree with the lattice."""
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
     tied = tied_twice(pairs, set_ids, n_povs)
@@ -128,15 +138,15 @@ def trimmed_lattice(pairs, set_ids, n_povs: int, max_dim: int = 3):
     for start in starts:
         exact = lattice_coordinates(pairs[start], set_ids[start], n_povs)
         if _a_plane(exact):
-            return exact, start
+            return exact, start, start
         for choose in EMBEDDINGS:
             kept = _trimmed_by(pairs, set_ids, n_povs, start.copy(), choose, max_dim)
             if np.count_nonzero(start & ~kept) > MAX_DROPPED * len(pairs):
                 continue
             lattice = lattice_coordinates(pairs[kept], set_ids[kept], n_povs)
             if _a_plane(lattice):
-                return lattice, kept
-    return None, tied
+                return lattice, kept, start
+    return None, tied, tied
 
 
 def _a_plane(lattice: Lattice | None) -> bool:
@@ -197,14 +207,16 @@ def implied_sets(lattice: Lattice, usable: np.ndarray):
 @dataclass
 class LatticeSets:
     """What ``lattice_equalities`` found: the sets ``pairs`` / ``set_ids`` the
-    lattice implies, the POVs it ``placed`` and took (``usable``), and which
-    found pairs the trimming ``kept`` (None without found pairs)."""
+    lattice implies, the POVs it ``placed`` and took (``usable``), which
+    found pairs the trimming ``kept`` (None without found pairs), and which
+    it ``withdrawn`` as disagreeing with the lattice (None without a lattice)."""
 
     pairs: np.ndarray
     set_ids: np.ndarray
     placed: int = 0
     usable: int = 0
     kept: np.ndarray | None = None
+    withdrawn: np.ndarray | None = None
 
     @classmethod
     def none(cls, kept=None) -> "LatticeSets":
@@ -225,7 +237,7 @@ def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
     set_ids = np.asarray(set_ids, dtype=int).reshape(-1)
     if not len(pairs):
         return LatticeSets.none()
-    lattice, kept = trimmed_lattice(pairs, set_ids, n_povs)
+    lattice, kept, start = _trimmed_from_start(pairs, set_ids, n_povs, max_dim=3)
     if lattice is None:
         return LatticeSets.none(kept)
     tied = pair_support(pairs[kept], set_ids[kept], n_povs)
@@ -237,7 +249,8 @@ def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
         lattice, usable = with_vouched(lattice, usable, *vouched)
     implied, implied_ids = implied_sets(lattice, usable)
     return LatticeSets(implied, implied_ids, placed=int(np.count_nonzero(lattice.placed)),
-                       usable=int(np.count_nonzero(usable & lattice.placed)), kept=kept)
+                       usable=int(np.count_nonzero(usable & lattice.placed)), kept=kept,
+                       withdrawn=start & ~kept)
 
 
 def with_vouched(lattice: Lattice, usable: np.ndarray, ij: np.ndarray, placed: np.ndarray):
@@ -271,20 +284,34 @@ class ImpliedSets:
 
     def equality_sets(self):
         """``(pairs (K, 2), set_ids (K,))`` found so far (exploration sweeps,
-        then the equality pass if one ran), then, with ``lattice_sets``, the
-        sets their lattice implies (``lattice_sets.lattice_equalities``),
-        numbered after them: for ``core.regularize``."""
+        then the equality pass if one ran) but those their lattice's trimming
+        withdraws, then, with ``lattice_sets``, the sets the lattice implies
+        (``lattice_sets.lattice_equalities``), numbered after them: for
+        ``core.regularize``."""
         pairs, set_ids = found = self._found_sets()
+        keep = ~self._withdrawn(found)
         implied, implied_ids = self._implied_after(found)
-        if not len(implied):
-            return pairs, set_ids
-        return np.concatenate([pairs, implied]), np.concatenate([set_ids, implied_ids])
+        return (np.concatenate([pairs[keep], implied]).astype(pairs.dtype, copy=False),
+                np.concatenate([set_ids[keep], implied_ids]).astype(set_ids.dtype, copy=False))
 
     def implied_rows(self) -> np.ndarray:
         """Rows ``(set id, from, to)`` of the lattice's sets as ``equality_sets``
         numbers them: what the graph's agent publishes at the end of its run."""
         implied, implied_ids = self._implied_after(self._found_sets())
         return np.column_stack([implied_ids, implied]).astype(np.int64)
+
+    def withdrawn_rows(self) -> np.ndarray:
+        """Rows ``(set id, from, to)`` of the found pairs the lattice's trimming
+        withdraws: the graph's agent published them as it found them, and
+        withdraws them at the end of its run."""
+        pairs, set_ids = found = self._found_sets()
+        gone = self._withdrawn(found)
+        return np.column_stack([set_ids[gone], pairs[gone]]).astype(np.int64).reshape(-1, 3)
+
+    def _withdrawn(self, found) -> np.ndarray:
+        """``(K,)`` bool over the ``found`` pairs: those the lattice withdraws."""
+        withdrawn = self.lattice_sets(found).withdrawn
+        return np.zeros(len(found[0]), dtype=bool) if withdrawn is None else withdrawn
 
     def _implied_after(self, found):
         """The lattice's sets of the ``found`` sets, numbered after them."""

@@ -206,10 +206,13 @@ class RelaxedPOVs:
         with ``pose_rank`` degrees allows of noise, and is at most half the
         POVs' separation (beyond, it would not correct a pose error but put
         the POV on another pose); its loop by ``neighbour_transport``.
-        Returns the POVs moved."""
-        evidence, self.povs_relaxed = getattr(self, "_match_evidence", None), 0
-        if evidence is None:            # kept only with relax_povs (_note_verified)
-            return 0
+        Returns how many POVs moved; ``relaxed_ids`` are which (a second call
+        moves nothing more and returns the same)."""
+        evidence = getattr(self, "_match_evidence", None)
+        if evidence is None:            # kept only with relax_povs (_note_verified), or moved
+            self.relaxed_ids = getattr(self, "relaxed_ids", np.zeros(0, dtype=np.int64))
+            self.povs_relaxed = len(self.relaxed_ids)
+            return self.povs_relaxed
         samples = self._store.samples.copy()
         threshold = chi2.ppf(self.params.noise_confidence, self.structure.pose_rank)
         moves, justified = relaxed_corrections(evidence, *samples.shape[::2], threshold)
@@ -228,5 +231,7 @@ class RelaxedPOVs:
             if shift is not None:
                 self._store.replace(int(pov), samples[pov] + shift)
         self._match_evidence = None
-        self.povs_relaxed = sum(shift is not None for shift in shifts.values())
+        self.relaxed_ids = np.array(sorted(int(pov) for pov, shift in shifts.items()
+                                           if shift is not None), dtype=np.int64)
+        self.povs_relaxed = len(self.relaxed_ids)
         return self.povs_relaxed

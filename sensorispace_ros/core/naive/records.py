@@ -79,7 +79,8 @@ class NaiveAgentRecords:
     the agent's measure of its body (``STRUCTURE_FIELDS``; ``pose_rank`` -1
     before ``start``); ``ends_between_loops`` and ``ends_off_manifold`` the
     search ends it refused under noise, all and those off its loops'
-    manifold (``SEARCH_FIELDS``, ``core.naive.known_loops``).
+    manifold (``SEARCH_FIELDS``, ``core.naive.known_loops``); ``povs_relaxed``
+    the POVs it moved at the end (``core.naive.pov_relaxation``).
     """
 
     povs: np.ndarray
@@ -110,6 +111,7 @@ class NaiveAgentRecords:
     noise_quantum: float = 0.0
     ends_between_loops: int = 0
     ends_off_manifold: int = 0
+    povs_relaxed: int = 0
 
     @classmethod
     def from_agent(cls, agent) -> "NaiveAgentRecords":
@@ -134,6 +136,7 @@ class NaiveAgentRecords:
             compensation_queries=int(sum(agent.compensation_queries)),
             queries_total=int(agent.queries_total), calls_total=int(agent.calls_total),
             queries_by_stage=agent.queries_by_stage, calls_by_stage=agent.calls_by_stage,
+            povs_relaxed=int(getattr(agent, "povs_relaxed", 0)),
             **structure_fields(agent), **search_fields(agent))
 
     def to_arrays(self) -> dict:

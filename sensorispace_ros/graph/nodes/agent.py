@@ -227,7 +227,7 @@ class AgentNode(AgentRestart, AgentClock, GraphNode):
         records written, what the agent found said; the node exits unless
         ``graph.exit_when_done`` is false."""
         self.run_over = True
-        self.n_rows += agent_outputs.publish_implied_sets(self.agent, self.publish_table, header)
+        self.n_rows += agent_outputs.publish_end_of_run(self.agent, self.publish_table, header)
         counters, unknown = agent_outputs.stage_counters(self.agent)
         if unknown:
             self.get_logger().error(f"stages {unknown} have no /agent/stage_counters column")

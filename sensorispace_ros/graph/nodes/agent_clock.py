@@ -23,7 +23,7 @@ from types import SimpleNamespace
 import numpy as np
 from std_msgs.msg import UInt64
 
-from sensorispace_ros import config, contracts, messages
+from sensorispace_ros import contracts, messages
 from sensorispace_ros.core.naive.params import NaiveParams
 from sensorispace_ros.graph import agent_outputs
 from sensorispace_ros.graph.clocked_exploration import ClockOverTopics, explore_over_topics
@@ -38,9 +38,6 @@ class AgentClock:
     """What ``AgentNode`` does when ``world.clock`` is rows or wall."""
 
     def init_clock(self) -> None:
-        if self.cfg["naive"]["relax_povs"]:     # on a clock, config.validate refuses it first
-            raise config.ConfigError("naive.relax_povs: the graph does not carry POVs moved after "
-                                     "they were published; run it offline (sensorispace reproduce)")
         self.clocked = self.cfg["world"]["clock"] != "agent"
         self.clock_view: ClockOverTopics | None = None
         self.clock_run = None          # the driver, kept for the evaluator (tests)

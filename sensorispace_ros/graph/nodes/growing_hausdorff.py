@@ -65,6 +65,13 @@ class GrowingHausdorff:
         self.hausdorff_failed = True
         self.get_logger().warning(f"the Hausdorff matrix will be computed at the end: {reason}")
 
+    def drop_grown_hausdorff(self, reason: str) -> None:
+        """The grown matrix no longer holds the POVs as they are, as expected
+        (``reason``): computed at the end."""
+        if not self.hausdorff_failed:
+            self.hausdorff_failed = True
+            self.get_logger().info(f"the Hausdorff matrix will be computed at the end: {reason}")
+
     def grown_hausdorff(self, ids: np.ndarray) -> np.ndarray | None:
         """The grown matrix for POVs ``ids`` (sorted), once every add is done;
         None if it was given up or does not hold exactly those POVs."""

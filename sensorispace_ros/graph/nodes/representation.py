@@ -41,7 +41,7 @@ from sensorispace_ros.graph.framework import GraphNode, run_node
 from sensorispace_ros.graph.nodes.growing_hausdorff import GrowingHausdorff
 from sensorispace_ros.protocol import EQUALITY_ROW_KINDS, RESULT_FILE, run_directory
 from sensorispace_ros.offline.pov_assembly import (  # noqa: F401  (re-exported)
-    MIN_POVS, assemble_points_of_view, embedding_arrays, equality_pairs)
+    MIN_POVS, assemble_points_of_view, embedding_arrays, equality_pairs, net_equality_rows)
 
 CHAIN_POOL_DELAY_S = 3.0
 
@@ -60,6 +60,8 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
         contracts.create_subscription(self, "/agent/done", self.on_done)
         self.pov_tables: dict[str, np.ndarray] = {}
         self.pov_ids: set[int] = set()
+        self.moved_tables: dict[str, np.ndarray] = {}   # end/<k>: POVs moved at the end
+        self.moved_ids: set[int] = set()
         self.row_tables: dict[str, np.ndarray] = {}
         self.duplicates = 0             # messages (or POVs) already held, ignored
         self.totals: dict | None = None
@@ -109,8 +111,12 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
         return None if decoded is None else decoded[1]
 
     def on_points_of_view(self, msg) -> None:
-        table = self._decode("/agent/points_of_view", msg)
-        if table is None or not len(table):
+        decoded = self.decode("/agent/points_of_view", msg, ("change", "end"), as_table=True)
+        if decoded is None or not len(decoded[1]):
+            return
+        (kind, _), table = decoded
+        if kind == "end":
+            self.on_moved_povs(msg.header.frame_id, table)
             return
         held = np.isin(table["pov"], list(self.pov_ids))
         if held.any():
@@ -124,6 +130,17 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
         self.pov_tables[key] = table
         self.pov_ids.update(int(pov) for pov in np.unique(table["pov"]))
         self.grow_hausdorff(table)
+        self.maybe_start()
+
+    def on_moved_povs(self, frame_id: str, table: np.ndarray) -> None:
+        """POVs the agent moved at the end of its run: their samples replace
+        those held (``assemble_points_of_view``'s ``moved``)."""
+        if frame_id in self.moved_tables:
+            self.duplicates += 1
+            return
+        self.moved_tables[frame_id] = table
+        self.moved_ids.update(int(pov) for pov in np.unique(table["pov"]))
+        self.drop_grown_hausdorff("points of view moved at the end of the run")
         self.maybe_start()
 
     def on_compensations(self, msg) -> None:
@@ -152,9 +169,10 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
     def maybe_start(self) -> None:
         if self.totals is None or self.worker is not None or self.description is None:
             return
-        n_povs = len(self.pov_ids)
-        n_rows = sum(len(t) for t in self.row_tables.values())
-        if (n_povs, n_rows) != (self.totals["points_of_view"], self.totals["compensation_rows"]):
+        held = (len(self.pov_ids), sum(len(t) for t in self.row_tables.values()),
+                len(self.moved_ids))
+        if held != (self.totals["points_of_view"], self.totals["compensation_rows"],
+                    self.totals.get("moved_povs", 0)):
             return                          # still in flight on another topic
         self.worker = threading.Thread(target=self.build, name="representation", daemon=True)
         self.worker.start()
@@ -162,9 +180,10 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
     def build(self) -> None:
         try:
             ids, povs = assemble_points_of_view(list(self.pov_tables.values()),
-                                                self.description.n_motors)
-            rows = (np.concatenate(list(self.row_tables.values())) if self.row_tables
-                    else np.zeros(0, dtype=messages.record_dtype(self.columns["/agent/compensations"])))
+                                                self.description.n_motors,
+                                                moved=list(self.moved_tables.values()))
+            rows = net_equality_rows(self.row_tables,
+                                     messages.record_dtype(self.columns["/agent/compensations"]))
             pairs, set_ids = equality_pairs(ids, rows)
             # Same array names as evaluation.run_files.run_arrays, so evaluation code is shared.
             arrays = {"pov_ids": ids, "povs": povs, "pairs": pairs, "set_ids": set_ids,

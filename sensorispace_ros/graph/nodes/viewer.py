@@ -34,7 +34,7 @@ from sensor_msgs.msg import JointState
 from sensorispace_ros import config, contracts, messages
 from sensorispace_ros.core import scene
 from sensorispace_ros.graph.framework import GraphNode, build_world, run_node
-from sensorispace_ros.protocol import EQUALITY_ROW_KINDS
+from sensorispace_ros.protocol import EQUALITY_ROW_KINDS, WITHDRAWN
 
 VIEW_PERIOD_S = 0.1
 # The body's topics carry ~63,000 messages each in a paper run; the viewer wants
@@ -137,7 +137,8 @@ class ViewerNode(GraphNode):
         self.draw(self.scene.set_motor_state, motor_state)
 
     def on_points_of_view(self, msg) -> None:
-        decoded = self.decode("/agent/points_of_view", msg, ("change",), as_table=True)
+        # end/<k>: POVs moved at the end of the run, drawn where they are now
+        decoded = self.decode("/agent/points_of_view", msg, ("change", "end"), as_table=True)
         if decoded is None:
             return
         table = decoded[1]
@@ -163,7 +164,8 @@ class ViewerNode(GraphNode):
         if decoded is None or msg.header.frame_id in self.compensation_frames:
             return                          # a re-delivered reaction counts once
         self.compensation_frames.add(msg.header.frame_id)
-        self.equality_rows += len(decoded[1])
+        (kind, _), table = decoded
+        self.equality_rows += -len(table) if kind == WITHDRAWN else len(table)
 
     def on_stage_counters(self, msg) -> None:
         decoded = self.decode("/agent/stage_counters", msg, ("end",), as_table=True)
