@@ -258,8 +258,6 @@ def validate_config(cfg: dict, simulated_body: bool = True) -> dict:
         raise ConfigError("world.lights.min_in_view: must be <= world.lights.count "
                           f"({lights['count']}), got {lights['min_in_view']}")
     _check_naive_relations(out["naive"])
-    if out["naive"]["relax_povs"] and out["world"]["clock"] != "agent":
-        raise ConfigError(f"naive.relax_povs: only where the world waits for the agent (world.clock agent), got world.clock {out['world']['clock']!r}")  # noqa: E501
     _check_body(out, simulated_body)
     return out
 

@@ -199,10 +199,6 @@ def test_a_bad_naive_value_in_a_file_is_named(tmp_path):
 def test_naive_cross_field_constraints():
     with pytest.raises(ConfigError, match=r"^naive\.pov_initial_step: must lie in "):
         load_config(overrides={"naive.pov_initial_step": 0.2})
-    with pytest.raises(ConfigError, match=r"^naive\.relax_povs: only where the world waits "
-                                          r"for the agent \(world\.clock agent\), got world\.clock 'rows'$"):
-        load_config(overrides={"naive.relax_povs": True, "world.clock": "rows"})
-    assert load_config(overrides={"naive.relax_povs": True})["naive"]["relax_povs"] is True
     with pytest.raises(ConfigError, match=r"^naive\.match_tol: must be < naive\.match_separation"):
         load_config(overrides={"naive.match_tol": 1e-3})
 

@@ -57,6 +57,26 @@ def test_the_moved_povs_are_named_and_a_second_call_moves_nothing_more(relaxed_r
 def test_without_the_option_nothing_is_kept_or_moved():
     world = build_world(0, {"grid_count": 6, "initial_center": "center"})
     wrapper = functools.partial(ImperfectSensing, seed=5, noise=1e-4)
-    agent = explore_naive(world, NaiveParams(), body_wrapper=wrapper).agent
+    agent = explore_naive(world, NaiveParams(relax_povs=False), body_wrapper=wrapper).agent
     assert getattr(agent, "_match_evidence", None) is None
     assert agent.relax_povs() == 0
+
+
+def test_on_a_clock_the_agent_keeps_nothing_to_move_its_povs():
+    # The option is on by default; a world on its own clock leaves the POVs as
+    # found, so the clocked agent keeps no match evidence even where the
+    # repeats spread (the lockstep agent would keep this snapshot's matches).
+    from types import SimpleNamespace
+
+    from sensorispace_ros.core.naive.agent import NaiveAgent
+    from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
+    sensed = (np.zeros((1, 6)), np.zeros((1, 6, 4)), np.ones(1, dtype=bool))
+    snap = SimpleNamespace(event=1, sensations=np.zeros((3, 6)))
+    args = (snap, np.array([0]), np.array([2]), sensed, np.array([4]), np.array([4]),
+            np.ones(1, dtype=bool))
+    for kind, keeps in ((NaiveAgent, True), (ClockedAgent, False)):
+        agent = kind.__new__(kind)
+        agent.params, agent._repeats, agent._event = NaiveParams(), 3, 5
+        agent.structure, agent._discrepancy = SimpleNamespace(noise=1e-4), 0.0
+        agent._note_verified(*args)
+        assert (getattr(agent, "_match_evidence", None) is not None) is keeps, kind

@@ -78,6 +78,10 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, HoleTargets
     # would join rows of the new world in one call: only whole calls are recalled.
     _partial_recall = False
 
+    def _note_verified(self, *verified) -> None:
+        """On a clock the POVs stay as found: nothing is kept to move them
+        (``naive.relax_povs`` applies where the world waits)."""
+
     def __init__(self, body, params: NaiveParams | None = None, sweep_budget: int = 64):
         self._tripwire = Tripwire(body)
         super().__init__(self._tripwire, params)
