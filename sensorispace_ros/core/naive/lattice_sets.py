@@ -328,11 +328,11 @@ class ImpliedSets:
         """The sets the lattice of the found sets (``found``, else
         ``_found_sets()``) implies, none without ``lattice_sets``; measured once
         for the sets and POVs known now."""
-        key = (self._sets.n_sets, self._sets.n_pairs, self._store.count)
+        found = self._found_sets() if found is None else found
+        key = (self._sets.n_sets, self._sets.n_pairs, self._store.count, len(found[0]))
         cached = getattr(self, "_lattice_cache", None)
         if cached is None or cached[0] != key:
             if self.params.lattice_sets:
-                found = self._found_sets() if found is None else found
                 implied = lattice_equalities(*found, self._store.count,
                                              self.params.lattice_support, self._vouched_places(),
                                              self._store.samples)
