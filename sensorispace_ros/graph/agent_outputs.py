@@ -39,8 +39,7 @@ def reaction_tables(agent, reaction) -> dict[str, dict]:
             **{f"a{j}": anchor[:, j] for j in range(anchor.shape[1])}}
     rows = np.asarray(reaction.equality_rows, dtype=np.int64).reshape(-1, 3)
     if len(rows):
-        tables["/agent/compensations"] = {"set": rows[:, 0], "pov_from": rows[:, 1],
-                                          "pov_to": rows[:, 2]}
+        tables["/agent/compensations"] = equality_table(rows)
     return tables
 
 
@@ -51,6 +50,11 @@ def pov_table(ids, povs) -> dict:
     return {"pov": np.repeat(np.asarray(ids, dtype=np.int64), n_samples),
             "sample": np.tile(np.arange(n_samples), len(ids)),
             **{f"m{j}": povs[:, :, j].ravel() for j in range(n_motors)}}
+
+
+def equality_table(rows) -> dict:
+    """``/agent/compensations``' columns for rows ``(set id, from, to)`` ``(K, 3)``."""
+    return {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]}
 
 
 def publish_end_of_run(agent, publish, header) -> int:
@@ -70,9 +74,7 @@ def publish_end_of_run(agent, publish, header) -> int:
     for rows, rows_header in ((agent.implied_rows(), header),
                               (agent.withdrawn_rows(), withdrawn_header)):
         if len(rows):
-            publish("/agent/compensations",
-                    {"set": rows[:, 0], "pov_from": rows[:, 1], "pov_to": rows[:, 2]},
-                    rows_header)
+            publish("/agent/compensations", equality_table(rows), rows_header)
         published += len(rows)
     return published
 

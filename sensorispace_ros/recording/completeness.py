@@ -54,6 +54,7 @@ class RunCompleteness:
         if topic not in TOPICS or self.complete:
             return False
         from sensorispace_ros import contracts, messages  # the recorder's process has them loaded
+        from sensorispace_ros.protocol import parse_frame
         try:
             cloud = messages.cloud_from_cdr(cdr)
             if topic == POVS:
@@ -66,7 +67,7 @@ class RunCompleteness:
             self.undecodable += 1        # recorded all the same; it just counts for nothing
             return False
         if topic == POVS:
-            moved = cloud.header.frame_id.startswith("end/")
+            moved = (parse_frame(cloud.header.frame_id) or ("",))[0] == "end"
             (self.moved_ids if moved else self.pov_ids).update(int(pov) for pov in pov_ids)
         elif topic == ROWS:
             self.rows_by_frame.setdefault(cloud.header.frame_id, len(table))

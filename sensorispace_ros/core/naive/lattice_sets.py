@@ -291,8 +291,7 @@ class ImpliedSets:
         pairs, set_ids = found = self._found_sets()
         keep = ~self._withdrawn(found)
         implied, implied_ids = self._implied_after(found)
-        return (np.concatenate([pairs[keep], implied]).astype(pairs.dtype, copy=False),
-                np.concatenate([set_ids[keep], implied_ids]).astype(set_ids.dtype, copy=False))
+        return np.concatenate([pairs[keep], implied]), np.concatenate([set_ids[keep], implied_ids])
 
     def implied_rows(self) -> np.ndarray:
         """Rows ``(set id, from, to)`` of the lattice's sets as ``equality_sets``

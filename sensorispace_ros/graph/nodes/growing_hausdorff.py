@@ -61,16 +61,14 @@ class GrowingHausdorff:
         except Exception as exc:            # computed at the end instead
             self.give_up_hausdorff(f"{type(exc).__name__}: {exc}")
 
-    def give_up_hausdorff(self, reason: str) -> None:
+    def give_up_hausdorff(self, reason: str, expected: bool = False) -> None:
+        """Compute the matrix at the end instead, for ``reason``: a warning, or,
+        where ``expected`` (the POVs moved at the end of the run), said once."""
+        if expected and self.hausdorff_failed:
+            return
         self.hausdorff_failed = True
-        self.get_logger().warning(f"the Hausdorff matrix will be computed at the end: {reason}")
-
-    def drop_grown_hausdorff(self, reason: str) -> None:
-        """The grown matrix no longer holds the POVs as they are, as expected
-        (``reason``): computed at the end."""
-        if not self.hausdorff_failed:
-            self.hausdorff_failed = True
-            self.get_logger().info(f"the Hausdorff matrix will be computed at the end: {reason}")
+        log = self.get_logger().info if expected else self.get_logger().warning
+        log(f"the Hausdorff matrix will be computed at the end: {reason}")
 
     def grown_hausdorff(self, ids: np.ndarray) -> np.ndarray | None:
         """The grown matrix for POVs ``ids`` (sorted), once every add is done;

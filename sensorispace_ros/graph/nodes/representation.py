@@ -140,7 +140,7 @@ class RepresentationNode(GrowingHausdorff, GraphNode):
             return
         self.moved_tables[frame_id] = table
         self.moved_ids.update(int(pov) for pov in np.unique(table["pov"]))
-        self.drop_grown_hausdorff("points of view moved at the end of the run")
+        self.give_up_hausdorff("points of view moved at the end of the run", expected=True)
         self.maybe_start()
 
     def on_compensations(self, msg) -> None:
