@@ -9,7 +9,7 @@ import pytest
 from sensorispace_ros.core.naive.confirm import confirm_compensations, finite_mean
 from sensorispace_ros.core.naive.equality_sets import match_sensations
 from sensorispace_ros.core.naive.jacobians import (AveragedStep, SymmetricStep, jacobian_stencil,
-    sensory_jacobian, stencil_rows)
+    sensory_jacobian, stencil_bend, stencil_rows)
 
 from imperfect_bodies import ImperfectSensing
 
@@ -345,3 +345,38 @@ def test_a_repaired_row_whose_sensation_is_lost_keeps_its_state_and_fails():
     np.testing.assert_allclose(flat[[0, 2]], [[0.1, 0.2], [0.9, -0.8]], atol=1e-6)
     assert all(np.isfinite(rows).all() for rows in asked)
     assert calls == len(sensed) and 1 in sensed[0]
+
+
+class StepBody:
+    """Six outputs linear in three joints, the first output jumping by 1 where
+    the first joint passes 0.03."""
+
+    n_motors, n_sensors = 3, 6
+
+    def sense(self, motor_states):
+        m = np.asarray(motor_states, dtype=float)
+        out = 0.4 + m @ QuadraticBody.A.T
+        out[:, 0] += (m[:, 0] > 0.03)
+        return out
+
+
+@pytest.mark.parametrize("step", [SymmetricStep(0.05), AveragedStep(0.05, 3)],
+                         ids=["symmetric", "averaged"])
+def test_a_stencil_bends_across_a_jump_and_runs_straight_elsewhere(step):
+    states = np.array([[0.0, 0.0, 0.0], [-0.2, 0.1, 0.0]])
+
+    def bend(body):
+        answer = np.asarray(body.sense(jacobian_stencil(states, step)))
+        return stencil_bend(answer.reshape(len(states), stencil_rows(3, step), -1), step)
+
+    # Across the jump one side does not change along the first joint's
+    # output: the bend nears 1; a linear body runs straight, a quadratic one
+    # bends by its curvature alone.
+    assert bend(StepBody())[0] > 0.8
+    assert bend(StepBody())[1] < 1e-9
+    assert np.all(bend(QuadraticBody()) < 0.5)
+
+
+def test_a_forward_stencil_has_no_side_to_bend():
+    answer = np.asarray(StepBody().sense(jacobian_stencil(np.zeros((1, 3)), 0.05)))
+    assert stencil_bend(answer.reshape(1, 4, -1), 0.05).tolist() == [0.0]

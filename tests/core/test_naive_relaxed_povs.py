@@ -70,13 +70,34 @@ def test_on_a_clock_the_agent_keeps_nothing_to_move_its_povs():
 
     from sensorispace_ros.core.naive.agent import NaiveAgent
     from sensorispace_ros.core.naive.clocked_agent import ClockedAgent
-    sensed = (np.zeros((1, 6)), np.zeros((1, 6, 4)), np.ones(1, dtype=bool))
+    sensed = (np.zeros((1, 6)), np.zeros((1, 6, 4)), np.ones(1, dtype=bool), np.zeros(1))
     snap = SimpleNamespace(event=1, sensations=np.zeros((3, 6)))
-    args = (snap, np.array([0]), np.array([2]), sensed, np.array([4]), np.array([4]),
-            np.ones(1, dtype=bool))
+    args = (snap, np.array([0]), np.array([2]), sensed, 4, np.ones(1, dtype=bool))
     for kind, keeps in ((NaiveAgent, True), (ClockedAgent, False)):
         agent = kind.__new__(kind)
         agent.params, agent._repeats, agent._event = NaiveParams(), 3, 5
         agent.structure, agent._discrepancy = SimpleNamespace(noise=1e-4), 0.0
         agent._note_verified(*args)
         assert (getattr(agent, "_match_evidence", None) is not None) is keeps, kind
+
+
+def test_a_pov_whose_stencil_bends_ties_no_pair():
+    # Two sides of one match: the later side's stencil straddles a jump
+    # (bend 1), so its Jacobian is no slope of its pose and the pair is left out.
+    from types import SimpleNamespace
+
+    from sensorispace_ros.core.naive.agent import NaiveAgent
+    agent = NaiveAgent.__new__(NaiveAgent)
+    agent.params, agent._repeats = NaiveParams(), 3
+    agent.structure, agent._discrepancy = SimpleNamespace(noise=1e-4), 0.0
+    jac, whole = np.ones((1, 6, 4)), np.ones(1, dtype=bool)
+    for bend, pairs in ((0.1, 1), (1.0, 0)):
+        agent._match_evidence = None
+        agent._event = 1
+        agent._note_verified(SimpleNamespace(event=0), np.array([0]), np.array([1]),
+                             (np.zeros((1, 6)), jac, whole, np.zeros(1)), 3, ~whole)
+        agent._event = 2
+        agent._note_verified(SimpleNamespace(event=1), np.array([1]), np.array([0]),
+                             (np.ones((1, 6)), jac, whole, np.full(1, bend)), 3, whole)
+        found = agent._match_evidence.pairs()
+        assert (0 if found is None else len(found[0])) == pairs, bend

@@ -351,7 +351,7 @@ class SnapshotMatching:
                 max_step=_HIT_SHARE * error, min_singular=self._pinning_floor(),
                 discrepancy=self._discrepancy, sensed=sensed)
             good = precise | (located & (self._repeats > 1))
-            self._note_verified(snap, before, after, sensed[0], counts, repeats, good)
+            self._note_verified(snap, before, after, sensed[0], repeats, good)
             kept.append((before[good], after[good]))
         return kept
 

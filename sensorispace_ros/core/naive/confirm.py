@@ -25,7 +25,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from sensorispace_ros.core.naive.jacobians import (SymmetricStep, halved, jacobian_stencil,
-    minimum_norm_correction, stencil_jacobian, stencil_rows)
+    minimum_norm_correction, stencil_bend, stencil_jacobian, stencil_rows)
 
 
 def finite_mean(rows: np.ndarray) -> np.ndarray:
@@ -83,7 +83,8 @@ def confirm_compensations(body, states: np.ndarray, targets: np.ndarray,
     for _ in range(int(rounds)):
         if not len(pending):
             break
-        mean, jac, whole = averaged_with_jacobian(body, refined[pending], repeats, fd_step)
+        mean, jac, whole, _ = averaged_with_jacobian(body, refined[pending], repeats,
+                                                     fd_step)
         means[pending] = mean
         step, explained, settled = _judge(jac, mean - targets[pending], rank, whole,
                                           [v[pending] for v in variances], limits,
@@ -126,13 +127,13 @@ def verify_matches(body, states: np.ndarray, targets: np.ndarray,
     uncertain by more than ``max_error`` where the noise is large: such a
     match is never precise, yet located it shows the light layout unchanged
     and which known POVs neighbour the rows it did not match. ``sensed``: a
-    list that receives ``(mean, Jacobian, whole)`` of ``states``."""
+    list that receives ``(mean, Jacobian, whole, bend)`` of ``states``."""
     states = np.asarray(states, dtype=float)
     targets = np.asarray(targets, dtype=float)
     n_sensors = targets.shape[1]
-    mean, jac, whole = averaged_with_jacobian(body, states, repeats, fd_step)
+    mean, jac, whole, bend = averaged_with_jacobian(body, states, repeats, fd_step)
     if sensed is not None:
-        sensed.append((mean, jac, whole))
+        sensed.append((mean, jac, whole, bend))
     residual = mean - targets
     variances, limits = _noise_bounds(target_variance, noise_sd, repeats, confidence,
                                       n_sensors, rank)
@@ -211,7 +212,7 @@ def _slope_holds(body, states, jac, rank, fd_step):
     half of it. A direction's slope does not change with the step; the bend
     a central difference sees along a direction the outputs do not follow
     (one light in view) falls with the step's square, to a quarter."""
-    _, jac_half, whole = averaged_with_jacobian(body, states, 1, halved(fd_step))
+    _, jac_half, whole, _ = averaged_with_jacobian(body, states, 1, halved(fd_step))
     at_step = np.linalg.svd(jac, compute_uv=False)[:, rank - 1]
     at_half = np.linalg.svd(jac_half, compute_uv=False)[:, rank - 1]
     return whole & (at_half >= 0.5 * at_step)
@@ -220,8 +221,8 @@ def _slope_holds(body, states, jac, rank, fd_step):
 def averaged_with_jacobian(body, states, repeats, fd_step):
     """Sense ``states`` ``(K, M)`` with their Jacobian stencils and ``repeats -
     1`` more times, in one call. Returns ``(mean sensation (K, S), Jacobian
-    (K, S, M), whole (K,))``; a stencil with a lost row has no Jacobian
-    (zero, not ``whole``)."""
+    (K, S, M), whole (K,), bend (K,))``; a stencil with a lost row has no
+    Jacobian (zero, not ``whole``); ``bend`` is ``stencil_bend``'s."""
     n_states, n_motors = states.shape
     rows = stencil_rows(n_motors, fd_step)
     stencil = jacobian_stencil(states, fd_step).reshape(n_states, rows, n_motors)
@@ -235,7 +236,7 @@ def averaged_with_jacobian(body, states, repeats, fd_step):
     jac[~whole] = 0.0
     mean = np.stack([finite_mean(np.concatenate([sensed[k, :1], sensed[k, rows:]]))
                      for k in range(n_states)])
-    return mean, jac, whole
+    return mean, jac, whole, stencil_bend(sensed[:, :rows], fd_step)
 
 
 @dataclass

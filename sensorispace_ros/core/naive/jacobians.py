@@ -235,6 +235,28 @@ def stencil_jacobian(answer: np.ndarray, fd_step: float):
     return sensations, np.swapaxes(answer[..., 1:, :] - sensations[..., None, :], -1, -2) / fd_step
 
 
+def stencil_bend(answer: np.ndarray, fd_step: float) -> np.ndarray:
+    """``(...)``: how far the two one-sided differences of a central stencil
+    disagree, over their sum (``|ahead + behind - 2 centre| / |ahead -
+    behind|``, every joint and output at once) from what its rows
+    ``answer`` ``(..., stencil_rows, S)`` sensed: near 0 where the sensation
+    runs straight across the stencil, 1 where one side does not change at all
+    (a jump within the step, whose secant is no slope of the state's pose).
+    Zeros for a step without a side behind (forward or a cloud)."""
+    if isinstance(fd_step, CloudStep) or not isinstance(fd_step, SymmetricStep):
+        return np.zeros(answer.shape[:-2])
+    if isinstance(fd_step, AveragedStep):
+        answer = answer.reshape(answer.shape[:-2] + (-1, fd_step.repeats, answer.shape[-1]))
+        answer = answer.mean(axis=-2)
+    n_motors = (answer.shape[-2] - 1) // 2
+    centre = answer[..., :1, :]
+    ahead, behind = answer[..., 1:n_motors + 1, :], answer[..., n_motors + 1:, :]
+    axes = (-2, -1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.linalg.norm(ahead + behind - 2.0 * centre, axis=axes) / \
+            np.linalg.norm(ahead - behind, axis=axes)
+
+
 def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:
     """The rows ``sensory_jacobian`` senses for ``motor_states`` ``(B, M)``:
     ``(B * stencil_rows, M)``, each state then its displaced copies (``+h``

@@ -5,12 +5,13 @@ top of the error of the POV it was found from: along the chains of
 compensations the POVs drift off the lattice of the world's displacements.
 A located sweep match says that POV ``b``, sensed at event ``k``, sits
 relative to the object where POV ``a`` sat at the snapshot's event ``k'``;
-its residual is ``r = s_k(b) - s_k'(a) = G (pose error of b - pose error of
-a) + noise``, with ``G`` the sensation's slope at that one relative pose in
-that one light layout. Where the agent sensed the Jacobians of both sides
-in their own worlds (``J_b = G P_b`` at ``k``, ``J_a = G P_a`` at ``k'``:
-one ``G``), moves ``c`` of the POVs' first samples that make the pair agree
-satisfy ``r + J_b c_b - J_a c_a = 0``. Every such pair of the run gives one
+the two POVs' own averages then differ by ``r = s_k(b) - s_k'(a) = G (pose
+error of b - pose error of a) + noise``, with ``G`` the sensation's slope at
+that one relative pose in that one light layout. Where the agent sensed the
+Jacobians of both sides in their own worlds (``J_b = G P_b`` at ``k``,
+``J_a = G P_a`` at ``k'``: one ``G``; a stencil across a jump gives no
+slope and ties nothing), moves ``c`` of the POVs' first samples that make
+the pair agree satisfy ``r + J_b c_b - J_a c_a = 0``. Every such pair of the run gives one
 weighted linear least-squares problem over all POVs
 (``relaxed_corrections``). Each POV's move is held to the scale of the
 offsets the agent measured (``match_discrepancy``), so that what few pairs
@@ -50,6 +51,9 @@ RIDGE = 1e-9
 # the POVs' separation.
 NEIGHBOURS = 6
 NEIGHBOUR_REACH = 2.0
+# A stencil whose one-sided differences disagree by more than this share of
+# their sum (one side three times the other: ``jacobians.stencil_bend``).
+STRAIGHT = 0.5
 # Directions of the displacements toward the neighbours weaker than this
 # share of the strongest carry none of a correction (``neighbour_transport``).
 SPAN = 0.2
@@ -57,46 +61,56 @@ SPAN = 0.2
 
 @dataclass
 class MatchEvidence:
-    """What the sweeps' verified matches measured: the Jacobian of every
-    POV's first sample sensed at an event (``(pov, event) -> (S, M)``), and
-    every kept match's POVs, events, residual ``(S,)`` and per-receptor
-    variance."""
+    """What the sweeps' verified matches measured: every POV's first sample
+    sensed at an event, averaged, with its Jacobian (``(pov, event) ->
+    (jacobian (S, M), mean (S,), variance of the mean per receptor)``), and
+    every kept match's POVs, events and the discrepancy measured then.
 
-    jacobians: dict = field(default_factory=dict)
+    A match's residual is the two POVs' own averages, not the snapshot's
+    row: a snapshot row pools the sensings of every POV its chain of matches
+    joined (``anchors.pooled_sweep``), each with a pose error of its own, so
+    it stands between them and its difference understates the pair's."""
+
+    sensed: dict = field(default_factory=dict)
     matches: list = field(default_factory=list)
 
     def discrepancy(self) -> float:
         """The median over the kept matches of the discrepancy noted with each."""
-        return float(np.median([m[6] for m in self.matches])) if self.matches else 0.0
+        return float(np.median([m[4] for m in self.matches])) if self.matches else 0.0
 
-    def note(self, event: int, povs: np.ndarray, jac: np.ndarray, whole: np.ndarray,
-             snapshot_event: int, rows: np.ndarray, residual: np.ndarray,
-             variance: np.ndarray, kept: np.ndarray, discrepancy: float) -> None:
+    def note(self, event: int, povs: np.ndarray, jac: np.ndarray, mean: np.ndarray,
+             whole: np.ndarray, mean_variance: float, snapshot_event: int, rows: np.ndarray,
+             kept: np.ndarray, discrepancy: float) -> None:
         """One snapshot's verified matches at ``event``: POVs ``povs`` (K,)
-        sensed with Jacobians ``jac`` (``whole`` where every stencil row came
-        back), matching rows ``rows`` of the snapshot of ``snapshot_event``
-        with ``residual`` (K, S) of per-receptor ``variance`` (K,, the
-        ``discrepancy`` measured then included); the matches ``kept`` enter
-        the problem."""
+        sensed with Jacobians ``jac`` and averages ``mean`` (K, S) of
+        per-receptor variance ``mean_variance`` (``whole`` where every
+        stencil row came back), matching the POVs ``rows`` (K,) of the
+        snapshot of ``snapshot_event`` (the ``discrepancy`` measured then);
+        the matches ``kept`` enter the problem."""
         for k in np.flatnonzero(whole):
-            self.jacobians[(int(povs[k]), int(event))] = np.array(jac[k], dtype=float)
+            if np.all(np.isfinite(mean[k])):
+                self.sensed[(int(povs[k]), int(event))] = (
+                    np.array(jac[k], dtype=float), np.array(mean[k], dtype=float),
+                    float(mean_variance))
         for k in np.flatnonzero(np.asarray(kept) & np.asarray(whole)):
-            if np.all(np.isfinite(residual[k])):
-                self.matches.append((int(povs[k]), int(event), int(rows[k]), int(snapshot_event),
-                                     np.array(residual[k], dtype=float), float(variance[k]),
-                                     float(discrepancy)))
+            self.matches.append((int(povs[k]), int(event), int(rows[k]), int(snapshot_event),
+                                 float(discrepancy)))
 
     def pairs(self):
         """``(b, a, J_b, J_a, residual, variance)`` of the matches whose two
-        sides' Jacobians were both sensed (arrays, K first)."""
-        both = [m[:6] for m in self.matches if (m[2], m[3]) in self.jacobians]
+        sides were both sensed (arrays, K first): the residual ``(K, S)`` of
+        their averages, its per-receptor variance ``(K,)`` theirs plus the
+        discrepancy."""
+        both = [(self.sensed[m[:2]], self.sensed[m[2:4]], m) for m in self.matches
+                if m[:2] in self.sensed and m[2:4] in self.sensed]
         if not both:
             return None
-        b, event, a, snap_event, residual, variance = zip(*both)
-        jac_b = np.stack([self.jacobians[(i, e)] for i, e in zip(b, event)])
-        jac_a = np.stack([self.jacobians[(i, e)] for i, e in zip(a, snap_event)])
-        return (np.array(b), np.array(a), jac_b, jac_a, np.stack(residual),
-                np.array(variance))
+        jac_b = np.stack([b[0] for b, _, _ in both])
+        jac_a = np.stack([a[0] for _, a, _ in both])
+        residual = np.stack([b[1] - a[1] for b, a, _ in both])
+        variance = np.array([b[2] + a[2] + m[4] for b, a, m in both])
+        return (np.array([m[0] for *_, m in both]), np.array([m[2] for *_, m in both]),
+                jac_b, jac_a, residual, variance)
 
 
 def relaxed_corrections(evidence: MatchEvidence, n_povs: int, n_motors: int,
@@ -186,18 +200,19 @@ class RelaxedPOVs:
     ``SnapshotMatching._verify_matches`` sensed, ``relax_povs`` moves the
     POVs at the end of exploring."""
 
-    def _note_verified(self, snap, before, after, sensed, counts, repeats, kept) -> None:
+    def _note_verified(self, snap, before, after, sensed, repeats, kept) -> None:
         """Note one snapshot's verified matches (``sensed``: ``verify_matches``'s
-        ``(mean, jac, whole)`` of the POVs ``after``, each averaged ``repeats``
-        times, the snapshot's rows ``counts`` times)."""
+        ``(mean, jac, whole, bend)`` of the POVs ``after``, each averaged
+        ``repeats`` times, matching the snapshot's rows ``before``). A POV
+        whose stencil bends beyond ``STRAIGHT`` ties no pair: its Jacobian is
+        the secant across a jump, not the slope its pose error moves along."""
         if not (self.params.relax_povs and self._repeats > 1):
             return
         if getattr(self, "_match_evidence", None) is None:
             self._match_evidence = MatchEvidence()
-        mean, jac, whole = sensed
-        variance = self.structure.noise ** 2 * (1.0 / counts + 1.0 / repeats) + self._discrepancy
-        self._match_evidence.note(self._event, after, jac, whole, snap.event, before,
-                                  mean - snap.sensations[before], variance, kept,
+        mean, jac, whole, bend = sensed
+        self._match_evidence.note(self._event, after, jac, mean, whole & (bend <= STRAIGHT),
+                                  self.structure.noise ** 2 / repeats, snap.event, before, kept,
                                   self._discrepancy)
 
     def relax_povs(self) -> int:
