@@ -25,9 +25,10 @@ that, so the agent reads it from its own POVs instead
 the neighbouring poses, and the displacement from each sample to the
 nearest point of a neighbour's loop is how that sample moves toward the
 neighbour's pose. The move of the first sample, fitted by those
-displacements there, gives every sample's by the same combination (what
-of it no lattice step holds, a turn of the eye or a step along the loop,
-stays). No motor state is probed.
+displacements there, gives every other sample's by the same combination
+(what of it no lattice step holds, a turn of the eye or a step along the
+loop, stays); the first sample, the one every pair sensed, moves by its
+solved move itself. No motor state is probed.
 """
 from __future__ import annotations
 
@@ -220,7 +221,8 @@ class RelaxedPOVs:
         pairs better than the ``noise_confidence`` quantile of chi-square
         with ``pose_rank`` degrees allows of noise, and is at most half the
         POVs' separation (beyond, it would not correct a pose error but put
-        the POV on another pose); its loop by ``neighbour_transport``.
+        the POV on another pose): its first sample, which every pair sensed,
+        by that move, the other samples by ``neighbour_transport``.
         Returns how many POVs moved; ``relaxed_ids`` are which (a second call
         moves nothing more and returns the same)."""
         evidence = getattr(self, "_match_evidence", None)
@@ -244,6 +246,7 @@ class RelaxedPOVs:
             shifts[pov] = neighbour_transport(samples[pov], samples[near], moves[pov])
         for pov, shift in shifts.items():
             if shift is not None:
+                shift[0] = moves[pov]       # what its pairs measured, a turn of the eye too
                 self._store.replace(int(pov), samples[pov] + shift)
         self._match_evidence = None
         self.relaxed_ids = np.array(sorted(int(pov) for pov, shift in shifts.items()
