@@ -62,6 +62,16 @@ def test_without_the_option_nothing_is_kept_or_moved():
     assert agent.relax_povs() == 0
 
 
+def _bare_agent(kind):
+    """An agent of ``kind`` with only what ``_note_verified`` reads: repeats
+    that spread, a measured noise, no discrepancy."""
+    from types import SimpleNamespace
+    agent = kind.__new__(kind)
+    agent.params, agent._repeats, agent._event = NaiveParams(), 3, 5
+    agent.structure, agent._discrepancy = SimpleNamespace(noise=1e-4), 0.0
+    return agent
+
+
 def test_on_a_clock_the_agent_keeps_nothing_to_move_its_povs():
     # The option is on by default; a world on its own clock leaves the POVs as
     # found, so the clocked agent keeps no match evidence even where the
@@ -74,9 +84,7 @@ def test_on_a_clock_the_agent_keeps_nothing_to_move_its_povs():
     snap = SimpleNamespace(event=1, sensations=np.zeros((3, 6)))
     args = (snap, np.array([0]), np.array([2]), sensed, 4, np.ones(1, dtype=bool))
     for kind, keeps in ((NaiveAgent, True), (ClockedAgent, False)):
-        agent = kind.__new__(kind)
-        agent.params, agent._repeats, agent._event = NaiveParams(), 3, 5
-        agent.structure, agent._discrepancy = SimpleNamespace(noise=1e-4), 0.0
+        agent = _bare_agent(kind)
         agent._note_verified(*args)
         assert (getattr(agent, "_match_evidence", None) is not None) is keeps, kind
 
@@ -87,9 +95,7 @@ def test_a_pov_whose_stencil_bends_ties_no_pair():
     from types import SimpleNamespace
 
     from sensorispace_ros.core.naive.agent import NaiveAgent
-    agent = NaiveAgent.__new__(NaiveAgent)
-    agent.params, agent._repeats = NaiveParams(), 3
-    agent.structure, agent._discrepancy = SimpleNamespace(noise=1e-4), 0.0
+    agent = _bare_agent(NaiveAgent)
     jac, whole = np.ones((1, 6, 4)), np.ones(1, dtype=bool)
     for bend, pairs in ((0.1, 1), (1.0, 0)):
         agent._match_evidence = None

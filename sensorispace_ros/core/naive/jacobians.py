@@ -224,13 +224,10 @@ def stencil_jacobian(answer: np.ndarray, fd_step: float):
     if isinstance(fd_step, CloudStep):
         sensations, jacobians, _ = cloud_fit(answer, fd_step)
         return sensations, jacobians
-    if isinstance(fd_step, AveragedStep):
-        answer = answer.reshape(answer.shape[:-2] + (-1, fd_step.repeats, answer.shape[-1]))
-        answer = answer.mean(axis=-2)
+    answer = _repeats_averaged(answer, fd_step)
     sensations = answer[..., 0, :].copy()
     if isinstance(fd_step, SymmetricStep):
-        n_motors = (answer.shape[-2] - 1) // 2
-        ahead, behind = answer[..., 1:n_motors + 1, :], answer[..., n_motors + 1:, :]
+        _, ahead, behind = _central_sides(answer)
         return sensations, np.swapaxes(ahead - behind, -1, -2) / (2.0 * fd_step)
     return sensations, np.swapaxes(answer[..., 1:, :] - sensations[..., None, :], -1, -2) / fd_step
 
@@ -243,18 +240,28 @@ def stencil_bend(answer: np.ndarray, fd_step: float) -> np.ndarray:
     runs straight across the stencil, 1 where one side does not change at all
     (a jump within the step, whose secant is no slope of the state's pose).
     Zeros for a step without a side behind (forward or a cloud)."""
-    if isinstance(fd_step, CloudStep) or not isinstance(fd_step, SymmetricStep):
+    if not isinstance(fd_step, SymmetricStep):
         return np.zeros(answer.shape[:-2])
-    if isinstance(fd_step, AveragedStep):
-        answer = answer.reshape(answer.shape[:-2] + (-1, fd_step.repeats, answer.shape[-1]))
-        answer = answer.mean(axis=-2)
-    n_motors = (answer.shape[-2] - 1) // 2
-    centre = answer[..., :1, :]
-    ahead, behind = answer[..., 1:n_motors + 1, :], answer[..., n_motors + 1:, :]
+    centre, ahead, behind = _central_sides(_repeats_averaged(answer, fd_step))
     axes = (-2, -1)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.linalg.norm(ahead + behind - 2.0 * centre, axis=axes) / \
             np.linalg.norm(ahead - behind, axis=axes)
+
+
+def _repeats_averaged(answer: np.ndarray, fd_step: float) -> np.ndarray:
+    """``answer`` with the repeats of each row of an ``AveragedStep`` averaged."""
+    if not isinstance(fd_step, AveragedStep):
+        return answer
+    answer = answer.reshape(answer.shape[:-2] + (-1, fd_step.repeats, answer.shape[-1]))
+    return answer.mean(axis=-2)
+
+
+def _central_sides(answer: np.ndarray):
+    """``(centre (..., 1, S), ahead (..., M, S), behind (..., M, S))``: the rows
+    of a central stencil ``answer`` ``(..., 2M + 1, S)``."""
+    n_motors = (answer.shape[-2] - 1) // 2
+    return answer[..., :1, :], answer[..., 1:n_motors + 1, :], answer[..., n_motors + 1:, :]
 
 
 def jacobian_stencil(motor_states: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:

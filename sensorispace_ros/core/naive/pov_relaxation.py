@@ -11,8 +11,8 @@ that one relative pose in that one light layout. Where the agent sensed the
 Jacobians of both sides in their own worlds (``J_b = G P_b`` at ``k``,
 ``J_a = G P_a`` at ``k'``: one ``G``; a stencil across a jump gives no
 slope and ties nothing), moves ``c`` of the POVs' first samples that make
-the pair agree satisfy ``r + J_b c_b - J_a c_a = 0``. Every such pair of the run gives one
-weighted linear least-squares problem over all POVs
+the pair agree satisfy ``r + J_b c_b - J_a c_a = 0``. Every such pair of
+the run gives one weighted linear least-squares problem over all POVs
 (``relaxed_corrections``). Each POV's move is held to the scale of the
 offsets the agent measured (``match_discrepancy``), so that what few pairs
 tie (a shift of many POVs together, a POV in one or two pairs) does not
