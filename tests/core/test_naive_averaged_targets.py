@@ -83,7 +83,8 @@ def _agent(noisy=True, repeats=64, noise=1e-3, weakest=0.002, separation=1.0, po
     samples[:, :, 0] = np.arange(povs)[:, None]
     return SimpleNamespace(
         _noisy=noisy, _repeats=repeats, _event=3, _body=body,
-        params=NaiveParams(averaged_targets=2, frontier_attempts=8, target_singular=4.0),
+        params=NaiveParams(averaged_targets=2, frontier_attempts=8, target_singular=4.0,
+                           frontier_holes=False),
         _store=SimpleNamespace(samples=samples), _frontier_budget=lambda: budget,
         structure=SimpleNamespace(noise=noise, weakest=weakest),
         _max_pose_error=lambda: 0.03 * separation), truth

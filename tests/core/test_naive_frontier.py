@@ -23,7 +23,8 @@ class _Agent(FrontierChoice):
                  skip_split=False):
         self._noisy = noisy
         self.structure = SimpleNamespace(noise=SD)
-        self.params = NaiveParams(frontier_give_way=give_way, frontier_skip_split=skip_split)
+        self.params = NaiveParams(frontier_give_way=give_way, frontier_skip_split=skip_split,
+                                  frontier_holes=False)
         self._body = SimpleNamespace(n_sensors=n_sensors)
         self._store = SimpleNamespace(count=n_povs)
         self._split_now = np.asarray(split_now, dtype=float).reshape(-1, n_sensors)

@@ -128,7 +128,8 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
     from the target. ``by_motor``: the neighbour is the matched row whose
     POV lies nearest the row's in motor space (a sensation alike may be a
     far pose's), and the request carries its ``Neighbours``. ``order(distance,
-    rows, snapshot)``: the rows' indices in the order asked (default nearest first)."""
+    rows, snapshot, (before, after))``: the rows' indices in the order asked
+    (default nearest first), given the snapshot's matches."""
     for k, snap in enumerate(pool):
         before, after = matches[k]
         if len(before) == 0:
@@ -142,7 +143,7 @@ def frontier_requests(pool: list, matches, *, pov_samples: np.ndarray, attempts:
         distance, nearest = cKDTree(snap.sensations[before]).query(
             snap.sensations[unmatched], k=1)
         chosen = np.argsort(distance, kind="stable") if order is None else \
-            order(distance, unmatched, snap)
+            order(distance, unmatched, snap, (before, after))
         requests = [Request(k, int(unmatched[i]), snap.sensations[unmatched[i]],
                             pov_samples[unmatched[i], 0], pov_samples[after[nearest[i]], 0],
                             snap.count(int(unmatched[i])))

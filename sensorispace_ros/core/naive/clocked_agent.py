@@ -336,6 +336,11 @@ class ClockedAgent(KnownNearby, BriefWalks, Witnesses, BoundedSweep, HoleTargets
         share = min(1.0, getattr(self, "_unconfirmed_success", 1.0) / 0.2)
         return max(self.params.clock_unconfirmed_min_rate, share)
 
+    def _frontier_holes(self):
+        """None: on a clock its own hole targets replace the frontier rows
+        (``clock_holes``); until they do, the rows keep their order."""
+        return None
+
     def _anchor_params(self):
         """The agent's parameters, except that once it knows more POVs than
         ``unconfirmed_max_povs`` it still searches for one unconfirmed anchor

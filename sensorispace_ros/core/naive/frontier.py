@@ -38,18 +38,27 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from .frontier_holes import FrontierHoles
 from .targets import averages_targets
 
 
-class FrontierChoice:
+class FrontierChoice(FrontierHoles):
     """Mixin of ``NaiveAgent``: needs its ``params``, ``structure``, ``_body``,
-    ``_store``, ``_pool``, ``_noisy`` and ``_frontier_success``; reads the
-    sensations of the remembered split POVs this event (``_split_now``)."""
+    ``_store``, ``_pool``, ``_sets``, ``_event``, ``_noisy`` and
+    ``_frontier_success``; reads the sensations of the remembered split POVs
+    this event (``_split_now``)."""
 
-    def _frontier_order(self, distance, rows, snapshot) -> np.ndarray:
+    def _frontier_order(self, distance, rows, snapshot, matched=None) -> np.ndarray:
         """Indices into ``rows`` (a snapshot's unmatched rows, ``distance``
         their sensory distance to the nearest matched row), in the order
-        their requests are made (module docstring); the split ones left out."""
+        their requests are made (module docstring); the split ones left out.
+        Given the snapshot's matches ``matched`` ``(before, after)``, then
+        ordered by the lattice (``frontier_holes``)."""
+        order = self._rows_in_turn(distance, rows, snapshot)
+        return order if matched is None else self._hole_order(order, rows, matched)
+
+    def _rows_in_turn(self, distance, rows, snapshot) -> np.ndarray:
+        """``_frontier_order`` before the lattice's order."""
         order = np.argsort(distance, kind="stable")
         if snapshot.counts is not None and averages_targets(self):
             order = order[np.argsort(-snapshot.counts[rows[order]], kind="stable")]
@@ -99,6 +108,7 @@ class FrontierChoice:
             fails = self._frontier_fails()
             for i, new in zip(frontier, hit):
                 fails[requests[i].row] += not new
+        self._place_frontier_finds(requests, found, new_povs)
         if frontier:
             self._frontier_success = 0.9 * self._frontier_success + 0.1 * sum(hit) / len(frontier)
 

@@ -115,6 +115,20 @@ class HoleMap:
         steps = self.ij[after[both]] - self.ij[before[both]]
         return steps[0] if np.all(steps == steps[0]) else None
 
+    def row_targets(self, rows: np.ndarray, step):
+        """The targets of POV ``rows`` ``(R,)`` moved by the lattice ``step``:
+        ``(points (R, d), known (R,), neighbours (R,))``: each row's point,
+        whether a known POV holds it, and how many known POVs lie next to it
+        (-1 where the map does not place the row)."""
+        rows = np.asarray(rows, dtype=int)
+        known = {tuple(p) for p in self.ij[self.placed].tolist()}
+        points = self.ij[rows] + np.asarray(step, dtype=int)
+        held = np.array([tuple(p) in known for p in points.tolist()], dtype=bool)
+        near = np.array([sum(tuple(q) in known for q in (p + self._offsets).tolist())
+                         for p in points], dtype=int).reshape(-1)
+        placed = self.placed[rows]
+        return points, held & placed, np.where(placed, near, -1)
+
     def candidates(self, rows_by_snapshot, max_fails: int) -> list[Candidate]:
         """``rows_by_snapshot`` ``[(snapshot, rows (POV indices), step), ...]``
         (most recent first): the empty points their targets lie at, each once,

@@ -87,6 +87,7 @@ class NaiveParams:
     frontier_attempts: int = _default("frontier_attempts")
     frontier_give_way: bool = _default("frontier_give_way")
     frontier_skip_split: bool = _default("frontier_skip_split")
+    frontier_holes: bool = _default("frontier_holes")
     match_discrepancy: bool = _default("match_discrepancy")
     equality_snapshots: int = _default("equality_snapshots")
     confirm_checks: int = _default("confirm_checks")
