@@ -121,20 +121,31 @@ class HoleMap:
         whether a known POV holds it, and how many known POVs lie next to it
         (-1 where the map does not place the row)."""
         rows = np.asarray(rows, dtype=int)
-        known = {tuple(p) for p in self.ij[self.placed].tolist()}
+        known = self._known()
         points = self.ij[rows] + np.asarray(step, dtype=int)
         held = np.array([tuple(p) in known for p in points.tolist()], dtype=bool)
-        near = np.array([sum(tuple(q) in known for q in (p + self._offsets).tolist())
-                         for p in points], dtype=int).reshape(-1)
+        near = np.array([len(self._known_next_to(p, known)) for p in points.tolist()],
+                        dtype=int).reshape(-1)
         placed = self.placed[rows]
         return points, held & placed, np.where(placed, near, -1)
+
+    def _known(self) -> dict:
+        """``{point: POV}`` of the POVs the map places."""
+        return {tuple(p): i for i, p in enumerate(self.ij.tolist()) if self.placed[i]}
+
+    def _known_next_to(self, point, known: dict) -> list:
+        """``[(lattice steps away, POV), ...]``: the POVs of ``known`` next
+        to ``point`` (along an axis or diagonally)."""
+        return [(sum(map(abs, o)), known[q]) for o, q in
+                zip(self._offsets.tolist(), map(tuple, (np.array(point) + self._offsets).tolist()))
+                if q in known]
 
     def candidates(self, rows_by_snapshot, max_fails: int) -> list[Candidate]:
         """``rows_by_snapshot`` ``[(snapshot, rows (POV indices), step), ...]``
         (most recent first): the empty points their targets lie at, each once,
         not given up, next to at least one known POV; the most known
         neighbours first, then the fewest failures."""
-        known = {tuple(p): i for i, p in enumerate(self.ij.tolist()) if self.placed[i]}
+        known = self._known()
         found: dict[tuple, tuple] = {}
         for snapshot, rows, step in rows_by_snapshot:
             rows = np.asarray(rows, dtype=int)
@@ -143,10 +154,7 @@ class HoleMap:
                 point = tuple(point)
                 if point in known or point in found or self.fails.get(point, 0) >= max_fails:
                     continue
-                near = [(sum(map(abs, o)), known[q]) for o, q in
-                        zip(self._offsets.tolist(),
-                            map(tuple, (np.array(point) + self._offsets).tolist()))
-                        if q in known]
+                near = self._known_next_to(point, known)
                 if near:
                     found[point] = (len(near), self.fails.get(point, 0), int(row), snapshot,
                                     min(near)[1])
