@@ -11,7 +11,8 @@ import pytest
 
 from sensorispace_ros.core.arm import PAPER_ARM, wrap_angle
 from sensorispace_ros.core.naive.pov_relaxation import (MatchEvidence, loop_displacements,
-                                                         neighbour_transport, relaxed_corrections)
+                                                         neighbour_transport, off_loop,
+                                                         relaxed_corrections)
 from sensorispace_ros.core.paper.points_of_view import sample_points_of_view
 
 S, M, RANK = 6, 4, 3
@@ -191,3 +192,17 @@ def test_a_turn_of_the_eye_no_lattice_step_holds_leaves_the_loop_one_pose(lattic
     assert np.max(np.linalg.norm(apart, axis=1)) < 0.05 * np.linalg.norm(step)
     assert abs(wrap_angle(moved[0, 2] - pose[2])) < 0.1 * step[2]
     assert np.linalg.norm(moved[0, :2] - pose[:2] - step[:2]) < 0.5 * np.linalg.norm(step[:2])
+
+
+def test_a_move_along_its_own_loop_keeps_the_pov_on_its_pose(lattice_loops):
+    # The first sample slid to the loop's fourth sample: the same pose, as
+    # far in motor space as a step to a neighbour's pose; only the step off
+    # the loop (toward the neighbour's, or the slide plus that step) counts.
+    _, loop, neighbours = lattice_loops
+    along = wrap_angle(loop[3] - loop[0])
+    toward, toward_there = loop_displacements(loop[[0, 3]], neighbours[0])
+    assert np.linalg.norm(along) > np.linalg.norm(toward)
+    moves = np.stack([np.zeros(M), along, toward, along + 0.3 * toward_there])
+    lands = off_loop(np.repeat(loop[None], 4, axis=0), moves)
+    np.testing.assert_allclose(lands, [0.0, 0.0, np.linalg.norm(toward),
+                                       0.3 * np.linalg.norm(toward_there)], rtol=0.02, atol=1e-3)

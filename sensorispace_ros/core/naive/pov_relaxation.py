@@ -43,7 +43,7 @@ from sensorispace_ros.core.motor_loops import wrap_phase
 from sensorispace_ros.core.naive.neighbours import curve_distances
 
 __all__ = ["MatchEvidence", "RelaxedPOVs", "loop_displacements", "neighbour_transport",
-           "relaxed_corrections"]
+           "off_loop", "relaxed_corrections"]
 
 # A ridge under the prior, relative to its mean diagonal: what no Jacobian
 # measures (each loop's own direction, POVs in no pair) stays put.
@@ -178,6 +178,16 @@ def loop_displacements(loop: np.ndarray, other: np.ndarray) -> np.ndarray:
     return foot[np.arange(len(loop)), nearest]
 
 
+def off_loop(samples: np.ndarray, moves: np.ndarray) -> np.ndarray:
+    """``(P,)``: how far each POV's first sample of ``samples`` ``(P, N, M)``
+    moved by ``moves`` ``(P, M)`` lands from the POV's own loop. A move along
+    the loop stays on the POV's pose (what no Jacobian measures, the noise of
+    the Jacobians may fill), so only this part changes the pose."""
+    moved = samples[:, 0] + moves
+    return np.array([np.linalg.norm(loop_displacements(moved[p][None], samples[p])[0])
+                     for p in range(len(samples))])
+
+
 def neighbour_transport(loop: np.ndarray, neighbours: np.ndarray,
                         correction: np.ndarray) -> np.ndarray | None:
     """``(N, M)`` the move of every sample of ``loop`` whose first sample
@@ -219,9 +229,9 @@ class RelaxedPOVs:
     def relax_povs(self) -> int:
         """Move every POV by ``relaxed_corrections`` where its move explains its
         pairs better than the ``noise_confidence`` quantile of chi-square
-        with ``pose_rank`` degrees allows of noise, and is at most half the
-        POVs' separation (beyond, it would not correct a pose error but put
-        the POV on another pose): its first sample, which every pair sensed,
+        with ``pose_rank`` degrees allows of noise, and lands at most half the
+        POVs' separation off its own loop (``off_loop``; beyond, it would not
+        correct a pose error but put the POV on another pose): its first sample, which every pair sensed,
         by that move, the other samples by ``neighbour_transport``.
         Returns how many POVs moved; ``relaxed_ids`` are which (a second call
         moves nothing more and returns the same)."""
@@ -234,7 +244,7 @@ class RelaxedPOVs:
         threshold = chi2.ppf(self.params.noise_confidence, self.structure.pose_rank)
         moves, justified = relaxed_corrections(evidence, *samples.shape[::2], threshold)
         separation = self._store.separation()
-        size = np.linalg.norm(moves, axis=1)
+        size = off_loop(samples, moves)
         everyone = np.ones(len(samples), dtype=bool)
         shifts = {}
         for pov in np.flatnonzero(justified & (size > 0) & (size <= 0.5 * separation)):
