@@ -231,8 +231,9 @@ class RelaxedPOVs:
         pairs better than the ``noise_confidence`` quantile of chi-square
         with ``pose_rank`` degrees allows of noise, and lands at most half the
         POVs' separation off its own loop (``off_loop``; beyond, it would not
-        correct a pose error but put the POV on another pose): its first sample, which every pair sensed,
-        by that move, the other samples by ``neighbour_transport``.
+        correct a pose error but put the POV on another pose): its first
+        sample, which every pair sensed, by that move, the other samples by
+        ``neighbour_transport``.
         Returns how many POVs moved; ``relaxed_ids`` are which (a second call
         moves nothing more and returns the same)."""
         evidence = getattr(self, "_match_evidence", None)
