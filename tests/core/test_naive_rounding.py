@@ -1,8 +1,10 @@
 """The naive agent on bodies that round their outputs to a step no
 parameter names: the lattice it measures, Jacobians fitted over clouds of
 states (``CloudStep``), and the structure they give where one sensing per
-state hides the weakest pose direction."""
+state hides the weakest pose direction; a search's end refined until what
+is left of its pose error is the rounding's."""
 import pickle
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -13,6 +15,8 @@ from sensorispace_ros.core.naive.jacobians import (CloudStep, SymmetricStep, jac
 from sensorispace_ros.core.naive.noise import measure_body, measure_noise
 from sensorispace_ros.core.naive.noise_spread import output_lattice
 from sensorispace_ros.core.naive.params import NaiveParams
+from sensorispace_ros.core.naive.searching import SearchAndSample
+from sensorispace_ros.core.naive.sense_memory import CountingBody
 from sensorispace_ros.core.paper.exploration import build_world
 
 from imperfect_bodies import ImperfectSensing, SmoothBody
@@ -93,3 +97,47 @@ def test_a_rounding_body_measures_its_pose_rank(start, quantum):
     assert (structure.pose_rank, structure.pov_dim) == (3, 1)
     assert structure.noise == pytest.approx(quantum / np.sqrt(12.0), rel=1e-6)
     assert structure.metrics()["naive.noise_quantum"] == pytest.approx(quantum, rel=1e-6)
+
+
+class _WeakJoint:
+    """Six smooth outputs of two joints; the second moves them ~20 times
+    less than the first (the paper eye's position against its orientation)."""
+
+    n_motors, n_sensors = 2, 6
+
+    def sense(self, motor_states):
+        m = np.asarray(motor_states, dtype=float)
+        k = np.arange(1, 7)
+        return 0.5 + 0.3 * np.sin(k * m[:, :1] + 0.15 * m[:, 1:] * np.cos(k) + k)
+
+    def jacobian(self, m):
+        k = np.arange(1, 7)
+        c = 0.3 * np.cos(k * m[0] + 0.15 * m[1] * np.cos(k) + k)
+        return np.stack([c * k, 0.15 * c * np.cos(k)], axis=1)
+
+
+def test_a_rounded_search_end_is_refined_until_its_step_is_rounding():
+    # Rounded outputs repeat exactly, yet each refined state rounds anew: the
+    # rounds of Gauss-Newton steps go on until the residual in range is what
+    # the rounding explains. One step accepted whatever its residual (the
+    # single-difference Jacobian's noise hides the weak joint) leaves ends
+    # several of the rounding's standard deviations off along it.
+    quantum, rng = 1e-3, np.random.default_rng(0)
+    sd = quantum / np.sqrt(12.0)
+    truth = rng.uniform(-1.0, 1.0, (200, 2))
+    weak_offsets = rng.choice([-1.0, 1.0], 200) * rng.choice([0.1, 0.3], 200)
+    starts = truth + np.c_[np.zeros(200), weak_offsets]
+    targets = ImperfectSensing(_WeakJoint(), quantum=quantum).sense(truth)
+    agent = SimpleNamespace(
+        _body=CountingBody(ImperfectSensing(_WeakJoint(), seed=1, quantum=quantum), remember=False),
+        _repeats=1, _fd_step=SymmetricStep(0.02), _max_pose_error=lambda: np.inf,
+        structure=SimpleNamespace(noise=sd, quantum=quantum, pose_rank=2),
+        params=SimpleNamespace(noise_confidence=0.999, confirm_rounds=3))
+    agent._pinning_floor = lambda: SearchAndSample._pinning_floor(agent)
+    kept = SearchAndSample._confirm(agent, dict(enumerate(starts)), targets,
+                                    dict.fromkeys(range(200), 1))
+    assert len(kept) >= 20
+    for g, state in kept.items():
+        # The weak joint's error one sensing of the end and of the target pin.
+        weakest = np.linalg.svd(_WeakJoint().jacobian(truth[g]), compute_uv=False)[-1]
+        assert abs(state[1] - truth[g, 1]) <= 5.0 * np.sqrt(2.0) * sd / weakest

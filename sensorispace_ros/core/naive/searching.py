@@ -170,9 +170,13 @@ class SearchAndSample(KnownLoops):
         sensings averaged per round."""
         groups = sorted(solution)
         sd2 = self.structure.noise ** 2
-        if max_step is None and self._repeats <= 1:
-            # Rounding repeats exactly: sensing again cannot refine the end;
-            # one step with the residual, accepted where the noise explains it.
+        if max_step is None and self._repeats <= 1 and self.structure.quantum <= 0:
+            # Float rounding repeats exactly and lies on no lattice: sensing the
+            # end again cannot refine it; one step with the residual, accepted
+            # where the noise explains it. Outputs rounded to a lattice round
+            # anew at each refined state: the rounds go on until the residual in
+            # range is the rounding's (one difference's Jacobian may hide the
+            # weakest direction, and one step along it may land far off).
             max_step = np.inf
         self._body.stage = "compensation"
         stepped, accepted, _ = confirm_compensations(
