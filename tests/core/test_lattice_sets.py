@@ -5,8 +5,8 @@ import pytest
 
 from sensorispace_ros.core.naive.lattice import Lattice, lattice_coordinates
 from sensorispace_ros.core.naive.lattice_sets import (implied_sets, lattice_equalities,
-                                                      pair_support, set_medians, tied_twice,
-                                                      trimmed_lattice)
+                                                      pair_support, set_medians, sliding_povs,
+                                                      tied_twice, trimmed_lattice)
 
 from test_lattice import _sets, _square_patch, _unimodular_map
 
@@ -269,3 +269,37 @@ def test_a_plane_is_one_to_one_but_for_a_few_povs_walked_twice():
     assert not _a_plane(Lattice(ij=strip, placed=placed, residual=0.0))
     assert not _a_plane(Lattice(ij=points[:, :1], placed=placed, residual=0.0))
     assert not _a_plane(None)
+
+
+def _with_sliding_pair(points, pairs, ids, steps=((1, 0), (0, 2), (-2, 1))):
+    """Two more POVs, one step apart, tied to the patch only by sets that
+    hold one pair of each (a snapshot in which only their two rows matched),
+    one set per step of ``steps``: every set holds them twice, yet the two
+    can slide together, each set's step free to follow."""
+    n, index = len(points), {tuple(p): i for i, p in enumerate(points.tolist())}
+    first = np.array([5, 5])
+    extra, extra_ids = [], []
+    for k, step in enumerate(steps):
+        one, two = index.get(tuple(first + step)), index.get(tuple(first + (1, 0) + step))
+        assert one is not None and two is not None
+        extra += [[n, one], [n + 1, two]]
+        extra_ids += [ids.max() + 1 + k] * 2
+    return np.vstack([pairs, extra]), np.r_[ids, extra_ids], n + 2
+
+
+def test_two_povs_that_slide_together_are_left_out_and_the_plane_is_found():
+    # The sliding pair adds a null direction of its own: no plane's lattice
+    # holds with its pairs, trimmed or tied twice; without them it does, with
+    # every POV of the patch placed, and the pair's pairs are not withdrawn
+    # (nothing says they are wrong).
+    points = np.array([(i, j) for i in range(12) for j in range(12)])
+    pairs, ids = _sets(points, 300, 4)
+    pairs, ids, n = _with_sliding_pair(points, pairs, ids)
+    assert np.all(tied_twice(pairs, ids, n)[-6:])
+    assert trimmed_lattice(pairs, ids, n)[0] is None
+    np.testing.assert_array_equal(sliding_povs(pairs, ids, n), [n - 2, n - 1])
+    assert len(sliding_povs(pairs[:-6], ids[:-6], n)) == 0
+    found = lattice_equalities(pairs, ids, n, 1)
+    assert found.placed == len(points) and len(found.pairs)
+    assert not found.kept[-6:].any() and not found.withdrawn[-6:].any()
+    assert found.kept[:-6].all()

@@ -100,8 +100,9 @@ def test_a_rounding_body_measures_its_pose_rank(start, quantum):
 
 
 class _WeakJoint:
-    """Six smooth outputs of two joints; the second moves them ~20 times
-    less than the first (the paper eye's position against its orientation)."""
+    """Six smooth outputs of two joints; the second moves them ~40 times
+    less than the first (singular values; the paper eye's position against
+    its orientation)."""
 
     n_motors, n_sensors = 2, 6
 

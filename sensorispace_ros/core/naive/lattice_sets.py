@@ -12,7 +12,10 @@ and embeds again, until every pair agrees; the pairs kept must then pass
 ``lattice_coordinates``'s exact test with a plane's lattice, one POV to a
 point but for a few (``_a_plane``). Where no embedding gives one, it tries
 again without the POVs fewer than two sets tie (``tied_twice``), which can
-slide.
+slide. ``lattice_equalities`` tries last without the POVs a null direction of
+the constraints moves nearly alone (``sliding_povs``): two POVs tied to the
+others along one step only slide together, and their direction leaves the
+null space three-dimensional however well the other sets agree.
 
 Any two POVs the lattice places are related by the lattice step between
 them: ``implied_sets`` gives one set per step, the pairs of POVs that
@@ -30,17 +33,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensorispace_ros.core.naive.lattice import (Lattice, basis_coordinates, lattice_coordinates,
-                                                 smallest_eigenvectors)
+from sensorispace_ros.core.naive.lattice import (NULL_TOL, Lattice, basis_coordinates,
+                                                 lattice_coordinates, smallest_eigenvectors)
 from sensorispace_ros.core.naive.motor_agreement import agreeing
 
 __all__ = ["ImpliedSets", "LatticeSets", "implied_sets", "lattice_equalities", "pair_support",
-           "set_medians", "tied_twice", "trimmed_lattice", "with_vouched"]
+           "set_medians", "sliding_povs", "tied_twice", "trimmed_lattice", "with_vouched"]
 
 MAX_ROUNDS = 24         # embeddings before the pairs must agree
 HALF_STEP = 0.5         # a pair farther than this from its set's step (lattice units) is dropped
 MAX_DROPPED = 0.05      # a trimming may drop at most this share of the pairs
 MAX_SHARED = 0.05       # at most this share of the placed POVs may share a lattice point
+SLIDE = 0.25            # a POV carrying this share of a null direction alone slides
+SLIDE_GROUP = 32        # ... measured only in a group of at least this many POVs
+SLIDE_ROUNDS = 4        # sliding POVs dropped again at most this many times
 
 
 def set_medians(values: np.ndarray, set_ids: np.ndarray) -> np.ndarray:
@@ -149,6 +155,35 @@ def _trimmed_from_start(pairs, set_ids, n_povs: int, max_dim: int):
     return None, tied, tied
 
 
+def sliding_povs(pairs, set_ids, n_povs: int) -> np.ndarray:
+    """The POVs that a null direction of the constraints moves nearly alone:
+    their leverage in the null space less the constant (the squared norm of
+    their row in its orthonormal basis) above ``SLIDE``. A plane's lattice
+    spreads its two directions over every POV of its group (a leverage of a
+    few over the group's size each); a POV whose pairs tie it to the others
+    along one step adds a direction of its own, which it carries alone."""
+    smallest = smallest_eigenvectors(pairs, set_ids, n_povs, max_dim=8)
+    if smallest is None or len(smallest[0]) < SLIDE_GROUP:
+        return np.zeros(0, dtype=int)
+    group, values, vectors, scale = smallest
+    null = vectors[:, np.abs(values) < NULL_TOL * scale]
+    basis, singular, _ = np.linalg.svd(null - null.mean(axis=0), full_matrices=False)
+    basis = basis[:, singular > 1e-8 * singular.max()] if len(singular) else basis
+    return group[np.sum(basis ** 2, axis=1) > SLIDE]
+
+
+def _without_sliding(pairs, set_ids, n_povs: int) -> np.ndarray:
+    """``(K,)`` bool: the pairs that touch no POV ``sliding_povs`` finds,
+    found again after each drop (``SLIDE_ROUNDS`` at most)."""
+    free = np.ones(len(pairs), dtype=bool)
+    for _ in range(SLIDE_ROUNDS):
+        sliding = sliding_povs(pairs[free], set_ids[free], n_povs)
+        if not len(sliding):
+            break
+        free &= ~np.isin(pairs, sliding).any(axis=1)
+    return free
+
+
 def _a_plane(lattice: Lattice | None) -> bool:
     """Whether ``lattice`` is a plane's: two dimensions, and one-to-one but
     for a few POVs walked twice (``MAX_SHARED``). Pairs that fold the plane
@@ -239,6 +274,8 @@ def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
         return LatticeSets.none()
     lattice, kept, start = _trimmed_from_start(pairs, set_ids, n_povs, max_dim=3)
     if lattice is None:
+        lattice, kept, start = _trimmed_without_sliding(pairs, set_ids, n_povs, kept)
+    if lattice is None:
         return LatticeSets.none(kept)
     tied = pair_support(pairs[kept], set_ids[kept], n_povs)
     usable = tied >= support
@@ -251,6 +288,22 @@ def lattice_equalities(pairs, set_ids, n_povs: int, support: int,
     return LatticeSets(implied, implied_ids, placed=int(np.count_nonzero(lattice.placed)),
                        usable=int(np.count_nonzero(usable & lattice.placed)), kept=kept,
                        withdrawn=start & ~kept)
+
+
+def _trimmed_without_sliding(pairs, set_ids, n_povs: int, kept):
+    """``_trimmed_from_start`` of the pairs ``_without_sliding`` keeps, its
+    masks over every pair (a sliding POV's pairs neither kept nor withdrawn);
+    ``(None, kept, kept)`` where that gives no lattice either."""
+    free = _without_sliding(pairs, set_ids, n_povs)
+    if free.all():
+        return None, kept, kept
+    lattice, kept_free, start_free = _trimmed_from_start(pairs[free], set_ids[free], n_povs,
+                                                         max_dim=3)
+    if lattice is None:
+        return None, kept, kept
+    kept, start = np.zeros(len(pairs), dtype=bool), np.zeros(len(pairs), dtype=bool)
+    kept[free], start[free] = kept_free, start_free
+    return lattice, kept, start
 
 
 def with_vouched(lattice: Lattice, usable: np.ndarray, ij: np.ndarray, placed: np.ndarray):
