@@ -44,17 +44,21 @@ class ImperfectSensing(SensingOnly):
 
 
 class SmoothBody:
-    """Six smooth outputs of two joints (outputs ~0.5, slopes ~1 per rad)."""
+    """Six smooth outputs of two joints (outputs ~0.5, slopes ~1 per rad);
+    ``second`` scales what the second joint moves them by."""
 
     n_motors, n_sensors = 2, 6
+
+    def __init__(self, second: float = 1.0):
+        self.second = second
 
     def sense(self, motor_states):
         m = np.asarray(motor_states, dtype=float)
         k = np.arange(1, 7)
-        return 0.5 + 0.3 * np.sin(k * m[:, :1] + m[:, 1:] * np.cos(k) + k)
+        return 0.5 + 0.3 * np.sin(k * m[:, :1] + self.second * m[:, 1:] * np.cos(k) + k)
 
     def jacobian(self, m):
         """The exact Jacobian at one motor state ``m``."""
         k = np.arange(1, 7)
-        c = 0.3 * np.cos(k * m[0] + m[1] * np.cos(k) + k)
-        return np.stack([c * k, c * np.cos(k)], axis=1)
+        c = 0.3 * np.cos(k * m[0] + self.second * m[1] * np.cos(k) + k)
+        return np.stack([c * k, self.second * c * np.cos(k)], axis=1)

@@ -99,22 +99,9 @@ def test_a_rounding_body_measures_its_pose_rank(start, quantum):
     assert structure.metrics()["naive.noise_quantum"] == pytest.approx(quantum, rel=1e-6)
 
 
-class _WeakJoint:
-    """Six smooth outputs of two joints; the second moves them ~40 times
-    less than the first (singular values; the paper eye's position against
-    its orientation)."""
-
-    n_motors, n_sensors = 2, 6
-
-    def sense(self, motor_states):
-        m = np.asarray(motor_states, dtype=float)
-        k = np.arange(1, 7)
-        return 0.5 + 0.3 * np.sin(k * m[:, :1] + 0.15 * m[:, 1:] * np.cos(k) + k)
-
-    def jacobian(self, m):
-        k = np.arange(1, 7)
-        c = 0.3 * np.cos(k * m[0] + 0.15 * m[1] * np.cos(k) + k)
-        return np.stack([c * k, 0.15 * c * np.cos(k)], axis=1)
+# The second joint moves the outputs ~40 times less than the first (singular
+# values; the paper eye's position against its orientation).
+_WEAK_SECOND = 0.15
 
 
 def test_a_rounded_search_end_is_refined_until_its_step_is_rounding():
@@ -128,9 +115,10 @@ def test_a_rounded_search_end_is_refined_until_its_step_is_rounding():
     truth = rng.uniform(-1.0, 1.0, (200, 2))
     weak_offsets = rng.choice([-1.0, 1.0], 200) * rng.choice([0.1, 0.3], 200)
     starts = truth + np.c_[np.zeros(200), weak_offsets]
-    targets = ImperfectSensing(_WeakJoint(), quantum=quantum).sense(truth)
+    targets = ImperfectSensing(SmoothBody(_WEAK_SECOND), quantum=quantum).sense(truth)
+    body = ImperfectSensing(SmoothBody(_WEAK_SECOND), seed=1, quantum=quantum)
     agent = SimpleNamespace(
-        _body=CountingBody(ImperfectSensing(_WeakJoint(), seed=1, quantum=quantum), remember=False),
+        _body=CountingBody(body, remember=False),
         _repeats=1, _fd_step=SymmetricStep(0.02), _max_pose_error=lambda: np.inf,
         structure=SimpleNamespace(noise=sd, quantum=quantum, pose_rank=2),
         params=SimpleNamespace(noise_confidence=0.999, confirm_rounds=3))
@@ -140,5 +128,6 @@ def test_a_rounded_search_end_is_refined_until_its_step_is_rounding():
     assert len(kept) >= 20
     for g, state in kept.items():
         # The weak joint's error one sensing of the end and of the target pin.
-        weakest = np.linalg.svd(_WeakJoint().jacobian(truth[g]), compute_uv=False)[-1]
+        jacobian = SmoothBody(_WEAK_SECOND).jacobian(truth[g])
+        weakest = np.linalg.svd(jacobian, compute_uv=False)[-1]
         assert abs(state[1] - truth[g, 1]) <= 5.0 * np.sqrt(2.0) * sd / weakest
